@@ -1,0 +1,153 @@
+//! The traits downstream code swaps filters behind.
+//!
+//! * [`LandmarkSlam`]: EKF-SLAM, FastSLAM 1.0 and FastSLAM 2.0: a pose and a map of point
+//!   landmarks, driven by [`Control`]s and range-bearing observations.
+//! * [`ScanSlam`]: grid-based FastSLAM and scan-matching odometry: driven by odometry and
+//!   laser scans, producing a trajectory and an occupancy map.
+//!
+//! Both are object safe, so a program can pick a filter at run time and hold it as
+//! `Box<dyn LandmarkSlam>` or `Box<dyn ScanSlam>`:
+//!
+//! ```
+//! use slam_models::{LandmarkSlam, ScanSlam};
+//! fn _takes(_: Box<dyn LandmarkSlam>, _: Box<dyn ScanSlam>) {}
+//! ```
+
+use crate::data::{Control, LandmarkId, RangeBearing, ScanRecord, TimedPose};
+use crate::error::ModelError;
+use crate::grid_map::GridMap;
+use crate::{Matrix2, Matrix3, Point2, Pose2};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Why a filter step failed. Filters keep their own detailed error enums and convert into
+/// this one at the trait boundary.
+#[derive(Debug, Error)]
+pub enum FilterError {
+    /// A model computation failed (bad input, degenerate geometry, …).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The input was rejected (non-finite value, wrong kind of control, …).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// The filter's state became numerically invalid (a covariance lost positive
+    /// definiteness, every particle weight vanished, …).
+    #[error("numerical failure: {0}")]
+    Numerical(String),
+    /// An error specific to one filter implementation.
+    #[error(transparent)]
+    Other(Box<dyn std::error::Error + Send + Sync>),
+}
+
+/// What one landmark update did: non-fatal diagnostics (faer style "info" struct).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct UpdateInfo {
+    /// Observations received.
+    pub observations: usize,
+    /// Observations associated with landmarks already in the map and used for the update.
+    pub associated: usize,
+    /// Landmarks added to the map by this update.
+    pub new_landmarks: usize,
+    /// Observations rejected (outside every gate and not accepted as new; clutter).
+    pub rejected: usize,
+    /// Landmarks removed (negative evidence, provisional landmarks that expired).
+    pub removed: usize,
+    /// Sum of the normalised innovation squared over associated observations (NIS), and
+    /// its degrees of freedom (2 per associated observation).
+    pub nis: f64,
+    /// Effective sample size after the update (particle filters; `None` for the EKF).
+    pub n_eff: Option<f64>,
+    /// True when the particles were resampled in this step.
+    pub resampled: bool,
+}
+
+/// A landmark estimate: identity, mean (world frame, metres) and 2×2 covariance (m²).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkEstimate {
+    /// The landmark's id (the data's own when known, otherwise assigned by the filter).
+    pub id: LandmarkId,
+    /// Mean position.
+    pub mean: Point2,
+    /// Position covariance.
+    pub covariance: Matrix2,
+}
+
+/// A particle's pose with its normalised weight (for particle-cloud pictures).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WeightedPose {
+    /// The particle's current pose.
+    pub pose: Pose2,
+    /// Normalised weight in [0, 1].
+    pub weight: f64,
+}
+
+/// A landmark-based SLAM filter: EKF-SLAM, FastSLAM 1.0/2.0.
+///
+/// Call order per time step: [`predict`](LandmarkSlam::predict) with the control that moved
+/// the robot, then [`update`](LandmarkSlam::update) with the observations taken after the
+/// motion (an empty slice is allowed). Bearings and headings are radians, CCW positive.
+pub trait LandmarkSlam: Send {
+    /// Short name, e.g. `"ekf"`, `"fastslam2"`.
+    fn name(&self) -> &str;
+
+    /// Moves the belief by one control.
+    fn predict(&mut self, control: &Control) -> Result<(), FilterError>;
+
+    /// Incorporates a batch of observations taken at the current pose.
+    fn update(&mut self, observations: &[RangeBearing]) -> Result<UpdateInfo, FilterError>;
+
+    /// Current pose estimate (the mean, or the best particle's pose for particle filters).
+    fn pose(&self) -> Pose2;
+
+    /// 3×3 covariance of the pose estimate (m², rad²).
+    fn pose_covariance(&self) -> Matrix3;
+
+    /// The current map: every landmark with its id, mean and covariance.
+    fn landmarks(&self) -> Vec<LandmarkEstimate>;
+
+    /// The particle cloud, for particle filters; `None` otherwise.
+    fn particles(&self) -> Option<Vec<WeightedPose>> {
+        None
+    }
+}
+
+/// What one scan-SLAM step did.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct ScanUpdateInfo {
+    /// True when the record carried a scan and the filter ran a full update with it
+    /// (grid FastSLAM skips scans until the robot moved far enough).
+    pub processed_scan: bool,
+    /// Effective sample size after the step (particle filters).
+    pub n_eff: Option<f64>,
+    /// True when the particles were resampled in this step.
+    pub resampled: bool,
+    /// Particles whose scan matching failed and fell back to the motion model.
+    pub match_failures: usize,
+}
+
+/// A scan-based SLAM filter: grid FastSLAM, scan-matching odometry.
+///
+/// Every record, with or without a scan, must be passed in file order; the filter keeps a
+/// pose for each (the last corrected pose composed with the odometry since), so that
+/// [`trajectory`](ScanSlam::trajectory) has one entry per input record.
+pub trait ScanSlam: Send {
+    /// Short name, e.g. `"gridfast"`, `"scanmatch"`.
+    fn name(&self) -> &str;
+
+    /// Processes one record.
+    fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError>;
+
+    /// Current best pose estimate.
+    fn pose(&self) -> Pose2;
+
+    /// The best estimate of the whole trajectory, one pose per record processed so far.
+    fn trajectory(&self) -> Vec<TimedPose>;
+
+    /// The current best map.
+    fn map(&self) -> GridMap;
+
+    /// The particle cloud, for particle filters; `None` otherwise.
+    fn particles(&self) -> Option<Vec<WeightedPose>> {
+        None
+    }
+}

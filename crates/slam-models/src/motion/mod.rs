@@ -1,0 +1,106 @@
+//! Motion models: how a control moves the robot, with exact Jacobians, the control noise
+//! mapped to state space, and samplers.
+//!
+//! * [`velocity`]: the velocity motion model, Probabilistic Robotics (PR) §5.3,
+//!   tables 5.3 (sampler) and 10.1 (EKF linearisation).
+//! * [`odometry`]: the odometry motion model, PR §5.4, tables 5.5/5.6.
+//!
+//! [`MotionModels`] bundles one of each and dispatches on [`Control`], which is what the
+//! filters hold.
+
+pub mod odometry;
+pub mod velocity;
+
+pub use odometry::OdometryModel;
+pub use velocity::VelocityModel;
+
+use crate::data::{Control, OdometryControl, VelocityControl};
+use crate::{Matrix3, Pose2};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// A probabilistic motion model p(x' | u, x) in the form the filters need.
+pub trait MotionModel {
+    /// The control type.
+    type Control;
+
+    /// The noise-free motion x' = g(u, x); θ' normalised to (−π, π].
+    fn predict(&self, pose: &Pose2, u: &Self::Control) -> Pose2;
+
+    /// G = ∂g/∂x (3×3), evaluated at (u, x).
+    fn jacobian_state(&self, pose: &Pose2, u: &Self::Control) -> Matrix3;
+
+    /// The control noise mapped to state space, R = V·M·Vᵀ (+ any noise that acts on the
+    /// state directly), evaluated at (u, x). Units: m², m², rad².
+    fn noise_covariance(&self, pose: &Pose2, u: &Self::Control) -> Matrix3;
+
+    /// Draws x' ~ p(x' | u, x) by perturbing the control (PR tables 5.3 / 5.6).
+    fn sample<R: Rng + ?Sized>(&self, pose: &Pose2, u: &Self::Control, rng: &mut R) -> Pose2;
+}
+
+/// One velocity model and one odometry model; the filters hold this and call it with
+/// whatever [`Control`] the data provides.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MotionModels {
+    /// Used for [`Control::Velocity`].
+    pub velocity: VelocityModel,
+    /// Used for [`Control::Odometry`].
+    pub odometry: OdometryModel,
+}
+
+impl MotionModels {
+    /// g(u, x) for either kind of control.
+    pub fn predict(&self, pose: &Pose2, u: &Control) -> Pose2 {
+        match u {
+            Control::Velocity(c) => self.velocity.predict(pose, c),
+            Control::Odometry(c) => self.odometry.predict(pose, c),
+        }
+    }
+
+    /// G = ∂g/∂x for either kind of control.
+    pub fn jacobian_state(&self, pose: &Pose2, u: &Control) -> Matrix3 {
+        match u {
+            Control::Velocity(c) => self.velocity.jacobian_state(pose, c),
+            Control::Odometry(c) => self.odometry.jacobian_state(pose, c),
+        }
+    }
+
+    /// R = V·M·Vᵀ for either kind of control.
+    pub fn noise_covariance(&self, pose: &Pose2, u: &Control) -> Matrix3 {
+        match u {
+            Control::Velocity(c) => self.velocity.noise_covariance(pose, c),
+            Control::Odometry(c) => self.odometry.noise_covariance(pose, c),
+        }
+    }
+
+    /// Samples x' ~ p(x' | u, x) for either kind of control.
+    pub fn sample<R: Rng + ?Sized>(&self, pose: &Pose2, u: &Control, rng: &mut R) -> Pose2 {
+        match u {
+            Control::Velocity(c) => self.velocity.sample(pose, c, rng),
+            Control::Odometry(c) => self.odometry.sample(pose, c, rng),
+        }
+    }
+}
+
+/// Draws from N(0, variance); a zero (or negative, by rounding) variance gives 0.
+#[inline]
+pub(crate) fn sample_normal<R: Rng + ?Sized>(variance: f64, rng: &mut R) -> f64 {
+    if variance <= 0.0 {
+        return 0.0;
+    }
+    let z: f64 = rng.sample(rand_distr::StandardNormal);
+    z * variance.sqrt()
+}
+
+impl From<VelocityControl> for Control {
+    fn from(u: VelocityControl) -> Self {
+        Control::Velocity(u)
+    }
+}
+
+impl From<OdometryControl> for Control {
+    fn from(u: OdometryControl) -> Self {
+        Control::Odometry(u)
+    }
+}

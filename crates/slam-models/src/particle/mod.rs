@@ -1,0 +1,9 @@
+//! Particle-filter tools: weights in log space, effective sample size, and resampling.
+
+pub mod resample;
+pub mod weights;
+
+pub use resample::Resampler;
+pub use weights::{
+    effective_sample_size, effective_sample_size_log, log_sum_exp, normalize_log_weights,
+};

@@ -1,0 +1,34 @@
+//! # slam: 2-D SLAM in Rust (umbrella crate)
+//!
+//! Re-exports every layer of slam-rs under one name, plus the numeric crates they use, so
+//! that applications depend on one crate and never fight version skew:
+//!
+//! | module | crate | what |
+//! |---|---|---|
+//! | [`models`] | `slam-models` | SE(2), motion/measurement models, resampling, filter traits |
+//! | [`ekf`] | `slam-ekf` | EKF-SLAM |
+//! | [`fastslam`] | `slam-fastslam` | FastSLAM 1.0 / 2.0 |
+//! | [`grid`] | `slam-grid` | occupancy grids, likelihood fields, scan matching |
+//! | [`gridfast`] | `slam-gridfast` | grid-based FastSLAM |
+//! | [`sim`] | `slam-sim` | simulators and scenarios |
+//! | [`io`] | `slam-io` | dataset readers/writers, metrics |
+//!
+//! Dependencies point one way: `models` at the bottom; `ekf`, `fastslam`, `grid`, `sim`, `io`
+//! on it; `gridfast` on `grid`; the `slam` command-line program (`slam-cli`) on top.
+
+pub use faer;
+pub use nalgebra;
+pub use rand;
+pub use rand_pcg;
+pub use slam_ekf as ekf;
+pub use slam_fastslam as fastslam;
+pub use slam_grid as grid;
+pub use slam_gridfast as gridfast;
+pub use slam_io as io;
+pub use slam_models as models;
+pub use slam_sim as sim;
+
+/// The filter and model traits, for glob import: `use slam::prelude::*;`.
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

@@ -1,0 +1,160 @@
+//! `cargo xtask`: the project's automation, as a plain binary with no dependencies
+//! (the matklad xtask pattern). Invoked through the alias in `.cargo/config.toml`.
+//!
+//! * `cargo xtask test-all`: fmt check, clippy with warnings as errors, the whole test suite
+//!   in release mode (doc tests included), rustdoc with warnings as errors, then a one-line
+//!   summary. Exits non-zero if any step fails. This is what CI runs.
+//! * `cargo xtask bench [NAME]`: the criterion benches (all, or one crate's: `ekf`,
+//!   `fastslam`, `grid`, `gridfast`, `sim`).
+//! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
+//!   into `slam-out/eval/`; not part of the test suite.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, ExitCode, Stdio};
+use std::time::Instant;
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("test-all") => test_all(),
+        Some("bench") => bench(args.get(1).map(String::as_str)),
+        Some("eval") => eval(&args[1..]),
+        _ => {
+            eprintln!(
+                "usage: cargo xtask <test-all | bench [ekf|fastslam|grid|gridfast|sim] | eval>"
+            );
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(msg) => {
+            eprintln!("xtask: {msg}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn cargo() -> Command {
+    Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+}
+
+fn run(step: &str, cmd: &mut Command) -> Result<(), String> {
+    eprintln!("xtask: == {step}");
+    let t = Instant::now();
+    let status = cmd
+        .status()
+        .map_err(|e| format!("{step}: cannot start: {e}"))?;
+    eprintln!("xtask: {step} took {:.1} s", t.elapsed().as_secs_f64());
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{step} failed ({status})"))
+    }
+}
+
+/// Runs `cargo test`, streaming its output, and adds up the `test result:` lines.
+fn run_tests(cmd: &mut Command) -> Result<(usize, usize, usize), String> {
+    eprintln!("xtask: == tests");
+    let t = Instant::now();
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("tests: cannot start: {e}"))?;
+    let (mut passed, mut failed, mut ignored) = (0, 0, 0);
+    if let Some(out) = child.stdout.take() {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            println!("{line}");
+            if let Some(rest) = line.trim().strip_prefix("test result:") {
+                passed += count(rest, " passed");
+                failed += count(rest, " failed");
+                ignored += count(rest, " ignored");
+            }
+        }
+    }
+    let status = child.wait().map_err(|e| format!("tests: {e}"))?;
+    eprintln!("xtask: tests took {:.1} s", t.elapsed().as_secs_f64());
+    if !status.success() && failed == 0 {
+        failed += 1; // a build failure or a crashed test binary
+    }
+    Ok((passed, failed, ignored))
+}
+
+/// The number just before `label` in a `test result:` line.
+fn count(line: &str, label: &str) -> usize {
+    line.split(';')
+        .find(|part| part.contains(label))
+        .and_then(|part| part.split_whitespace().rev().nth(1))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0)
+}
+
+fn test_all() -> Result<(), String> {
+    let t = Instant::now();
+    run("fmt", cargo().args(["fmt", "--all", "--", "--check"]))?;
+    run(
+        "clippy",
+        cargo().args([
+            "clippy",
+            "--workspace",
+            "--all-targets",
+            "--release",
+            "--",
+            "-D",
+            "warnings",
+        ]),
+    )?;
+    run(
+        "doc",
+        cargo()
+            .args(["doc", "--workspace", "--no-deps"])
+            .env("RUSTDOCFLAGS", "-D warnings"),
+    )?;
+    let (passed, failed, ignored) = run_tests(cargo().args(["test", "--workspace", "--release"]))?;
+    println!("test-all took {:.0} s", t.elapsed().as_secs_f64());
+    println!("test-all: {passed} passed, {failed} failed, {ignored} skipped");
+    if failed > 0 {
+        return Err(format!("{failed} test(s) failed"));
+    }
+    Ok(())
+}
+
+fn bench(name: Option<&str>) -> Result<(), String> {
+    let mut cmd = cargo();
+    cmd.arg("bench");
+    match name {
+        None => {
+            cmd.arg("--workspace");
+        }
+        Some(n @ ("ekf" | "fastslam" | "grid" | "gridfast" | "sim")) => {
+            cmd.args(["-p", &format!("slam-{n}")]);
+        }
+        Some(other) => return Err(format!("unknown bench group {other:?}")),
+    }
+    run("bench", &mut cmd)
+}
+
+fn eval(extra: &[String]) -> Result<(), String> {
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    let plan = std::path::Path::new("configs/eval.txt");
+    let text = std::fs::read_to_string(plan).map_err(|e| {
+        format!(
+            "{}: {e} (one `slam run ...` argument list per line)",
+            plan.display()
+        )
+    })?;
+    let exe = std::path::Path::new("target/release/slam");
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut cmd = Command::new(exe);
+        cmd.args(line.split_whitespace()).args(extra);
+        run(&format!("eval line {}: slam {line}", i + 1), &mut cmd)?;
+    }
+    Ok(())
+}
