@@ -92,6 +92,7 @@ fn count(line: &str, label: &str) -> usize {
 fn test_all() -> Result<(), String> {
     let t = Instant::now();
     run("fmt", cargo().args(["fmt", "--all", "--", "--check"]))?;
+    tidy()?;
     run(
         "clippy",
         cargo().args([
@@ -117,6 +118,62 @@ fn test_all() -> Result<(), String> {
         return Err(format!("{failed} test(s) failed"));
     }
     Ok(())
+}
+
+/// Cheap source checks (rust-analyzer's "tidy"): every library source file opens with a
+/// module doc comment; no `dbg!` left behind; no `#[should_panic]` standing in for an error
+/// type.
+fn tidy() -> Result<(), String> {
+    eprintln!("xtask: == tidy");
+    let mut problems = Vec::new();
+    let mut stack = vec![std::path::PathBuf::from("crates")];
+    while let Some(dir) = stack.pop() {
+        let entries = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+                continue;
+            }
+            if path.extension().and_then(|e| e.to_str()) != Some("rs") {
+                continue;
+            }
+            let text =
+                std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let in_src = path.components().any(|c| c.as_os_str() == "src");
+            let first = text
+                .lines()
+                .map(str::trim)
+                .find(|l| !l.is_empty())
+                .unwrap_or("");
+            if in_src && !first.starts_with("//!") {
+                problems.push(format!(
+                    "{}: no module doc comment (`//! ...`) at the top",
+                    path.display()
+                ));
+            }
+            for (i, line) in text.lines().enumerate() {
+                if line.contains("dbg!(") {
+                    problems.push(format!("{}:{}: dbg! left in", path.display(), i + 1));
+                }
+                if line.contains("#[should_panic") {
+                    problems.push(format!(
+                        "{}:{}: #[should_panic]: return an error type instead",
+                        path.display(),
+                        i + 1
+                    ));
+                }
+            }
+        }
+    }
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        for p in &problems {
+            eprintln!("tidy: {p}");
+        }
+        Err(format!("tidy found {} problem(s)", problems.len()))
+    }
 }
 
 fn bench(name: Option<&str>) -> Result<(), String> {

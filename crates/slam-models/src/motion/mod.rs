@@ -104,3 +104,50 @@ impl From<OdometryControl> for Control {
         Control::Odometry(u)
     }
 }
+
+#[cfg(test)]
+pub(crate) mod sampler_check {
+    //! Shared statistical check of a sampler against its linearised model.
+    use crate::{normalize_angle, Matrix3, Pose2, Vector3};
+
+    /// Draws `n` samples and checks that their mean is within 5 standard errors of the
+    /// noise-free prediction and that their covariance matches `r` within 5 standard errors
+    /// of a sample covariance ((RᵢᵢRⱼⱼ + Rᵢⱼ²)/n)^½ plus a 3 % allowance for the model's
+    /// nonlinearity.
+    pub fn check(n: usize, mean_expected: Pose2, r: Matrix3, mut draw: impl FnMut() -> Pose2) {
+        let mut d = Vec::with_capacity(n);
+        for _ in 0..n {
+            let p = draw();
+            d.push(Vector3::new(
+                p.x - mean_expected.x,
+                p.y - mean_expected.y,
+                normalize_angle(p.theta - mean_expected.theta),
+            ));
+        }
+        let mean: Vector3 = d.iter().sum::<Vector3>() / n as f64;
+        let mut cov = Matrix3::zeros();
+        for v in &d {
+            let c = v - mean;
+            cov += c * c.transpose();
+        }
+        cov /= (n - 1) as f64;
+        for i in 0..3 {
+            let se = (r[(i, i)] / n as f64).sqrt();
+            assert!(
+                mean[i].abs() <= 5.0 * se + 1e-12,
+                "mean[{i}] = {} (se {se})",
+                mean[i]
+            );
+            for j in 0..3 {
+                let se = ((r[(i, i)] * r[(j, j)] + r[(i, j)].powi(2)) / n as f64).sqrt();
+                let tol = 5.0 * se + 0.03 * (r[(i, i)] * r[(j, j)]).sqrt();
+                assert!(
+                    (cov[(i, j)] - r[(i, j)]).abs() <= tol,
+                    "cov[{i},{j}] = {} vs linearised {} (tol {tol})",
+                    cov[(i, j)],
+                    r[(i, j)]
+                );
+            }
+        }
+    }
+}

@@ -224,4 +224,36 @@ mod tests {
         let u = m.control_from_poses(&a, &b);
         assert!(u.rot1.abs() < 1e-12 && (u.trans + 1.0).abs() < 1e-12 && u.rot2.abs() < 1e-12);
     }
+
+    #[test]
+    fn sampler_moments_match_linearised_model() {
+        use rand::SeedableRng;
+        let m = OdometryModel::new([0.002, 0.0005, 0.002, 0.0005]);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+        for u in [
+            OdometryControl {
+                rot1: 0.3,
+                trans: 1.0,
+                rot2: -0.2,
+            },
+            OdometryControl {
+                rot1: 0.0,
+                trans: 0.0,
+                rot2: 1.2,
+            }, // pure rotation
+            OdometryControl {
+                rot1: 0.1,
+                trans: -0.5,
+                rot2: 0.1,
+            }, // reversing
+        ] {
+            let p = Pose2::new(-2.0, 4.0, -PI + 0.02);
+            super::super::sampler_check::check(
+                100_000,
+                m.predict(&p, &u),
+                m.noise_covariance(&p, &u),
+                || m.sample(&p, &u, &mut rng),
+            );
+        }
+    }
 }

@@ -316,4 +316,37 @@ mod tests {
         );
         assert!(a.distance(&b) < 1e-6);
     }
+
+    #[test]
+    fn sampler_moments_match_linearised_model() {
+        use rand::SeedableRng;
+        let m = VelocityModel::new([0.002, 0.0005, 0.0005, 0.002, 0.0001, 0.0002]);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(42);
+        // A curve, a straight line (ω = 0) and a turn on the spot (v = 0), heading near π.
+        for u in [
+            VelocityControl {
+                v: 1.0,
+                omega: 0.5,
+                dt: 0.5,
+            },
+            VelocityControl {
+                v: 2.0,
+                omega: 0.0,
+                dt: 0.3,
+            },
+            VelocityControl {
+                v: 0.0,
+                omega: -1.0,
+                dt: 0.4,
+            },
+        ] {
+            let p = Pose2::new(3.0, -1.0, PI - 0.05);
+            super::super::sampler_check::check(
+                100_000,
+                m.predict(&p, &u),
+                m.noise_covariance(&p, &u),
+                || m.sample(&p, &u, &mut rng),
+            );
+        }
+    }
 }
