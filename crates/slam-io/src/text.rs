@@ -1,0 +1,224 @@
+//! Line-oriented text input shared by the readers: whole-file loading (plain or gzip,
+//! recognised by its magic bytes), comment skipping, and field parsing whose every error
+//! names the file, the 1-based line number and what was expected.
+
+use crate::error::IoError;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+/// A text file loaded into memory.
+pub(crate) struct TextFile {
+    pub path: PathBuf,
+    pub text: String,
+}
+
+/// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, and a truncated or
+/// corrupt stream is an error. Non-UTF-8 content is an error naming the line.
+pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    let bytes = if bytes.len() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b {
+        let mut out = Vec::with_capacity(bytes.len() * 4);
+        flate2::read::GzDecoder::new(&bytes[..])
+            .read_to_end(&mut out)
+            .map_err(|source| IoError::Decompress {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        out
+    } else {
+        bytes
+    };
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let good = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count() + 1;
+        IoError::Parse {
+            path: path.to_path_buf(),
+            line,
+            expected: "UTF-8 text".into(),
+            found: "invalid byte sequence".into(),
+        }
+    })?;
+    Ok(TextFile {
+        path: path.to_path_buf(),
+        text,
+    })
+}
+
+/// Writes `content` to `path`, gzip-compressed when the name ends in `.gz`.
+pub(crate) fn write_text(path: &Path, content: &str) -> Result<(), IoError> {
+    let gz = path.extension().is_some_and(|e| e == "gz");
+    let file = std::fs::File::create(path).map_err(|e| IoError::io(path, e))?;
+    let mut w = std::io::BufWriter::new(file);
+    let res = if gz {
+        let mut enc = flate2::write::GzEncoder::new(&mut w, flate2::Compression::default());
+        enc.write_all(content.as_bytes())
+            .and_then(|_| enc.finish().map(|_| ()))
+    } else {
+        w.write_all(content.as_bytes())
+    };
+    res.and_then(|_| w.flush())
+        .map_err(|e| IoError::io(path, e))
+}
+
+/// Shortens a line for an error message.
+fn shorten(s: &str) -> String {
+    const MAX: usize = 60;
+    if s.chars().count() <= MAX {
+        s.to_string()
+    } else {
+        let head: String = s.chars().take(MAX).collect();
+        format!("{head}…")
+    }
+}
+
+/// One non-blank, non-comment line, consumed field by field (whitespace separated).
+pub(crate) struct Line<'a> {
+    pub path: &'a Path,
+    /// 1-based line number.
+    pub no: usize,
+    pub text: &'a str,
+    fields: std::str::SplitWhitespace<'a>,
+}
+
+impl<'a> Line<'a> {
+    pub fn new(path: &'a Path, no: usize, text: &'a str) -> Self {
+        Self {
+            path,
+            no,
+            text,
+            fields: text.split_whitespace(),
+        }
+    }
+
+    /// A parse error on this line.
+    pub fn error(&self, expected: impl Into<String>, found: &str) -> IoError {
+        IoError::Parse {
+            path: self.path.to_path_buf(),
+            line: self.no,
+            expected: expected.into(),
+            found: shorten(found),
+        }
+    }
+
+    /// The next field, or an error saying what was expected there.
+    pub fn word(&mut self, expected: &str) -> Result<&'a str, IoError> {
+        match self.fields.next() {
+            Some(w) => Ok(w),
+            None => Err(self.error(format!("{expected} (line ended early)"), self.text.trim())),
+        }
+    }
+
+    /// The next field as a finite f64.
+    pub fn f64(&mut self, what: &str) -> Result<f64, IoError> {
+        let w = self.word(&format!("{what} (a number)"))?;
+        let v: f64 = w
+            .parse()
+            .map_err(|_| self.error(format!("{what} (a number)"), w))?;
+        if !v.is_finite() {
+            return Err(IoError::NonFinite {
+                path: self.path.to_path_buf(),
+                line: self.no,
+                what: what.to_string(),
+                value: v,
+            });
+        }
+        Ok(v)
+    }
+
+    /// The next field as an unsigned integer.
+    pub fn u64(&mut self, what: &str) -> Result<u64, IoError> {
+        let w = self.word(&format!("{what} (a non-negative integer)"))?;
+        w.parse()
+            .map_err(|_| self.error(format!("{what} (a non-negative integer)"), w))
+    }
+
+    /// Errors unless every field has been consumed.
+    pub fn end(&mut self, expected: &str) -> Result<(), IoError> {
+        match self.fields.next() {
+            None => Ok(()),
+            Some(w) => Err(self.error(
+                format!("end of line after {expected}"),
+                &format!("extra field {w:?} in {}", self.text.trim()),
+            )),
+        }
+    }
+
+    /// The remaining fields (for records whose tail is free-form).
+    pub fn rest(&mut self) -> Vec<&'a str> {
+        self.fields.by_ref().collect()
+    }
+}
+
+impl TextFile {
+    /// The data lines: blank lines and lines whose first non-blank character is `#` are
+    /// skipped. Line numbers are 1-based.
+    pub fn data_lines(&self) -> impl Iterator<Item = Line<'_>> {
+        self.text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| {
+                let t = l.trim();
+                !t.is_empty() && !t.starts_with('#')
+            })
+            .map(move |(i, l)| Line::new(&self.path, i + 1, l))
+    }
+
+    /// Errors with [`IoError::Empty`] when the file has no data line.
+    pub fn ensure_not_empty(&self, expected: &str) -> Result<(), IoError> {
+        if self.data_lines().next().is_none() {
+            return Err(IoError::Empty {
+                path: self.path.clone(),
+                expected: expected.to_string(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A text file built in memory for unit tests of readers.
+#[cfg(test)]
+pub(crate) fn from_str(path: &str, text: &str) -> TextFile {
+    TextFile {
+        path: PathBuf::from(path),
+        text: text.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn field_errors_name_line_and_expectation() {
+        let f = from_str("x.dat", "# c\n\n1 2 nan\n3 x\n");
+        let mut lines: Vec<_> = f.data_lines().collect();
+        assert_eq!(lines[0].no, 3);
+        assert_eq!(lines[0].f64("a").unwrap(), 1.0);
+        lines[0].f64("b").unwrap();
+        let e = lines[0].f64("c").unwrap_err().to_string();
+        assert!(e.contains("x.dat:3") && e.contains("not finite"), "{e}");
+        lines[1].f64("a").unwrap();
+        let e = lines[1].f64("b").unwrap_err().to_string();
+        assert!(e.contains("x.dat:4") && e.contains("b (a number)"), "{e}");
+        let e = lines[1].f64("c").unwrap_err().to_string();
+        assert!(e.contains("line ended early"), "{e}");
+        assert!(from_str("e", "# only\n").ensure_not_empty("data").is_err());
+    }
+
+    #[test]
+    fn gzip_round_trip_and_truncation() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("a.log.gz");
+        let content: String = (0..2000).map(|i| format!("ODOM {i} 0 0\n")).collect();
+        write_text(&p, &content).unwrap();
+        assert_eq!(read_text(&p).unwrap().text, content);
+        let bytes = std::fs::read(&p).unwrap();
+        let q = dir.join("b.log.gz");
+        std::fs::write(&q, &bytes[..bytes.len() / 2]).unwrap();
+        assert!(matches!(read_text(&q), Err(IoError::Decompress { .. })));
+        std::fs::write(&q, [b'a', 0xff, b'\n']).unwrap();
+        assert!(matches!(read_text(&q), Err(IoError::Parse { line: 1, .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
