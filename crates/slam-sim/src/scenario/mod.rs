@@ -1,0 +1,149 @@
+//! Named scenarios: `loop`, `figure8`, `city`, `clutter` (landmark worlds), `office` and
+//! `replay` (laser worlds).
+//!
+//! [`generate`] builds a scenario from a name and a [`ScenarioOptions`]; every option is
+//! optional and falls back to the scenario's documented default (see [`list`] and the
+//! per-scenario functions in [`landmarks`] and [`laser`]).
+
+pub mod landmarks;
+pub mod laser;
+
+use crate::error::SimError;
+use crate::SimOutput;
+use serde::{Deserialize, Serialize};
+use slam_models::{GridMap, Point2};
+
+/// Which simulator a scenario uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ScenarioKind {
+    /// Point landmarks and a range-bearing sensor ([`crate::LandmarkSimRun`]).
+    Landmark,
+    /// Walls and a laser scanner ([`crate::LaserSimRun`]).
+    Laser,
+}
+
+/// Name, kind and a one-line description of a scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ScenarioInfo {
+    /// The name [`generate`] accepts.
+    pub name: &'static str,
+    /// Landmark or laser.
+    pub kind: ScenarioKind,
+    /// One line: what the world is and its defaults.
+    pub description: &'static str,
+}
+
+/// All scenarios, in a fixed order.
+pub fn list() -> Vec<ScenarioInfo> {
+    vec![
+        ScenarioInfo {
+            name: "loop",
+            kind: ScenarioKind::Landmark,
+            description: "closed loop of ~60 m (21 m x 11 m rounded rectangle) with 50 landmarks; 1.1 laps, \
+                          odometry controls, range 6 m, 180 deg field of view, ids known",
+        },
+        ScenarioInfo {
+            name: "figure8",
+            kind: ScenarioKind::Landmark,
+            description: "figure-eight (two lobes crossing at the origin, ~64 m) with 40 landmarks; 1.1 laps, ids known",
+        },
+        ScenarioInfo {
+            name: "city",
+            kind: ScenarioKind::Landmark,
+            description: "grid of streets (15 m blocks) with landmarks along them; size set by `landmarks` \
+                          (default 2000, up to millions), random walk of 1500 steps, range 8 m",
+        },
+        ScenarioInfo {
+            name: "clutter",
+            kind: ScenarioKind::Landmark,
+            description: "`loop` with hidden ids, detection probability 0.9 and 1 false alarm per scan on average",
+        },
+        ScenarioInfo {
+            name: "office",
+            kind: ScenarioKind::Laser,
+            description: "office floor (40 m x 20 m, rooms on both sides of a corridor loop); 180 deg 181-beam laser, \
+                          range 20 m, two laps of the corridor",
+        },
+        ScenarioInfo {
+            name: "replay",
+            kind: ScenarioKind::Laser,
+            description: "laser world built from an occupancy map (`replay_map`), driven along `replay_path` \
+                          or a generated path through free space",
+        },
+    ]
+}
+
+/// Options of [`generate`]. Every `None` means "the scenario's default" (listed per field).
+/// Irrelevant options (laser options for a landmark scenario and vice versa) are ignored.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScenarioOptions {
+    /// The seed everything is drawn from (world, noise, clutter). Default 0.
+    pub seed: u64,
+    /// Number of steps (landmark scenarios) or scans (laser scenarios). Default: see
+    /// each scenario (`laps` of its loop, or a fixed count).
+    pub steps: Option<usize>,
+    /// Number of landmarks (`city` size; also honoured by `loop`, `figure8`, `clutter`).
+    pub landmarks: Option<usize>,
+    /// The occupancy map of `replay` (slam-io reads PGM/ROS maps into a [`GridMap`]).
+    pub replay_map: Option<GridMap>,
+    /// Waypoints for `replay` (world frame, metres); default: a path generated through free
+    /// space.
+    pub replay_path: Option<Vec<Point2>>,
+    /// Laps of a closed-loop scenario when `steps` is not given (default 1.1 for the
+    /// landmark loops, 2 for `office`).
+    pub laps: Option<f64>,
+    /// Emit velocity controls (v, ω, Δt) instead of odometry (landmark scenarios).
+    pub velocity: bool,
+    /// Hide landmark ids (default: true in `clutter`, false elsewhere).
+    pub hide_ids: Option<bool>,
+    /// Range noise σr, metres (default 0.1).
+    pub sigma_range: Option<f64>,
+    /// Bearing noise σφ, radians (default 1.5° = 0.0262).
+    pub sigma_bearing: Option<f64>,
+    /// Sensor max range, metres (default 6 for loop/figure8/clutter, 8 for city; laser: 20
+    /// for office, 30 for replay).
+    pub max_range: Option<f64>,
+    /// Range-bearing field of view, radians (default π).
+    pub fov: Option<f64>,
+    /// Probability of detecting a visible landmark (default 1, 0.9 in `clutter`).
+    pub detection_probability: Option<f64>,
+    /// Mean false alarms per scan (default 0, 1 in `clutter`).
+    pub clutter_rate: Option<f64>,
+    /// Odometry noise α1..α4 (PR table 5.6; default (0.005, 0.0002, 0.005, 0.0002)).
+    pub odometry_alpha: Option<[f64; 4]>,
+    /// Velocity noise α1..α6 (PR table 5.3; default: the slam-models default).
+    pub velocity_alpha: Option<[f64; 6]>,
+    /// Model mismatch: draw the noise with all standard deviations multiplied by this factor
+    /// while the data still reports the nominal models (default 1 = the filter's own model).
+    pub noise_scale: Option<f64>,
+    /// Laser beams per scan (default 181 over 180°).
+    pub beams: Option<usize>,
+    /// Laser range noise σ, metres (default 0.01).
+    pub laser_sigma: Option<f64>,
+    /// Probability of a random short reading per beam (people, glass; default 0).
+    pub short_reading_probability: Option<f64>,
+}
+
+/// The names [`generate`] accepts, comma separated.
+fn names() -> String {
+    list().iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
+}
+
+/// Builds the named scenario. `replay:<anything>` is accepted as `replay` (the caller loads
+/// the map into `opts.replay_map`).
+pub fn generate(name: &str, opts: &ScenarioOptions) -> Result<SimOutput, SimError> {
+    let base = name.split_once(':').map_or(name, |(b, _)| b);
+    match base {
+        "loop" => landmarks::loop_scenario(opts).map(SimOutput::Landmark),
+        "figure8" => landmarks::figure8(opts).map(SimOutput::Landmark),
+        "city" => landmarks::city(opts).map(SimOutput::Landmark),
+        "clutter" => landmarks::clutter(opts).map(SimOutput::Landmark),
+        "office" => laser::office(opts).map(SimOutput::Laser),
+        "replay" => laser::replay(opts).map(SimOutput::Laser),
+        _ => Err(SimError::UnknownScenario {
+            name: name.to_string(),
+            expected: names(),
+        }),
+    }
+}
