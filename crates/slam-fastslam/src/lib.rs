@@ -1,6 +1,35 @@
 //! # slam-fastslam: FastSLAM 1.0 and 2.0
 //!
-//! Will hold FastSLAM (Montemerlo et al. 2002/2003, PR ch. 13): particles over the robot
-//! path with a small EKF per landmark, persistent landmark trees shared between particles,
-//! per-particle data association and adaptive resampling. Implements
-//! `slam_models::LandmarkSlam`.
+//! FastSLAM (Montemerlo, Thrun, Koller & Wegbreit, AAAI 2002; Montemerlo et al., IJCAI 2003;
+//! Probabilistic Robotics ch. 13, tables 13.1–13.3): a particle filter over the robot path
+//! in which each particle carries its own map of point landmarks, each landmark a 2-D
+//! Gaussian with its own 2×2 EKF.
+//!
+//! * [`FastSlam`]: the filter, implementing [`slam_models::LandmarkSlam`] under the names
+//!   `"fastslam1"` and `"fastslam2"` ([`Variant`]), configured by [`FastSlamConfig`].
+//! * [`tree::PersistentMap`]: the landmark store — a balanced 16-ary tree with
+//!   `Arc`-shared nodes, so resampling copies a pointer and an update copies only the path to
+//!   the changed landmark: time and memory per step grow with log N, not N.
+//! * [`map::LandmarkMap`]: a particle's map, the landmark tree plus a persistent spatial
+//!   index for nearest-landmark queries (maximum-likelihood association, negative
+//!   evidence).
+//! * [`landmark::Landmark`]: mean, covariance and existence counter of one landmark.
+//! * [`particle::Particle`]: pose, log weight and map.
+//!
+//! Units: metres and radians; bearings counter-clockwise from the heading; angles normalised
+//! to (−π, π].
+
+#![warn(missing_docs)]
+
+pub mod config;
+pub mod error;
+pub mod filter;
+pub mod landmark;
+pub mod map;
+pub mod particle;
+pub mod tree;
+
+pub use config::{Association, FastSlamConfig, Variant};
+pub use error::FastSlamError;
+pub use filter::FastSlam;
+pub use particle::Particle;
