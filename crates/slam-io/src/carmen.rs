@@ -1,23 +1,539 @@
-//! CARMEN logs (TODO).
+//! CARMEN laser logs, plain or gzip-compressed (recognised by content, not by name).
+//!
+//! Records read (space separated, one per line; `#` starts a comment):
+//!
+//! ```text
+//! FLASER N r_1 … r_N  x y θ  odom_x odom_y odom_θ  ipc_timestamp hostname logger_timestamp
+//! RLASER (same as FLASER, rear laser)
+//! ROBOTLASER1 laser_type start_angle fov angular_res max_range accuracy remission_mode
+//!             N r_1 … r_N  M rem_1 … rem_M  laser_x laser_y laser_θ  robot_x robot_y robot_θ
+//!             tv rv forward_safety_dist side_safety_dist turn_axis
+//!             ipc_timestamp hostname logger_timestamp
+//! ODOM x y θ tv rv accel ipc_timestamp hostname logger_timestamp
+//! TRUEPOS true_x true_y true_θ odom_x odom_y odom_θ ipc_timestamp hostname logger_timestamp
+//! PARAM name value [hostname timestamp]
+//! ```
+//!
+//! Every laser or `ODOM` line becomes one [`ScanRecord`] in file order, at its
+//! `ipc_timestamp`, with the odometry (robot) pose of the line; `TRUEPOS` lines form the
+//! ground truth; `PARAM` lines are collected in [`CarmenLog::params`]. Any other record
+//! type (`NEFF`, `SYNC`, …) is counted in [`CarmenLog::unknown_records`], not an error.
+//! Times may repeat or step back (kept in file order).
+//!
+//! **Beam geometry.** `ROBOTLASER1` states it. `FLASER`/`RLASER` lines do not: beam k
+//! points at −90° + k·res with res = 180°/N for N = 180 or 360 and 180°/(N−1) otherwise
+//! ([`LaserScan::flaser_geometry`]); a rear laser looks backwards (sensor heading π).
+//!
+//! **No return.** `ROBOTLASER1` gives `max_range`, and readings ≥ it are no-return. For
+//! `FLASER`/`RLASER` the log's largest reading is the no-return value (81.83, 81.91, 51.1,
+//! … in the Radish logs; the SICK maximum), so `max_range` = that value and readings equal
+//! to it are no-return, distinct from hits. If that largest reading is below 20 m the log
+//! is taken to hold no no-return reading and `max_range` = 81.91 m.
+//!
+//! **Laser offset.** The sensor pose in the robot frame is the laser pose ⊖ the robot
+//! (odometry) pose of the same line. If those two poses are more than 1 m apart they are not
+//! in the same frame, and the `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM
+//! (forward offset, metres; 0 when absent) is used instead.
+
 use crate::error::IoError;
-use slam_models::ScanDataset;
+use crate::text::{read_text, write_text, Line, TextFile};
+use slam_models::{LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose};
 use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::path::Path;
 
-/// A CARMEN log.
+/// Largest reading below which a FLASER log is taken to have no no-return readings, m.
+const NO_RETURN_MIN: f64 = 20.0;
+/// The SICK LMS no-return reading, used when a log shows none, m.
+const SICK_NO_RETURN: f64 = 81.91;
+/// Laser and robot poses further apart than this are in different frames, m.
+const MAX_LASER_OFFSET: f64 = 1.0;
+
+/// A CARMEN log as read.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CarmenLog {
-    /// The records.
+    /// The records (one per laser or ODOM line) and the TRUEPOS ground truth, if any.
     pub dataset: ScanDataset,
-    /// Unknown record types and their counts.
+    /// Record types not understood, with how many lines of each were seen.
     pub unknown_records: BTreeMap<String, usize>,
+    /// Lines of each understood record type.
+    pub record_counts: BTreeMap<String, usize>,
+    /// PARAM name → value (the last one wins).
+    pub params: BTreeMap<String, String>,
+    /// The no-return value used for FLASER/RLASER scans, if the log has any.
+    pub flaser_max_range: Option<f64>,
 }
+
 impl CarmenLog {
-    /// One-line summary.
+    /// A one-line description: record counts, scans, beams, no-return value, ground truth
+    /// and unknown record types.
     pub fn summary(&self, path: &Path) -> String {
-        format!("{}", path.display())
+        let recs = &self.dataset.records;
+        let scans: Vec<&LaserScan> = recs.iter().filter_map(|r| r.scan.as_ref()).collect();
+        let mut beams: Vec<usize> = scans.iter().map(|s| s.len()).collect();
+        beams.sort_unstable();
+        beams.dedup();
+        let counts: Vec<String> = self
+            .record_counts
+            .iter()
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect();
+        let mut s = format!(
+            "CARMEN log {}: {} records ({}), {} scans with {:?} beams, {}",
+            path.display(),
+            recs.len(),
+            counts.join(", "),
+            scans.len(),
+            beams,
+            match (recs.first(), recs.last()) {
+                (Some(a), Some(b)) => format!("t = {} … {} s", a.t, b.t),
+                _ => "no records".into(),
+            }
+        );
+        if let Some(m) = self.flaser_max_range {
+            s.push_str(&format!(", no-return reading {m} m"));
+        }
+        s.push_str(match &self.dataset.ground_truth {
+            Some(_) => ", TRUEPOS ground truth",
+            None => ", no ground truth",
+        });
+        if !self.unknown_records.is_empty() {
+            let u: Vec<String> = self
+                .unknown_records
+                .iter()
+                .map(|(k, v)| format!("{v} {k}"))
+                .collect();
+            s.push_str(&format!("; unknown records ignored: {}", u.join(", ")));
+        }
+        s
     }
 }
-/// Reads a log.
+
+/// Reads a CARMEN log (plain or gzip). Errors: malformed line (file, line, expected
+/// field), NaN/∞, negative range, truncated or corrupt gzip, a log without any laser or
+/// ODOM record.
 pub fn read_carmen(path: &Path) -> Result<CarmenLog, IoError> {
-    Err(IoError::invalid(path, "todo"))
+    parse_carmen(&read_text(path)?)
+}
+
+/// Which laser a FLASER-style line came from.
+#[derive(Clone, Copy, PartialEq)]
+enum Laser {
+    Front,
+    Rear,
+}
+
+fn pose(l: &mut Line<'_>, what: &str) -> Result<Pose2, IoError> {
+    let x = l.f64(&format!("{what} x"))?;
+    let y = l.f64(&format!("{what} y"))?;
+    let th = l.f64(&format!("{what} theta"))?;
+    Ok(Pose2::new(x, y, th))
+}
+
+/// `ipc_timestamp hostname logger_timestamp` → the ipc timestamp.
+fn stamp(l: &mut Line<'_>) -> Result<f64, IoError> {
+    let t = l.f64("ipc_timestamp")?;
+    l.word("hostname")?;
+    l.f64("logger_timestamp")?;
+    Ok(t)
+}
+
+fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
+    let n = l.u64(what)?;
+    usize::try_from(n)
+        .ok()
+        .filter(|&n| n <= 100_000)
+        .ok_or_else(|| l.error(format!("{what} ≤ 100000"), &n.to_string()))
+}
+
+fn ranges(l: &mut Line<'_>, n: usize) -> Result<Vec<f64>, IoError> {
+    let mut r = Vec::with_capacity(n);
+    for k in 0..n {
+        let v = l.f64(&format!("range reading {} of {n}", k + 1))?;
+        if v < 0.0 {
+            return Err(l.error("a non-negative range reading", &v.to_string()));
+        }
+        r.push(v);
+    }
+    Ok(r)
+}
+
+/// A pending FLASER/RLASER scan whose `max_range` is set after the whole log is read.
+struct Pending {
+    record: usize,
+    laser: Laser,
+    laser_pose: Pose2,
+}
+
+pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
+    f.ensure_not_empty("CARMEN records")?;
+    let mut records: Vec<ScanRecord> = Vec::new();
+    let mut truth: Vec<TimedPose> = Vec::new();
+    let mut unknown: BTreeMap<String, usize> = BTreeMap::new();
+    let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+    let mut params: BTreeMap<String, String> = BTreeMap::new();
+    let mut pending: Vec<Pending> = Vec::new();
+    let mut flaser_max = f64::NEG_INFINITY;
+    for mut l in f.data_lines() {
+        let kind = l.word("a record type")?;
+        match kind {
+            "FLASER" | "RLASER" => {
+                let n = count(&mut l, "number of readings N")?;
+                let r = ranges(&mut l, n)?;
+                let laser_pose = pose(&mut l, "laser pose")?;
+                let odom = pose(&mut l, "odometry pose")?;
+                let t = stamp(&mut l)?;
+                l.end("the FLASER fields")?;
+                flaser_max = r.iter().copied().fold(flaser_max, f64::max);
+                let (angle_min, angle_increment) = LaserScan::flaser_geometry(n);
+                pending.push(Pending {
+                    record: records.len(),
+                    laser: if kind == "FLASER" {
+                        Laser::Front
+                    } else {
+                        Laser::Rear
+                    },
+                    laser_pose,
+                });
+                records.push(ScanRecord {
+                    t,
+                    odometry: odom,
+                    scan: Some(LaserScan {
+                        angle_min,
+                        angle_increment,
+                        ranges: r,
+                        max_range: SICK_NO_RETURN,
+                        sensor_pose: Pose2::IDENTITY,
+                    }),
+                });
+            }
+            "ROBOTLASER1" => {
+                l.f64("laser_type")?;
+                let angle_min = l.f64("start_angle")?;
+                l.f64("fov")?;
+                let angle_increment = l.f64("angular_res")?;
+                let max_range = l.f64("max_range")?;
+                l.f64("accuracy")?;
+                l.f64("remission_mode")?;
+                let n = count(&mut l, "number of readings N")?;
+                let r = ranges(&mut l, n)?;
+                let m = count(&mut l, "number of remissions M")?;
+                for k in 0..m {
+                    l.f64(&format!("remission {} of {m}", k + 1))?;
+                }
+                let laser_pose = pose(&mut l, "laser pose")?;
+                let robot = pose(&mut l, "robot pose")?;
+                for w in [
+                    "tv",
+                    "rv",
+                    "forward_safety_dist",
+                    "side_safety_dist",
+                    "turn_axis",
+                ] {
+                    l.f64(w)?;
+                }
+                let t = stamp(&mut l)?;
+                l.end("the ROBOTLASER1 fields")?;
+                if max_range <= 0.0 {
+                    return Err(l.error("max_range > 0", &max_range.to_string()));
+                }
+                records.push(ScanRecord {
+                    t,
+                    odometry: robot,
+                    scan: Some(LaserScan {
+                        angle_min,
+                        angle_increment,
+                        ranges: r,
+                        max_range,
+                        sensor_pose: robot.between(&laser_pose),
+                    }),
+                });
+            }
+            "ODOM" => {
+                let odom = pose(&mut l, "odometry pose")?;
+                for w in ["tv", "rv", "accel"] {
+                    l.f64(w)?;
+                }
+                let t = stamp(&mut l)?;
+                l.end("the ODOM fields")?;
+                records.push(ScanRecord {
+                    t,
+                    odometry: odom,
+                    scan: None,
+                });
+            }
+            "TRUEPOS" => {
+                let p = pose(&mut l, "true pose")?;
+                pose(&mut l, "odometry pose")?;
+                let t = stamp(&mut l)?;
+                l.end("the TRUEPOS fields")?;
+                truth.push(TimedPose { t, pose: p });
+            }
+            "PARAM" => {
+                let name = l.word("parameter name")?;
+                let value = l.word("parameter value")?;
+                params.insert(name.to_string(), value.to_string());
+            }
+            other => {
+                *unknown.entry(other.to_string()).or_insert(0) += 1;
+                continue;
+            }
+        }
+        *counts.entry(kind.to_string()).or_insert(0) += 1;
+    }
+    if records.is_empty() {
+        return Err(IoError::Empty {
+            path: f.path.clone(),
+            expected: "at least one FLASER, RLASER, ROBOTLASER1 or ODOM record".into(),
+        });
+    }
+    let flaser_max_range = (!pending.is_empty()).then(|| {
+        if flaser_max >= NO_RETURN_MIN {
+            flaser_max
+        } else {
+            SICK_NO_RETURN
+        }
+    });
+    let param_offset = |name: &str| -> f64 {
+        params
+            .get(name)
+            .and_then(|v| v.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .unwrap_or(0.0)
+    };
+    let front = Pose2::new(param_offset("robot_frontlaser_offset"), 0.0, 0.0);
+    let rear = Pose2::new(
+        param_offset("robot_rearlaser_offset"),
+        0.0,
+        std::f64::consts::PI,
+    );
+    for p in pending {
+        let rec = &mut records[p.record];
+        let mut sensor = rec.odometry.between(&p.laser_pose);
+        if sensor.x.hypot(sensor.y) > MAX_LASER_OFFSET {
+            sensor = if p.laser == Laser::Front { front } else { rear };
+        } else if p.laser == Laser::Rear && sensor.theta.abs() < std::f64::consts::FRAC_PI_2 {
+            // A rear laser whose logged pose carries the robot heading looks backwards.
+            sensor = sensor.compose(&Pose2::new(0.0, 0.0, std::f64::consts::PI));
+        }
+        if let Some(scan) = rec.scan.as_mut() {
+            scan.sensor_pose = sensor;
+            scan.max_range = flaser_max_range.unwrap_or(SICK_NO_RETURN);
+        }
+    }
+    let name = f
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let name = name
+        .trim_end_matches(".gz")
+        .trim_end_matches(".log")
+        .trim_end_matches(".clf")
+        .to_string();
+    Ok(CarmenLog {
+        dataset: ScanDataset {
+            name,
+            records,
+            ground_truth: (!truth.is_empty()).then_some(truth),
+        },
+        unknown_records: unknown,
+        record_counts: counts,
+        params,
+        flaser_max_range,
+    })
+}
+
+/// Writes a scan dataset as a CARMEN log (gzip-compressed when the name ends in `.gz`):
+/// records with a scan as `ROBOTLASER1` (which states the beam geometry, `max_range` and,
+/// through the laser pose = odometry ⊕ sensor pose, the laser offset), records without as
+/// `ODOM`, and the ground truth as `TRUEPOS` lines merged in by time. Numbers use shortest
+/// round-trip formatting, so [`read_carmen`] gives back the same data (the sensor pose up
+/// to floating-point rounding, ~1e-15). Errors on non-finite values.
+pub fn write_carmen(path: &Path, d: &ScanDataset) -> Result<(), IoError> {
+    let mut s = String::new();
+    s.push_str("# CARMEN log written by slam-rs (slam-io)\n");
+    s.push_str("# message formats used: ROBOTLASER1 ODOM TRUEPOS\n");
+    let truth = d.ground_truth.as_deref().unwrap_or(&[]);
+    let mut g = 0;
+    let bad = |what: String| IoError::invalid(path, what);
+    for (i, r) in d.records.iter().enumerate() {
+        if !(r.t.is_finite() && r.odometry.is_finite()) {
+            return Err(bad(format!("record {i} has a non-finite time or pose")));
+        }
+        while g < truth.len() && truth[g].t <= r.t {
+            write_truepos(&mut s, &truth[g], &r.odometry);
+            g += 1;
+        }
+        let o = r.odometry;
+        match &r.scan {
+            None => {
+                let _ = writeln!(
+                    s,
+                    "ODOM {} {} {} 0 0 0 {} slam-rs {}",
+                    o.x, o.y, o.theta, r.t, r.t
+                );
+            }
+            Some(scan) => {
+                scan.validate()
+                    .map_err(|e| bad(format!("record {i}: {e}")))?;
+                if !scan.sensor_pose.is_finite() {
+                    return Err(bad(format!("record {i}: non-finite sensor pose")));
+                }
+                let lp = o.compose(&scan.sensor_pose);
+                let fov = scan.angle_increment * (scan.len().max(1) - 1) as f64;
+                let _ = write!(
+                    s,
+                    "ROBOTLASER1 0 {} {} {} {} 0.01 0 {}",
+                    scan.angle_min,
+                    fov,
+                    scan.angle_increment,
+                    scan.max_range,
+                    scan.len()
+                );
+                for v in &scan.ranges {
+                    let _ = write!(s, " {v}");
+                }
+                let _ = writeln!(
+                    s,
+                    " 0 {} {} {} {} {} {} 0 0 0 0 0 {} slam-rs {}",
+                    lp.x, lp.y, lp.theta, o.x, o.y, o.theta, r.t, r.t
+                );
+            }
+        }
+    }
+    let last = d.records.last().map(|r| r.odometry).unwrap_or_default();
+    for p in &truth[g..] {
+        write_truepos(&mut s, p, &last);
+    }
+    write_text(path, &s)
+}
+
+fn write_truepos(s: &mut String, p: &TimedPose, odom: &Pose2) {
+    let _ = writeln!(
+        s,
+        "TRUEPOS {} {} {} {} {} {} {} slam-rs {}",
+        p.pose.x, p.pose.y, p.pose.theta, odom.x, odom.y, odom.theta, p.t, p.t
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::text::from_str;
+
+    #[test]
+    fn flaser_geometry_no_return_and_unknowns() {
+        let text = "# c\nPARAM robot_frontlaser_offset 0.0 nohost 0\n\
+            ODOM 1 2 0.5 0 0 0 10.0 h 10.0\n\
+            FLASER 3 1.0 81.91 2.5 1 2 0.5 1 2 0.5 10.1 h 10.1\n\
+            NEFF 12.5\nNEFF 3\nSYNC x\n\
+            FLASER 3 80.0 1 2 1 2 0.5 1 2 0.5 10.2 h 10.2\n";
+        let log = parse_carmen(&from_str("a.log", text)).unwrap();
+        let r = &log.dataset.records;
+        assert_eq!(r.len(), 3);
+        assert_eq!(r[0].t, 10.0);
+        assert!(r[0].scan.is_none());
+        let s = r[1].scan.as_ref().unwrap();
+        // 3 beams: −90°, 0°, +90°.
+        assert!((s.beam_angle(0) + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        assert!(s.beam_angle(1).abs() < 1e-12);
+        assert_eq!(s.max_range, 81.91);
+        assert!(s.is_hit(0) && !s.is_hit(1) && s.is_hit(2));
+        assert!(r[2].scan.as_ref().unwrap().is_hit(0));
+        assert_eq!(s.sensor_pose, Pose2::IDENTITY);
+        assert_eq!(log.unknown_records.get("NEFF"), Some(&2));
+        assert_eq!(log.unknown_records.get("SYNC"), Some(&1));
+        assert_eq!(
+            log.params
+                .get("robot_frontlaser_offset")
+                .map(String::as_str),
+            Some("0.0")
+        );
+        assert_eq!(log.record_counts.get("FLASER"), Some(&2));
+    }
+
+    #[test]
+    fn error_paths() {
+        for (text, want) in [
+            ("", "empty"),
+            ("# only a comment\n", "empty"),
+            ("NEFF 1\n", "at least one"),
+            ("ODOM 1 2 3 0 0 0 5 h\n", "logger_timestamp"),
+            ("ODOM 1 2 3 0 0 0 5 h 5 extra\n", "end of line"),
+            ("ODOM 1 2 nan 0 0 0 5 h 5\n", "not finite"),
+            ("FLASER 3 1 2\n", "range reading 3 of 3"),
+            ("FLASER 2 1 -2 0 0 0 0 0 0 1 h 1\n", "non-negative range"),
+            ("FLASER x\n", "number of readings N"),
+            (
+                "ROBOTLASER1 0 -1.5 3.1 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0\n",
+                "tv",
+            ),
+        ] {
+            let e = parse_carmen(&from_str("b.log", text))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(want) && e.contains("b.log"), "{text:?} → {e}");
+        }
+    }
+
+    #[test]
+    fn write_read_round_trip() {
+        let dir = std::env::temp_dir().join(format!("slam-io-carmen-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let scan = LaserScan {
+            angle_min: -1.2,
+            angle_increment: 0.01,
+            ranges: (0..241)
+                .map(|k| 0.5 + k as f64 * 0.013)
+                .chain([30.0])
+                .collect(),
+            max_range: 30.0,
+            sensor_pose: Pose2::new(0.2, -0.05, 0.1),
+        };
+        let d = ScanDataset {
+            name: "sim".into(),
+            records: (0..20)
+                .map(|i| ScanRecord {
+                    t: i as f64 * 0.1,
+                    odometry: Pose2::new(i as f64 * 0.3, (i as f64).sin(), i as f64 * 0.4),
+                    scan: (i % 3 == 0).then(|| scan.clone()),
+                })
+                .collect(),
+            ground_truth: Some(
+                (0..25)
+                    .map(|i| TimedPose {
+                        t: i as f64 * 0.09,
+                        pose: Pose2::new(i as f64, 1.0, -0.2),
+                    })
+                    .collect(),
+            ),
+        };
+        for name in ["sim.log", "sim.log.gz"] {
+            let p = dir.join(name);
+            write_carmen(&p, &d).unwrap();
+            let back = read_carmen(&p).unwrap();
+            assert!(back.unknown_records.is_empty());
+            assert_eq!(back.dataset.ground_truth, d.ground_truth);
+            assert_eq!(back.dataset.records.len(), d.records.len());
+            for (a, b) in d.records.iter().zip(&back.dataset.records) {
+                assert_eq!(a.t, b.t);
+                assert_eq!(a.odometry, b.odometry);
+                match (&a.scan, &b.scan) {
+                    (None, None) => {}
+                    (Some(x), Some(y)) => {
+                        assert_eq!(x.ranges, y.ranges);
+                        assert_eq!(
+                            (x.angle_min, x.angle_increment, x.max_range),
+                            (y.angle_min, y.angle_increment, y.max_range)
+                        );
+                        assert!(x.sensor_pose.approx_eq(&y.sensor_pose, 1e-12));
+                        assert!(!y.is_hit(y.len() - 1));
+                    }
+                    _ => panic!("scan presence differs"),
+                }
+            }
+        }
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

@@ -142,11 +142,6 @@ impl<'a> Line<'a> {
             )),
         }
     }
-
-    /// The remaining fields (for records whose tail is free-form).
-    pub fn rest(&mut self) -> Vec<&'a str> {
-        self.fields.by_ref().collect()
-    }
 }
 
 impl TextFile {

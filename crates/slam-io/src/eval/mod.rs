@@ -1,1 +1,47 @@
-//! TODO
+//! Accuracy and consistency metrics, each checked against hand-computed cases.
+//!
+//! * [`ate`]: absolute trajectory error, as is and after least-squares SE(2) alignment.
+//! * [`rpe`]: relative pose error of consecutive matched poses.
+//! * [`relations_error`]: the Kümmerle et al. (2009) relations metric.
+//! * [`landmark_error`]: landmark map error, matched by id or by nearest neighbour.
+//! * [`nees_pose`], [`nis`], [`chi2_quantile`], [`chi2_band`]: filter consistency.
+//!
+//! **Matching by time.** Everywhere an estimate is looked up at a time t (the relations
+//! metric, ATE, RPE) the same rule is used, the one the dataset README fixes for the
+//! benchmark figures: sort the estimate by time, keeping file order among equal times;
+//! take the last pose with time < t and the first with time ≥ t; use the nearer of the two
+//! (the earlier on a tie); and give up if it is more than `max_dt` away
+//! ([`DEFAULT_MAX_DT`] = 6 ms unless said otherwise).
+
+mod align;
+mod associate;
+mod consistency;
+mod landmarks;
+mod relations;
+mod trajectory;
+
+pub use align::align_se2;
+pub use associate::{lookup, sorted_by_time, DEFAULT_MAX_DT};
+pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
+pub use landmarks::{landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching};
+pub use relations::{relations_error, relations_error_with, RelationsResult};
+pub use trajectory::{ate, ate_with, rpe, rpe_with, AteResult, RpeResult};
+
+/// Mean and population standard deviation (÷ n) of a sample; (NaN, NaN) when empty.
+pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n;
+    (m, var.sqrt())
+}
+
+/// Root mean square; NaN when empty.
+pub(crate) fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+}

@@ -1,0 +1,233 @@
+//! Absolute trajectory error (ATE) and relative pose error (RPE) (Sturm et al., IROS 2012,
+//! the TUM RGB-D benchmark definitions, restricted to SE(2)).
+
+use super::{align_se2, lookup, mean_std, rms, sorted_by_time, DEFAULT_MAX_DT};
+use crate::error::IoError;
+use serde::Serialize;
+use slam_models::{Point2, Pose2, TimedPose};
+
+/// Absolute trajectory error over the ground-truth poses that found an estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AteResult {
+    /// RMSE of ‖p_est − p_gt‖ as is (estimate and ground truth in the same frame), m.
+    pub rmse: f64,
+    /// RMSE after the least-squares SE(2) alignment of the estimate onto the ground truth, m.
+    pub rmse_aligned: f64,
+    /// Mean position error as is, m.
+    pub mean: f64,
+    /// Largest position error as is, m.
+    pub max: f64,
+    /// Ground-truth poses matched with an estimate.
+    pub matched: usize,
+    /// Ground-truth poses without an estimate within `max_dt`.
+    pub unmatched: usize,
+    /// The alignment T applied to the estimate (p ↦ T·p) for `rmse_aligned`.
+    pub alignment: Pose2,
+}
+
+/// Pairs (estimate, ground truth) for every ground-truth pose with an estimate within
+/// `max_dt` (see the module docs for the lookup rule).
+fn matched_pairs(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Vec<(Pose2, Pose2)> {
+    let sorted = sorted_by_time(est);
+    gt.iter()
+        .filter_map(|g| lookup(&sorted, g.t, max_dt).map(|i| (sorted[i].pose, g.pose)))
+        .collect()
+}
+
+/// [`ate_with`] with `max_dt` = [`DEFAULT_MAX_DT`].
+pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
+    ate_with(est, gt, DEFAULT_MAX_DT)
+}
+
+/// ATE: for every ground-truth pose, the estimate at its time (within `max_dt`), then
+/// RMSE = √(1/n Σ‖p_est,i − p_gt,i‖²) as is and after aligning the estimate's positions
+/// onto the ground truth's with [`align_se2`] (Umeyama without scale). Errors when no
+/// ground-truth pose finds an estimate, or values are not finite.
+pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteResult, IoError> {
+    check(est, "estimate")?;
+    check(gt, "ground truth")?;
+    let pairs = matched_pairs(est, gt, max_dt);
+    if pairs.is_empty() {
+        return Err(IoError::Eval(format!(
+            "ATE: none of the {} ground-truth poses has an estimate within {max_dt} s ({} estimated poses)",
+            gt.len(),
+            est.len()
+        )));
+    }
+    let a: Vec<Point2> = pairs.iter().map(|(e, _)| e.translation()).collect();
+    let b: Vec<Point2> = pairs.iter().map(|(_, g)| g.translation()).collect();
+    let err: Vec<f64> = a.iter().zip(&b).map(|(p, q)| (p - q).norm()).collect();
+    let t = align_se2(&a, &b);
+    let err_al: Vec<f64> = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (t.transform_point(p) - q).norm())
+        .collect();
+    Ok(AteResult {
+        rmse: rms(&err),
+        rmse_aligned: rms(&err_al),
+        mean: mean_std(&err).0,
+        max: err.iter().copied().fold(0.0, f64::max),
+        matched: pairs.len(),
+        unmatched: gt.len() - pairs.len(),
+        alignment: t,
+    })
+}
+
+fn check(t: &[TimedPose], what: &str) -> Result<(), IoError> {
+    match t
+        .iter()
+        .position(|p| !(p.t.is_finite() && p.pose.is_finite()))
+    {
+        Some(i) => Err(IoError::Eval(format!("{what} pose {i} is not finite"))),
+        None => Ok(()),
+    }
+}
+
+/// Relative pose error over pairs of matched poses.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RpeResult {
+    /// Mean translational error ‖trans(Δ_gt⁻¹ ⊕ Δ_est)‖, m.
+    pub trans_mean: f64,
+    /// RMSE of the translational error, m.
+    pub trans_rmse: f64,
+    /// Mean absolute rotational error |rot(Δ_gt⁻¹ ⊕ Δ_est)|, degrees.
+    pub rot_mean_deg: f64,
+    /// RMSE of the rotational error, degrees.
+    pub rot_rmse_deg: f64,
+    /// Number of pose pairs compared.
+    pub pairs: usize,
+}
+
+/// [`rpe_with`] with `max_dt` = [`DEFAULT_MAX_DT`] and consecutive matched poses (stride 1).
+pub fn rpe(est: &[TimedPose], gt: &[TimedPose]) -> Result<RpeResult, IoError> {
+    rpe_with(est, gt, DEFAULT_MAX_DT, 1)
+}
+
+/// RPE: match every ground-truth pose to the estimate (as for ATE); for matched poses i and
+/// i + `stride` (in ground-truth order) compare the relative motions Δ = e_i⁻¹ ⊕ e_j (`e_i.between(e_j)`), and the error E = Δ_gt⁻¹ ⊕ Δ_est; report its
+/// translation norm (m) and |rotation| (degrees, normalised). Errors when fewer than
+/// `stride + 1` poses match or `stride` is 0.
+pub fn rpe_with(
+    est: &[TimedPose],
+    gt: &[TimedPose],
+    max_dt: f64,
+    stride: usize,
+) -> Result<RpeResult, IoError> {
+    check(est, "estimate")?;
+    check(gt, "ground truth")?;
+    if stride == 0 {
+        return Err(IoError::Eval("RPE: stride must be at least 1".into()));
+    }
+    let pairs = matched_pairs(est, gt, max_dt);
+    if pairs.len() <= stride {
+        return Err(IoError::Eval(format!(
+            "RPE: {} matched poses, need at least {}",
+            pairs.len(),
+            stride + 1
+        )));
+    }
+    let mut tr = Vec::with_capacity(pairs.len());
+    let mut rot = Vec::with_capacity(pairs.len());
+    for w in 0..pairs.len() - stride {
+        let (ei, gi) = pairs[w];
+        let (ej, gj) = pairs[w + stride];
+        let e = gi.between(&gj).between(&ei.between(&ej));
+        tr.push(e.x.hypot(e.y));
+        rot.push(e.theta.abs().to_degrees());
+    }
+    Ok(RpeResult {
+        trans_mean: mean_std(&tr).0,
+        trans_rmse: rms(&tr),
+        rot_mean_deg: mean_std(&rot).0,
+        rot_rmse_deg: rms(&rot),
+        pairs: tr.len(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tp(t: f64, x: f64, y: f64, th: f64) -> TimedPose {
+        TimedPose {
+            t,
+            pose: Pose2::new(x, y, th),
+        }
+    }
+
+    #[test]
+    fn ate_hand_computed() {
+        // Errors 0, 1 (x), 1 (y), 2: RMSE = √((0+1+1+4)/4) = √1.5.
+        let gt = [
+            tp(0.0, 0.0, 0.0, 0.0),
+            tp(1.0, 1.0, 0.0, 0.0),
+            tp(2.0, 2.0, 0.0, 0.0),
+            tp(3.0, 3.0, 0.0, 0.0),
+            tp(9.0, 0.0, 0.0, 0.0),
+        ];
+        let est = [
+            tp(0.0, 0.0, 0.0, 0.0),
+            tp(1.001, 2.0, 0.0, 0.0),
+            tp(2.0, 2.0, 1.0, 0.0),
+            tp(3.0, 5.0, 0.0, 0.0),
+        ];
+        let r = ate(&est, &gt).unwrap();
+        assert!((r.rmse - 1.5f64.sqrt()).abs() < 1e-12);
+        assert!((r.mean - 1.0).abs() < 1e-12);
+        assert_eq!(r.max, 2.0);
+        assert_eq!((r.matched, r.unmatched), (4, 1));
+        assert!(r.rmse_aligned <= r.rmse);
+        assert!(ate(&est, &gt[4..]).is_err());
+    }
+
+    #[test]
+    fn ate_aligned_removes_a_rigid_motion() {
+        let gt: Vec<TimedPose> = (0..30)
+            .map(|i| {
+                tp(
+                    i as f64,
+                    (i as f64 * 0.3).sin() * 4.0,
+                    i as f64 * 0.2,
+                    0.1 * i as f64,
+                )
+            })
+            .collect();
+        let t = Pose2::new(3.0, -1.0, 1.1);
+        let est: Vec<TimedPose> = gt
+            .iter()
+            .map(|g| TimedPose {
+                t: g.t,
+                pose: t.compose(&g.pose),
+            })
+            .collect();
+        let r = ate(&est, &gt).unwrap();
+        assert!(r.rmse > 1.0);
+        assert!(r.rmse_aligned < 1e-9);
+        assert!(r.alignment.approx_eq(&t.inverse(), 1e-9));
+    }
+
+    #[test]
+    fn rpe_hand_computed() {
+        // Ground truth moves 1 m along x per step; the estimate moves 1 m then turns 90°
+        // with no translation. Pair 0→1: Δ_gt = (1,0,0), Δ_est = (1,0,0): error 0.
+        // Pair 1→2: Δ_gt = (1,0,0), Δ_est = (0,0,90°): E = Δ_gt⁻¹⊕Δ_est = (−1,0,90°).
+        let gt = [
+            tp(0.0, 0.0, 0.0, 0.0),
+            tp(1.0, 1.0, 0.0, 0.0),
+            tp(2.0, 2.0, 0.0, 0.0),
+        ];
+        let est = [
+            tp(0.0, 0.0, 0.0, 0.0),
+            tp(1.0, 1.0, 0.0, 0.0),
+            tp(2.0, 1.0, 0.0, std::f64::consts::FRAC_PI_2),
+        ];
+        let r = rpe(&est, &gt).unwrap();
+        assert_eq!(r.pairs, 2);
+        assert!((r.trans_mean - 0.5).abs() < 1e-12);
+        assert!((r.trans_rmse - 0.5f64.sqrt()).abs() < 1e-12);
+        assert!((r.rot_mean_deg - 45.0).abs() < 1e-9);
+        assert!(rpe_with(&est, &gt, 0.006, 0).is_err());
+        assert!(rpe_with(&est, &gt, 0.006, 3).is_err());
+    }
+}
