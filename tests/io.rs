@@ -1,0 +1,305 @@
+//! slam-io on the real datasets of `../shared/datasets`: every reader on every file, and
+//! the metrics on the benchmark figures the dataset README states.
+
+mod common;
+
+use slam::io::eval;
+use slam::io::{carmen, freiburg, mrclam, relations, tum};
+use slam_models::{LandmarkId, Pose2, TimedPose};
+
+#[test]
+fn freiburg_course_data() {
+    let Some(dir) = common::dataset("freiburg-robot-mapping") else {
+        return;
+    };
+    let r = freiburg::read_freiburg_report(&dir).unwrap();
+    let d = &r.dataset;
+    // README: 331 ODOMETRY and 1212 SENSOR lines, one with a negative range (line 1541).
+    assert_eq!(d.steps.len(), 331);
+    let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
+    assert_eq!(obs, 1211);
+    assert_eq!(r.skipped.len(), 1);
+    assert_eq!(r.skipped[0].line, 1541);
+    assert!(d
+        .steps
+        .iter()
+        .all(|s| !s.observations.is_empty() && s.observations.len() <= 7));
+    let lms = d.landmarks.as_ref().unwrap();
+    assert_eq!(lms.len(), 9);
+    assert_eq!(lms[0], (LandmarkId(1), slam_models::Point2::new(2.0, 1.0)));
+    assert_eq!(d.initial_pose, Pose2::IDENTITY);
+    assert!(d.ground_truth.is_none());
+
+    // README check: dead-reckon the first 20 steps and compare the observations with
+    // world.dat: residual std ≈ 0.10 m in range and ≈ 0.05 rad in bearing.
+    let dr = slam::io::dead_reckoning(d);
+    let (mut er, mut eb) = (Vec::new(), Vec::new());
+    for (s, p) in d.steps.iter().zip(&dr).take(20) {
+        for z in &s.observations {
+            let (_, m) = lms.iter().find(|(id, _)| Some(*id) == z.id).unwrap();
+            let q = p.pose.inverse_transform_point(m);
+            er.push(z.range - q.coords.norm());
+            eb.push(slam_models::normalize_angle(z.bearing - q.y.atan2(q.x)));
+        }
+    }
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    println!(
+        "Freiburg first 20 steps: range residual rms {:.3} m, bearing {:.3} rad",
+        rms(&er),
+        rms(&eb)
+    );
+    assert!(rms(&er) < 0.25 && rms(&eb) < 0.12);
+
+    let (ds, msg) = slam::io::open_dataset(&dir, None).unwrap();
+    assert!(matches!(ds, slam::io::Dataset::Landmark(_)));
+    assert!(
+        msg.contains("331 odometry steps") && msg.contains("line 1541"),
+        "{msg}"
+    );
+    assert!(slam::io::open_dataset(&dir, Some(1)).is_err());
+}
+
+#[test]
+fn freiburg_round_trip_through_writer() {
+    let Some(dir) = common::dataset("freiburg-robot-mapping") else {
+        return;
+    };
+    let mut d = freiburg::read_freiburg(&dir).unwrap();
+    d.initial_pose = Pose2::new(1.0, 2.0, 0.3);
+    d.ground_truth = Some(vec![TimedPose {
+        t: 0.0,
+        pose: Pose2::new(1.0, 2.0, 0.3),
+    }]);
+    for (k, s) in d.steps.iter_mut().enumerate() {
+        s.t = 10.0 + 0.1 * k as f64;
+    }
+    let out = std::env::temp_dir().join(format!("slam-io-it-freiburg-{}", std::process::id()));
+    freiburg::write_freiburg(&out, &d).unwrap();
+    let mut back = freiburg::read_freiburg(&out).unwrap();
+    back.name = d.name.clone();
+    assert_eq!(back.steps, d.steps);
+    assert_eq!(back.landmarks, d.landmarks);
+    assert_eq!(back.initial_pose, d.initial_pose);
+    let g = back.ground_truth.as_ref().unwrap();
+    assert!(g[0].pose.approx_eq(&d.initial_pose, 1e-12));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+/// Observations of robot 1 by barcode, counted independently of the reader with awk:
+/// 5723 rows, of which other robots' barcodes (14, 41, 32, 23; robot 1's own is 5)
+/// account for 226 + 239 + 269 + 218 = 952.
+const ROBOT1_ROWS: usize = 5723;
+const ROBOT1_OTHER_ROBOTS: usize = 952;
+
+#[test]
+fn mrclam_raw_robot1() {
+    let Some(dir) = common::dataset("utias-mrclam/MRCLAM_Dataset1") else {
+        return;
+    };
+    let r = mrclam::read_mrclam_report(&dir, 1).unwrap();
+    let d = &r.dataset;
+    assert!(!r.resampled);
+    assert_eq!(d.steps.len(), 97_890);
+    assert_eq!(d.steps[0].t, 1248272272.841);
+    assert_eq!(d.steps.last().unwrap().t, 1248273763.319);
+    let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
+    assert_eq!(r.other_robot_observations, ROBOT1_OTHER_ROBOTS);
+    assert!(r.skipped.is_empty(), "{:?}", r.skipped);
+    assert_eq!(obs, ROBOT1_ROWS - ROBOT1_OTHER_ROBOTS);
+    // Ids are landmark subjects 6..=20; ranges and bearings within the README's spans.
+    for z in d.steps.iter().flat_map(|s| &s.observations) {
+        let id = z.id.unwrap().0;
+        assert!((6..=20).contains(&id));
+        assert!((1.0..=9.3).contains(&z.range) && (-0.58..=0.48).contains(&z.bearing));
+    }
+    assert_eq!(d.landmarks.as_ref().unwrap().len(), 15);
+    assert!(d.ground_truth.is_none());
+    let (_, msg) = slam::io::open_dataset(&dir, Some(1)).unwrap();
+    assert!(
+        msg.contains("raw") && msg.contains("952 other-robot"),
+        "{msg}"
+    );
+    assert!(mrclam::read_mrclam(&dir, 9).is_err());
+}
+
+#[test]
+fn mrclam_resampled_robot1_against_ground_truth() {
+    let Some(dir) = common::dataset("utias-mrclam/MRCLAM_Dataset1_resampled") else {
+        return;
+    };
+    let r = mrclam::read_mrclam_report(&dir, 1).unwrap();
+    let d = &r.dataset;
+    assert!(r.resampled);
+    assert_eq!(d.steps.len(), 75_000);
+    assert_eq!(r.other_robot_observations, ROBOT1_OTHER_ROBOTS);
+    let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
+    assert_eq!(obs + r.skipped.len(), ROBOT1_ROWS - ROBOT1_OTHER_ROBOTS);
+    let gt = d.ground_truth.as_ref().unwrap();
+    assert_eq!(gt.len(), 75_000);
+    // First ground-truth row: 0 3.5732 -3.3328 2.3408.
+    assert!(d
+        .initial_pose
+        .approx_eq(&Pose2::new(3.5732, -3.3328, 2.3408), 1e-12));
+
+    // The observations agree with ground truth + true landmarks: this checks the barcode
+    // mapping, the bearing convention and the step each measurement is attached to.
+    let lms = d.landmarks.as_ref().unwrap();
+    let mut res = Vec::new();
+    for (s, g) in d.steps.iter().zip(gt) {
+        for z in &s.observations {
+            let (_, m) = lms.iter().find(|(id, _)| Some(*id) == z.id).unwrap();
+            let q = g.pose.inverse_transform_point(m);
+            res.push((z.range - q.coords.norm()).abs());
+        }
+    }
+    res.sort_by(f64::total_cmp);
+    let median = res[res.len() / 2];
+    println!("MRCLAM robot 1: median |range residual| against ground truth {median:.3} m");
+    assert!(median < 0.2, "median range residual {median}");
+
+    // Dead reckoning from the true initial pose, scored against ground truth.
+    let dr = slam::io::dead_reckoning(d);
+    let ate = eval::ate(&dr, gt).unwrap();
+    println!(
+        "MRCLAM robot 1 dead reckoning: ATE {:.3} m, aligned {:.3} m over {} poses",
+        ate.rmse, ate.rmse_aligned, ate.matched
+    );
+    assert_eq!(ate.matched, 75_000);
+    // Odometry alone drifts by metres over 25 minutes but stays within the 15 × 8 m arena scale.
+    assert!(ate.rmse > 0.3 && ate.rmse < 20.0, "{ate:?}");
+    assert!(ate.rmse_aligned <= ate.rmse);
+    // Over the first 10 s the robot barely moves: dead reckoning is still within 0.1 m.
+    let early = eval::ate(&dr[..500], &gt[..500]).unwrap();
+    assert!(early.rmse < 0.1, "{early:?}");
+}
+
+#[test]
+fn carmen_bench_and_radish_logs() {
+    // (file, FLASER scans, ODOM records, beams, no-return value) from the README tables.
+    let radish = [
+        ("intel", 910, 14541, 180, 81.83),
+        ("freiburg-101", 292, 4569, 360, 81.91),
+        ("csail", 406, 2394, 361, 81.91),
+        ("belgioioso", 395, 4442, 361, 81.91),
+        ("fhw", 488, 13935, 180, 51.1),
+        ("edmonton", 340, 6351, 180, 51.16),
+        ("acapulco", 861, 12142, 181, 51.25),
+    ];
+    for (site, scans, odom, beams, max) in radish {
+        let Some(p) = common::dataset(&format!("radish-corrected/{site}-corrected.log.gz")) else {
+            return;
+        };
+        let log = carmen::read_carmen(&p).unwrap();
+        let recs = &log.dataset.records;
+        let n_scans = recs.iter().filter(|r| r.scan.is_some()).count();
+        assert_eq!((n_scans, recs.len() - n_scans), (scans, odom), "{site}");
+        assert_eq!(log.unknown_records.get("NEFF"), Some(&scans), "{site}");
+        assert_eq!(log.flaser_max_range, Some(max), "{site}");
+        let s = recs.iter().find_map(|r| r.scan.as_ref()).unwrap();
+        assert_eq!(s.len(), beams);
+        assert!((s.beam_angle(0) + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let last = s.beam_angle(beams - 1).to_degrees();
+        let want = if beams % 180 == 0 {
+            90.0 - 180.0 / beams as f64
+        } else {
+            90.0
+        };
+        assert!((last - want).abs() < 1e-9, "{site}: last beam at {last}°");
+        assert_eq!(s.sensor_pose, Pose2::IDENTITY);
+        // No-return readings are kept and told apart from hits.
+        let no_ret = recs
+            .iter()
+            .filter_map(|r| r.scan.as_ref())
+            .flat_map(|s| (0..s.len()).filter(move |&k| !s.is_hit(k)))
+            .count();
+        assert!(no_ret >= 1, "{site}");
+    }
+    for (site, scans, odom) in [
+        ("intel", 910, 13_700),
+        ("csail", 406, 1988),
+        ("fhw", 488, 13_453),
+    ] {
+        let Some(p) = common::dataset(&format!("bench/{site}.log")) else {
+            return;
+        };
+        let (ds, msg) = slam::io::open_dataset(&p, None).unwrap();
+        let slam::io::Dataset::Scan(d) = ds else {
+            panic!("{site} is not a scan dataset")
+        };
+        let n_scans = d.records.iter().filter(|r| r.scan.is_some()).count();
+        assert_eq!(
+            (n_scans, d.records.len() - n_scans),
+            (scans, odom),
+            "{site}"
+        );
+        assert!(msg.contains("CARMEN"), "{msg}");
+    }
+    // The course's CSAIL log: ROBOTLASER1 lines of 361 beams, 0.5°, max range 80 m,
+    // 81.91 = no return. (Its README says "385 laser scans"; the file has 686 lines of 385
+    // fields each.)
+    let Some(p) = common::dataset("freiburg-robot-mapping/csail.log") else {
+        return;
+    };
+    let log = carmen::read_carmen(&p).unwrap();
+    let recs = &log.dataset.records;
+    assert_eq!(recs.len(), 686);
+    assert_eq!(log.record_counts.get("ROBOTLASER1"), Some(&686));
+    assert_eq!(recs[0].odometry, Pose2::IDENTITY);
+    let s = recs[1].scan.as_ref().unwrap();
+    assert_eq!((s.len(), s.max_range), (361, 80.0));
+    assert!((s.angle_min + std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+    assert!((s.angle_increment.to_degrees() - 0.5).abs() < 1e-3);
+    assert!(s.sensor_pose.approx_eq(&Pose2::IDENTITY, 1e-12));
+    assert!(recs
+        .iter()
+        .flat_map(|r| &r.scan.as_ref().unwrap().ranges)
+        .all(|&r| r >= 0.28));
+}
+
+#[test]
+fn relations_and_tum_files() {
+    for (f, n) in [("intel", 2984), ("fr079", 1685), ("mit-killian", 4677)] {
+        let Some(p) = common::dataset(&format!("slam-benchmark-relations/{f}.relations")) else {
+            return;
+        };
+        let rel = relations::read_relations(&p).unwrap();
+        assert_eq!(rel.len(), n, "{f}");
+        if f == "intel" {
+            assert_eq!(rel.iter().filter(|r| r.t2 < r.t1).count(), 6);
+            assert_eq!(rel[0].t1, 976052905.167303);
+        }
+        assert!(rel.iter().all(|r| r.delta.x.hypot(r.delta.y) < 5.05));
+    }
+    let Some(p) = common::dataset("bench/intel.ref.tum") else {
+        return;
+    };
+    let t = tum::read_tum(&p).unwrap();
+    assert_eq!(t.len(), 13_700);
+    assert_eq!(t[0].t, 976052857.337536);
+}
+
+/// The relations metric on the Intel benchmark, with the README's figures: the recovered
+/// raw odometry scores ≈ 7.4 m mean translational error, GMapping's own trajectory
+/// 0.057 m / 2.32°.
+#[test]
+fn relations_metric_reproduces_intel_figures() {
+    let (Some(log), Some(rel), Some(reff)) = (
+        common::dataset("bench/intel.log"),
+        common::dataset("slam-benchmark-relations/intel.relations"),
+        common::dataset("bench/intel.ref.tum"),
+    ) else {
+        return;
+    };
+    let rel = relations::read_relations(&rel).unwrap();
+    let d = carmen::read_carmen(&log).unwrap().dataset;
+    let odo = slam::io::odometry_trajectory(&d);
+    let r = eval::relations_error(&odo, &rel);
+    println!("intel.log raw odometry: {r:?}");
+    assert!((r.trans_mean - 7.4).abs() < 0.1, "{r:?}");
+    let g = tum::read_tum(&reff).unwrap();
+    let r = eval::relations_error(&g, &rel);
+    println!("intel.ref.tum (GMapping): {r:?}");
+    assert!((r.trans_mean - 0.057).abs() < 0.0015, "{r:?}");
+    assert!((r.rot_mean_deg - 2.32).abs() < 0.05, "{r:?}");
+    assert!(r.used > 2900, "{r:?}");
+}
