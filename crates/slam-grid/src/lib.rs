@@ -1,5 +1,34 @@
 //! # slam-grid: occupancy grids and scan matching
 //!
-//! Will hold log-odds occupancy grids on copy-on-write tiles, beam tracing, likelihood
-//! fields from exact distance transforms, and scan matchers (hill climbing, correlative,
-//! Gauss-Newton), plus map export.
+//! The mapping and matching core of slam-rs, usable on its own:
+//!
+//! * [`OccupancyGrid`]: log-odds occupancy grid (Probabilistic Robotics §9.2) that grows on
+//!   demand, stored as copy-on-write 32×32 tiles behind `Arc` so that clones (one per
+//!   particle in grid FastSLAM) share every tile they have not written; beams are traced
+//!   exactly (Amanatides–Woo) with an [`InverseSensorModel`].
+//! * [`CellIndex`] and [`GridFrame`]: integer cells versus world points, never mixed.
+//! * [`likelihood`]: Thrun's endpoint model (PR §6.4) from an exact linear-time Euclidean
+//!   distance transform (Felzenszwalb & Huttenlocher 2012), computed per tile on demand.
+//! * [`matcher`]: scan matchers returning pose, score and covariance: GMapping-style hill
+//!   climbing, correlative multi-resolution search (Olson 2009) and Gauss-Newton on the
+//!   bilinearly interpolated field (Hector SLAM).
+//! * [`ScanMatchOdometry`]: each scan matched against the map built so far (`ScanSlam`,
+//!   name `"scanmatch"`).
+//!
+//! Units: metres, radians; world frame right-handed, θ counter-clockwise.
+
+#![warn(missing_docs)]
+
+pub mod cell;
+pub mod error;
+pub mod grid;
+pub mod likelihood;
+pub mod scan;
+
+pub use cell::{CellIndex, GridFrame};
+pub use error::GridError;
+pub use grid::sensor_model::InverseSensorModel;
+pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
+pub use grid::{CopyStats, OccupancyGrid};
+pub use likelihood::{LikelihoodField, LikelihoodParams};
+pub use scan::PreparedScan;

@@ -1,0 +1,71 @@
+//! Errors of slam-grid.
+
+use slam_models::ModelError;
+use thiserror::Error;
+
+/// What went wrong in a grid, field or matcher operation.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GridError {
+    /// A value that must be finite was NaN or infinite (poses, ranges, configuration).
+    #[error("{what} is not finite ({value})")]
+    NonFinite {
+        /// Which quantity.
+        what: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// A configuration parameter was outside its documented range.
+    #[error("parameter {name} = {value} is out of range: expected {expected}")]
+    InvalidConfig {
+        /// The parameter's name.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What was expected, in words.
+        expected: &'static str,
+    },
+    /// A scan had too few usable end points to be matched.
+    #[error("scan has {found} usable end points; at least {needed} are needed for matching")]
+    TooFewPoints {
+        /// End points usable for matching (hits within the matcher's range limits).
+        found: usize,
+        /// The configured minimum.
+        needed: usize,
+    },
+    /// The matcher's normal equations were singular (degenerate geometry, e.g. a single
+    /// straight wall, or no end point near an obstacle).
+    #[error("degenerate scan matching problem: {0}")]
+    Degenerate(&'static str),
+    /// A model-layer check failed (invalid scan readings, pose).
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+/// `Err(GridError::NonFinite)` unless `value` is finite.
+#[inline]
+pub(crate) fn ensure_finite(what: &'static str, value: f64) -> Result<f64, GridError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(GridError::NonFinite { what, value })
+    }
+}
+
+/// `Err(GridError::InvalidConfig)` unless `ok`.
+#[inline]
+pub(crate) fn ensure_config(
+    ok: bool,
+    name: &'static str,
+    value: f64,
+    expected: &'static str,
+) -> Result<(), GridError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(GridError::InvalidConfig {
+            name,
+            value,
+            expected,
+        })
+    }
+}

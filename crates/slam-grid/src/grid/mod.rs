@@ -1,0 +1,652 @@
+//! The log-odds occupancy grid on copy-on-write tiles.
+
+mod raytrace;
+pub(crate) mod sensor_model;
+pub(crate) mod tiles;
+
+use crate::cell::{CellIndex, GridFrame};
+use crate::error::{ensure_config, GridError};
+use crate::likelihood::{compute_region, FieldTile, LikelihoodParams};
+use crate::scan::PreparedScan;
+pub(crate) use raytrace::trace_segment;
+use sensor_model::InverseSensorModel;
+use slam_models::{GridMap, LaserScan, Point2, Pose2};
+use std::sync::{Arc, OnceLock};
+use tiles::{split, Tile, TileLayout, TILE_CELLS, TILE_SIZE};
+
+/// Counters of the copy-on-write machinery (since creation or the last
+/// [`OccupancyGrid::reset_copy_stats`]); clones start from the source's counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CopyStats {
+    /// Tiles allocated fresh (first write to an unknown tile).
+    pub tiles_created: u64,
+    /// Shared tiles copied before a write (copy-on-write).
+    pub tiles_copied: u64,
+    /// Bytes copied by those copies (`tiles_copied` × tile size).
+    pub bytes_copied: u64,
+}
+
+/// A log-odds occupancy grid (PR §9.2) that grows on demand, stored as 32×32 tiles behind
+/// `Arc`.
+///
+/// * Cells hold clamped log-odds l = ln(p/(1−p)) as `f32`; never-observed cells are 0
+///   (p = ½, "unknown").
+/// * Cell (i, j) covers `[ox + i·res, ox + (i+1)·res) × [oy + j·res, oy + (j+1)·res)`, with
+///   (ox, oy) the origin (default (0, 0)); indices may be negative.
+/// * `Clone` copies only the table of tile pointers (a few bytes per 1024 cells); a later
+///   write copies just the tiles it changes that are still shared
+///   ([`OccupancyGrid::copy_stats`] counts them). Grid FastSLAM's particles share maps so.
+/// * Each grid also caches a likelihood field per tile ([`crate::likelihood`]), computed
+///   lazily by the matchers and shared between clones in the same way.
+///
+/// ```
+/// use slam_grid::{InverseSensorModel, OccupancyGrid};
+/// use slam_models::{LaserScan, Point2, Pose2};
+/// let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
+/// let scan = LaserScan { angle_min: 0.0, angle_increment: 0.0, ranges: vec![1.0],
+///                        max_range: 30.0, sensor_pose: Pose2::IDENTITY };
+/// grid.integrate_scan(&Pose2::IDENTITY, &scan);
+/// assert!(grid.probability(grid.world_to_cell(&Point2::new(1.0, 0.0))) > 0.5);
+/// assert!(grid.probability(grid.world_to_cell(&Point2::new(0.5, 0.0))) < 0.5);
+/// let copy = grid.clone(); // cheap: tiles are shared
+/// assert_eq!(copy.log_odds(copy.world_to_cell(&Point2::new(1.0, 0.0))), grid.log_odds(grid.world_to_cell(&Point2::new(1.0, 0.0))));
+/// ```
+#[derive(Clone)]
+pub struct OccupancyGrid {
+    frame: GridFrame,
+    model: InverseSensorModel,
+    params: LikelihoodParams,
+    layout: TileLayout,
+    tiles: Vec<Option<Arc<Tile>>>,
+    fields: Vec<OnceLock<Arc<FieldTile>>>,
+    far_field: Arc<FieldTile>,
+    stats: CopyStats,
+}
+
+impl std::fmt::Debug for OccupancyGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OccupancyGrid")
+            .field("frame", &self.frame)
+            .field("layout", &self.layout)
+            .field("allocated_tiles", &self.allocated_tiles())
+            .field("stats", &self.stats)
+            .finish()
+    }
+}
+
+impl OccupancyGrid {
+    /// An empty grid (every cell unknown) with origin (0, 0), cell edge `resolution` metres,
+    /// the given inverse sensor model and default [`LikelihoodParams`].
+    ///
+    /// A non-finite or non-positive resolution is replaced by 0.05 m; use
+    /// [`OccupancyGrid::try_new`] to have it rejected instead.
+    pub fn new(resolution: f64, model: InverseSensorModel) -> Self {
+        let resolution = if resolution.is_finite() && resolution > 0.0 {
+            resolution
+        } else {
+            0.05
+        };
+        let params = LikelihoodParams::default();
+        Self {
+            frame: GridFrame::new(Point2::origin(), resolution),
+            model,
+            params,
+            layout: TileLayout::default(),
+            tiles: Vec::new(),
+            fields: Vec::new(),
+            far_field: Arc::new(FieldTile {
+                values: [params.far_value(); TILE_CELLS],
+            }),
+            stats: CopyStats::default(),
+        }
+    }
+
+    /// Like [`OccupancyGrid::new`], validating the resolution (> 0, finite) and the model.
+    pub fn try_new(resolution: f64, model: InverseSensorModel) -> Result<Self, GridError> {
+        ensure_config(resolution > 0.0, "resolution", resolution, "> 0 m")?;
+        model.validate()?;
+        Ok(Self::new(resolution, model))
+    }
+
+    /// This grid with its likelihood-field parameters replaced (cached fields dropped).
+    pub fn with_likelihood(mut self, params: LikelihoodParams) -> Result<Self, GridError> {
+        params.validate()?;
+        self.params = params;
+        self.far_field = Arc::new(FieldTile {
+            values: [params.far_value(); TILE_CELLS],
+        });
+        self.fields = (0..self.layout.len()).map(|_| OnceLock::new()).collect();
+        Ok(self)
+    }
+
+    /// This grid with its origin (world position of cell (0, 0)'s lower-left corner) moved.
+    /// Only allowed on an empty grid; a non-finite origin is rejected.
+    pub fn with_origin(mut self, origin: Point2) -> Result<Self, GridError> {
+        crate::error::ensure_finite("grid origin x", origin.x)?;
+        crate::error::ensure_finite("grid origin y", origin.y)?;
+        if self.allocated_tiles() == 0 {
+            self.frame.origin = origin;
+        }
+        Ok(self)
+    }
+
+    /// Cell edge length, metres.
+    #[inline]
+    pub fn resolution(&self) -> f64 {
+        self.frame.resolution
+    }
+
+    /// The world ↔ cell frame.
+    #[inline]
+    pub fn frame(&self) -> GridFrame {
+        self.frame
+    }
+
+    /// The inverse sensor model used by [`OccupancyGrid::integrate_scan`].
+    pub fn sensor_model(&self) -> &InverseSensorModel {
+        &self.model
+    }
+
+    /// The likelihood-field parameters.
+    pub fn likelihood_params(&self) -> LikelihoodParams {
+        self.params
+    }
+
+    /// The cell containing world point `p`.
+    #[inline]
+    pub fn world_to_cell(&self, p: &Point2) -> CellIndex {
+        self.frame.world_to_cell(p)
+    }
+
+    /// World position of the centre of cell `c`.
+    #[inline]
+    pub fn cell_center(&self, c: CellIndex) -> Point2 {
+        self.frame.cell_center(c)
+    }
+
+    /// Log-odds of cell `c`; 0 (unknown) for cells never written.
+    #[inline]
+    pub fn log_odds(&self, c: CellIndex) -> f32 {
+        let ((tx, ty), local) = split(c);
+        match self.layout.slot(tx, ty) {
+            Some(s) => match &self.tiles[s] {
+                Some(t) => t.cells[local],
+                None => 0.0,
+            },
+            None => 0.0,
+        }
+    }
+
+    /// Occupancy probability p = 1 − 1/(1 + eˡ) of cell `c`; ½ when unknown.
+    #[inline]
+    pub fn probability(&self, c: CellIndex) -> f32 {
+        1.0 - 1.0 / (1.0 + self.log_odds(c).exp())
+    }
+
+    /// True when cell `c` counts as an obstacle for the likelihood field
+    /// (log-odds > `occupied_threshold`).
+    #[inline]
+    pub fn is_obstacle(&self, c: CellIndex) -> bool {
+        self.log_odds(c) > self.params.occupied_threshold
+    }
+
+    /// Copy-on-write counters.
+    pub fn copy_stats(&self) -> CopyStats {
+        self.stats
+    }
+
+    /// Zeroes the copy-on-write counters.
+    pub fn reset_copy_stats(&mut self) {
+        self.stats = CopyStats::default();
+    }
+
+    /// Number of tiles holding data (allocated).
+    pub fn allocated_tiles(&self) -> usize {
+        self.tiles.iter().filter(|t| t.is_some()).count()
+    }
+
+    /// Number of allocated tiles this grid shares with another grid (a clone).
+    pub fn shared_tiles(&self) -> usize {
+        self.tiles
+            .iter()
+            .flatten()
+            .filter(|t| Arc::strong_count(t) > 1)
+            .count()
+    }
+
+    /// Bytes held by one tile's cells.
+    pub const TILE_BYTES: usize = std::mem::size_of::<Tile>();
+
+    /// Inclusive range of cells covered by the tile table (`None` while empty).
+    pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
+        if self.layout.len() == 0 {
+            return None;
+        }
+        let t = TILE_SIZE as i32;
+        Some((
+            CellIndex::new(self.layout.tx0 * t, self.layout.ty0 * t),
+            CellIndex::new(
+                (self.layout.tx0 + self.layout.tw) * t - 1,
+                (self.layout.ty0 + self.layout.th) * t - 1,
+            ),
+        ))
+    }
+
+    /// Grows the tile table so that it covers cells `min ..= max` (keeps existing tiles).
+    pub fn ensure_covers(&mut self, min: CellIndex, max: CellIndex) {
+        let (t0, _) = split(min);
+        let (t1, _) = split(max);
+        if self.layout.len() > 0
+            && self.layout.contains(t0.0, t0.1)
+            && self.layout.contains(t1.0, t1.1)
+        {
+            return;
+        }
+        let old = self.layout;
+        let (mut x0, mut y0, mut x1, mut y1) = (t0.0, t0.1, t1.0, t1.1);
+        if old.len() > 0 {
+            // Grow with slack (a quarter of the current size, at least 2 tiles) so that a
+            // robot exploring steadily does not reallocate the table on every scan.
+            let sx = (old.tw / 4).max(2);
+            let sy = (old.th / 4).max(2);
+            if x0 < old.tx0 {
+                x0 -= sx;
+            }
+            if y0 < old.ty0 {
+                y0 -= sy;
+            }
+            if x1 >= old.tx0 + old.tw {
+                x1 += sx;
+            }
+            if y1 >= old.ty0 + old.th {
+                y1 += sy;
+            }
+            x0 = x0.min(old.tx0);
+            y0 = y0.min(old.ty0);
+            x1 = x1.max(old.tx0 + old.tw - 1);
+            y1 = y1.max(old.ty0 + old.th - 1);
+        }
+        let new = TileLayout {
+            tx0: x0,
+            ty0: y0,
+            tw: x1 - x0 + 1,
+            th: y1 - y0 + 1,
+        };
+        let mut tiles: Vec<Option<Arc<Tile>>> = vec![None; new.len()];
+        let mut fields: Vec<OnceLock<Arc<FieldTile>>> =
+            (0..new.len()).map(|_| OnceLock::new()).collect();
+        for s in 0..old.len() {
+            let (tx, ty) = old.tile_of_slot(s);
+            if let Some(ns) = new.slot(tx, ty) {
+                tiles[ns] = self.tiles[s].take();
+                fields[ns] = std::mem::take(&mut self.fields[s]);
+            }
+        }
+        // Fields next to the old border saw only empty space beyond it, which is still
+        // empty: they stay valid.
+        self.layout = new;
+        self.tiles = tiles;
+        self.fields = fields;
+    }
+
+    /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
+    /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
+    /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
+    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ.
+    ///
+    /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
+    /// [`OccupancyGrid::try_integrate_scan`] reports it instead.
+    pub fn integrate_scan(&mut self, robot_pose: &Pose2, scan: &LaserScan) {
+        let _ = self.try_integrate_scan(robot_pose, scan);
+    }
+
+    /// [`OccupancyGrid::integrate_scan`], returning an error for invalid input.
+    pub fn try_integrate_scan(
+        &mut self,
+        robot_pose: &Pose2,
+        scan: &LaserScan,
+    ) -> Result<(), GridError> {
+        let prepared = PreparedScan::new(scan)?;
+        self.try_integrate_prepared(robot_pose, &prepared)
+    }
+
+    /// Integrates a [`PreparedScan`] (no trigonometry per beam: one `sin_cos` per call).
+    pub fn try_integrate_prepared(
+        &mut self,
+        robot_pose: &Pose2,
+        scan: &PreparedScan,
+    ) -> Result<(), GridError> {
+        if !robot_pose.is_finite() {
+            return Err(GridError::NonFinite {
+                what: "robot pose",
+                value: f64::NAN,
+            });
+        }
+        let sensor = robot_pose.compose(&scan.sensor_pose);
+        let (s, c) = sensor.theta.sin_cos();
+        let start = self.frame.world_to_continuous(&sensor.translation());
+        let inv_res = 1.0 / self.frame.resolution;
+        let m = self.model;
+        // Segment ends in continuous cell coordinates, and whether the end cell is a hit.
+        let mut segs: Vec<((f64, f64), bool)> = Vec::with_capacity(scan.beams.len());
+        let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (start.0, start.1, start.0, start.1);
+        for b in &scan.beams {
+            if b.range < m.min_range {
+                continue;
+            }
+            let (len, hit) = if b.hit {
+                if b.range <= m.max_range {
+                    (b.range, true)
+                } else {
+                    (m.max_range, false)
+                }
+            } else {
+                (m.no_return_range.min(b.range), false)
+            };
+            if len <= 0.0 {
+                continue;
+            }
+            // Beam direction in the world: R(θ_sensor)·dir.
+            let (dx, dy) = (c * b.dir.0 - s * b.dir.1, s * b.dir.0 + c * b.dir.1);
+            let end = (start.0 + len * dx * inv_res, start.1 + len * dy * inv_res);
+            lo_x = lo_x.min(end.0);
+            lo_y = lo_y.min(end.1);
+            hi_x = hi_x.max(end.0);
+            hi_y = hi_y.max(end.1);
+            segs.push((end, hit));
+        }
+        if !(lo_x.is_finite() && lo_y.is_finite() && hi_x.is_finite() && hi_y.is_finite()) {
+            return Err(GridError::NonFinite {
+                what: "beam end point",
+                value: f64::NAN,
+            });
+        }
+        const LIMIT: f64 = (1u32 << 30) as f64;
+        if lo_x.abs() > LIMIT || lo_y.abs() > LIMIT || hi_x.abs() > LIMIT || hi_y.abs() > LIMIT {
+            return Err(GridError::InvalidConfig {
+                name: "beam end point (cells)",
+                value: lo_x.abs().max(hi_x.abs()).max(lo_y.abs()).max(hi_y.abs()),
+                expected: "within ±2^30 cells of the origin",
+            });
+        }
+        self.ensure_covers(
+            CellIndex::new(lo_x.floor() as i32, lo_y.floor() as i32),
+            CellIndex::new(hi_x.floor() as i32, hi_y.floor() as i32),
+        );
+        // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
+        // written under one copy-on-write check.
+        let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
+        let mut hits: Vec<(u32, u16)> = Vec::with_capacity(segs.len());
+        let layout = self.layout;
+        let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
+            let ((tx, ty), local) = split(cell);
+            if let Some(slot) = layout.slot(tx, ty) {
+                v.push((slot as u32, local as u16));
+            }
+        };
+        for &(end, hit) in &segs {
+            let end_cell = trace_segment(start, end, |cell| push(&mut free, cell));
+            if hit {
+                push(&mut hits, end_cell);
+            } else {
+                push(&mut free, end_cell);
+            }
+        }
+        let mut changed: Vec<usize> = Vec::new();
+        self.apply(&free, m.l_free, &mut changed);
+        self.apply(&hits, m.l_occ, &mut changed);
+        self.invalidate_fields(changed);
+        Ok(())
+    }
+
+    /// Adds `delta` to the listed cells (clamped), copying shared tiles on first write and
+    /// recording the slots where some cell changed obstacle status.
+    fn apply(&mut self, updates: &[(u32, u16)], delta: f32, changed: &mut Vec<usize>) {
+        let (lmin, lmax, thr) = (
+            self.model.l_min,
+            self.model.l_max,
+            self.params.occupied_threshold,
+        );
+        let mut i = 0;
+        while i < updates.len() {
+            let slot = updates[i].0 as usize;
+            let mut j = i;
+            while j < updates.len() && updates[j].0 as usize == slot {
+                j += 1;
+            }
+            let run = &updates[i..j];
+            i = j;
+            // Skip the copy entirely when no value in the run would change (saturated cells).
+            let needs_write = match &self.tiles[slot] {
+                None => true,
+                Some(t) => run.iter().any(|&(_, l)| {
+                    let v = t.cells[l as usize];
+                    (v + delta).clamp(lmin, lmax) != v
+                }),
+            };
+            if !needs_write {
+                continue;
+            }
+            let entry = &mut self.tiles[slot];
+            let arc = match entry {
+                None => {
+                    self.stats.tiles_created += 1;
+                    entry.insert(Arc::new(Tile::unknown()))
+                }
+                Some(a) => {
+                    if Arc::strong_count(a) > 1 {
+                        self.stats.tiles_copied += 1;
+                        self.stats.bytes_copied += Self::TILE_BYTES as u64;
+                    }
+                    a
+                }
+            };
+            let tile = Arc::make_mut(arc);
+            let mut status_changed = false;
+            for &(_, l) in run {
+                let v = &mut tile.cells[l as usize];
+                let nv = (*v + delta).clamp(lmin, lmax);
+                status_changed |= (*v > thr) != (nv > thr);
+                *v = nv;
+            }
+            if status_changed && changed.last() != Some(&slot) {
+                changed.push(slot);
+            }
+        }
+    }
+
+    /// Drops the cached fields of the given slots and their 8 neighbours (the obstacle
+    /// margin never exceeds one tile).
+    fn invalidate_fields(&mut self, mut changed: Vec<usize>) {
+        changed.sort_unstable();
+        changed.dedup();
+        for s in changed {
+            let (tx, ty) = self.layout.tile_of_slot(s);
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(n) = self.layout.slot(tx + dx, ty + dy) {
+                        self.fields[n] = OnceLock::new();
+                    }
+                }
+            }
+        }
+    }
+
+    /// Row-major obstacle flags of the `w × h` cells starting at `min`.
+    pub(crate) fn obstacle_mask(&self, min: CellIndex, w: usize, h: usize) -> Vec<bool> {
+        let thr = self.params.occupied_threshold;
+        let mut out = vec![false; w * h];
+        let t = TILE_SIZE as i32;
+        // Walk tile by tile so each cell costs one array read.
+        let (tx_lo, ty_lo) = (min.x >> tiles::TILE_BITS, min.y >> tiles::TILE_BITS);
+        let max_x = min.x + w as i32 - 1;
+        let max_y = min.y + h as i32 - 1;
+        let (tx_hi, ty_hi) = (max_x >> tiles::TILE_BITS, max_y >> tiles::TILE_BITS);
+        for ty in ty_lo..=ty_hi {
+            for tx in tx_lo..=tx_hi {
+                let Some(slot) = self.layout.slot(tx, ty) else {
+                    continue;
+                };
+                let Some(tile) = &self.tiles[slot] else {
+                    continue;
+                };
+                let x0 = (tx * t).max(min.x);
+                let x1 = (tx * t + t - 1).min(max_x);
+                let y0 = (ty * t).max(min.y);
+                let y1 = (ty * t + t - 1).min(max_y);
+                for y in y0..=y1 {
+                    let ly = (y - ty * t) as usize;
+                    let oy = (y - min.y) as usize * w;
+                    for x in x0..=x1 {
+                        let lx = (x - tx * t) as usize;
+                        out[oy + (x - min.x) as usize] = tile.cells[ly * TILE_SIZE + lx] > thr;
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// The cached field tile of a slot, computed on first use.
+    #[inline]
+    fn field_tile(&self, slot: usize) -> &FieldTile {
+        self.fields[slot].get_or_init(|| {
+            let (tx, ty) = self.layout.tile_of_slot(slot);
+            let t = TILE_SIZE as i32;
+            let margin = crate::likelihood::margin_cells_clamped(&self.params, self.resolution());
+            match compute_region(
+                self,
+                CellIndex::new(tx * t, ty * t),
+                TILE_SIZE,
+                TILE_SIZE,
+                margin,
+            ) {
+                None => self.far_field.clone(),
+                Some(v) => {
+                    let mut values = [0.0f32; TILE_CELLS];
+                    values.copy_from_slice(&v);
+                    Arc::new(FieldTile { values })
+                }
+            }
+        })
+    }
+
+    /// Likelihood-field value s ∈ (0, 1] of cell `c` (PR §6.4): exp(−d²/(2σ²)) with d the
+    /// distance from the cell centre to the nearest obstacle cell centre, clamped to
+    /// `max_distance`. Computed per tile on first use and cached.
+    #[inline]
+    pub fn likelihood(&self, c: CellIndex) -> f32 {
+        let ((tx, ty), local) = split(c);
+        match self.layout.slot(tx, ty) {
+            Some(s) => self.field_tile(s).values[local],
+            None => self.far_field.values[0],
+        }
+    }
+
+    /// Bilinear interpolation of the likelihood field at world point `p` between the four
+    /// surrounding cell centres (Hector SLAM, Kohlbrecher et al. 2011, eq. 5–6), with its
+    /// gradient in the world frame (per metre).
+    #[inline]
+    pub fn likelihood_interpolated(&self, p: &Point2) -> (f64, [f64; 2]) {
+        let (u, v) = self.frame.world_to_continuous(p);
+        let (u, v) = (u - 0.5, v - 0.5);
+        let (x0, y0) = (u.floor(), v.floor());
+        let (fx, fy) = (u - x0, v - y0);
+        let (i, j) = (x0 as i32, y0 as i32);
+        let m00 = self.likelihood(CellIndex::new(i, j)) as f64;
+        let m10 = self.likelihood(CellIndex::new(i + 1, j)) as f64;
+        let m01 = self.likelihood(CellIndex::new(i, j + 1)) as f64;
+        let m11 = self.likelihood(CellIndex::new(i + 1, j + 1)) as f64;
+        let val = fy * (fx * m11 + (1.0 - fx) * m01) + (1.0 - fy) * (fx * m10 + (1.0 - fx) * m00);
+        let du = fy * (m11 - m01) + (1.0 - fy) * (m10 - m00);
+        let dv = fx * (m11 - m10) + (1.0 - fx) * (m01 - m00);
+        let inv = 1.0 / self.frame.resolution;
+        (val, [du * inv, dv * inv])
+    }
+
+    /// Copies the likelihood-field values of the `w × h` cells starting at `min` into a
+    /// row-major buffer
+    /// (tile by tile; cells outside the table get the far value).
+    pub fn field_window(&self, min: CellIndex, w: usize, h: usize) -> Vec<f32> {
+        let far = self.far_field.values[0];
+        let mut out = vec![far; w * h];
+        if w == 0 || h == 0 {
+            return out;
+        }
+        let t = TILE_SIZE as i32;
+        let max_x = min.x + w as i32 - 1;
+        let max_y = min.y + h as i32 - 1;
+        for ty in (min.y >> tiles::TILE_BITS)..=(max_y >> tiles::TILE_BITS) {
+            for tx in (min.x >> tiles::TILE_BITS)..=(max_x >> tiles::TILE_BITS) {
+                let Some(slot) = self.layout.slot(tx, ty) else {
+                    continue;
+                };
+                let f = self.field_tile(slot);
+                let x0 = (tx * t).max(min.x);
+                let x1 = (tx * t + t - 1).min(max_x);
+                let y0 = (ty * t).max(min.y);
+                let y1 = (ty * t + t - 1).min(max_y);
+                for y in y0..=y1 {
+                    let src = (y - ty * t) as usize * TILE_SIZE + (x0 - tx * t) as usize;
+                    let dst = (y - min.y) as usize * w + (x0 - min.x) as usize;
+                    let n = (x1 - x0 + 1) as usize;
+                    out[dst..dst + n].copy_from_slice(&f.values[src..src + n]);
+                }
+            }
+        }
+        out
+    }
+
+    /// The smallest rectangle of cells holding every observed (non-zero log-odds) cell, as
+    /// inclusive corners; `None` for an empty grid.
+    pub fn known_bounds(&self) -> Option<(CellIndex, CellIndex)> {
+        let t = TILE_SIZE as i32;
+        let mut lo = CellIndex::new(i32::MAX, i32::MAX);
+        let mut hi = CellIndex::new(i32::MIN, i32::MIN);
+        for (s, tile) in self.tiles.iter().enumerate() {
+            let Some(tile) = tile else { continue };
+            let (tx, ty) = self.layout.tile_of_slot(s);
+            for (k, &v) in tile.cells.iter().enumerate() {
+                if v != 0.0 {
+                    let x = tx * t + (k % TILE_SIZE) as i32;
+                    let y = ty * t + (k / TILE_SIZE) as i32;
+                    lo.x = lo.x.min(x);
+                    lo.y = lo.y.min(y);
+                    hi.x = hi.x.max(x);
+                    hi.y = hi.y.max(y);
+                }
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// Exports the observed part of the grid as a [`GridMap`] (ROS convention: row 0 at the
+    /// bottom, −1 unknown, else the occupancy probability in percent, rounded). An empty
+    /// grid gives a 0×0 map.
+    pub fn to_grid_map(&self) -> GridMap {
+        let Some((lo, hi)) = self.known_bounds() else {
+            return GridMap::unknown(self.resolution(), self.frame.origin, 0, 0);
+        };
+        let w = (hi.x - lo.x + 1) as usize;
+        let h = (hi.y - lo.y + 1) as usize;
+        let res = self.resolution();
+        let origin = Point2::new(
+            self.frame.origin.x + lo.x as f64 * res,
+            self.frame.origin.y + lo.y as f64 * res,
+        );
+        let mut map = GridMap::unknown(res, origin, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let l = self.log_odds(CellIndex::new(lo.x + x as i32, lo.y + y as i32));
+                if l != 0.0 {
+                    let p = 1.0 - 1.0 / (1.0 + (l as f64).exp());
+                    map.cells[y * w + x] = (p * 100.0).round().clamp(0.0, 100.0) as i8;
+                }
+            }
+        }
+        map
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,220 @@
+//! Unit tests of the occupancy grid: beam updates, growth, copy-on-write, fields, export.
+
+use super::*;
+use crate::likelihood::LikelihoodField;
+
+fn scan(ranges: Vec<f64>, angle_min: f64, inc: f64) -> LaserScan {
+    LaserScan {
+        angle_min,
+        angle_increment: inc,
+        ranges,
+        max_range: 30.0,
+        sensor_pose: Pose2::IDENTITY,
+    }
+}
+
+/// A 360° scan of a square room of half-width `h` centred on the world origin, seen from
+/// `pose` (exact ray–wall intersection).
+fn room_scan(pose: &Pose2, h: f64, n: usize) -> LaserScan {
+    let inc = 2.0 * std::f64::consts::PI / n as f64;
+    let ranges = (0..n)
+        .map(|k| {
+            let a = pose.theta + k as f64 * inc;
+            let (s, c) = a.sin_cos();
+            let mut best = f64::INFINITY;
+            for (d, p) in [(c, pose.x), (s, pose.y)] {
+                if d.abs() > 1e-12 {
+                    for wall in [-h, h] {
+                        let t = (wall - p) / d;
+                        if t > 0.0 {
+                            best = best.min(t);
+                        }
+                    }
+                }
+            }
+            best
+        })
+        .collect();
+    scan(ranges, 0.0, inc)
+}
+
+#[test]
+fn single_beam_marks_free_then_occupied() {
+    let mut g = OccupancyGrid::new(0.1, InverseSensorModel::default());
+    g.integrate_scan(&Pose2::new(0.05, 0.05, 0.0), &scan(vec![1.0], 0.0, 0.0));
+    let m = InverseSensorModel::default();
+    for i in 0..10 {
+        assert_eq!(g.log_odds(CellIndex::new(i, 0)), m.l_free, "cell {i}");
+    }
+    assert_eq!(g.log_odds(CellIndex::new(10, 0)), m.l_occ);
+    assert_eq!(g.log_odds(CellIndex::new(11, 0)), 0.0);
+    assert_eq!(g.log_odds(CellIndex::new(5, 1)), 0.0);
+    // Clamping: many hits saturate at l_max.
+    for _ in 0..20 {
+        g.integrate_scan(&Pose2::new(0.05, 0.05, 0.0), &scan(vec![1.0], 0.0, 0.0));
+    }
+    assert_eq!(g.log_odds(CellIndex::new(10, 0)), m.l_max);
+    assert_eq!(g.log_odds(CellIndex::new(3, 0)), m.l_min);
+}
+
+#[test]
+fn no_return_and_far_hits_only_clear() {
+    let model = InverseSensorModel {
+        no_return_range: 0.5,
+        max_range: 2.0,
+        ..Default::default()
+    };
+    let mut g = OccupancyGrid::new(0.1, model);
+    // Beam 0 along +x: no return (30 m); beam 1 along +y: a hit at 5 m, beyond max_range.
+    let s = scan(vec![30.0, 5.0], 0.0, std::f64::consts::FRAC_PI_2);
+    g.integrate_scan(&Pose2::new(0.05, 0.05, 0.0), &s);
+    assert!(g.log_odds(CellIndex::new(4, 0)) < 0.0);
+    assert_eq!(g.log_odds(CellIndex::new(6, 0)), 0.0);
+    assert!(g.log_odds(CellIndex::new(0, 19)) < 0.0);
+    assert_eq!(g.log_odds(CellIndex::new(0, 21)), 0.0);
+    assert!((0..60).all(|j| g.log_odds(CellIndex::new(0, j)) <= 0.0));
+}
+
+#[test]
+fn grows_in_every_direction_and_exports() {
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    let pose = Pose2::new(-3.0, 7.0, 0.3);
+    let s = room_scan(&Pose2::new(0.0, 0.0, 0.3), 4.0, 360);
+    // The room seen from its centre, placed around (−3, 7): walls at x = −7, 1, y = 3, 11.
+    g.integrate_scan(&pose, &s);
+    // Beam 0 points along the heading (0.3 rad) and meets the wall x = 1 at y = 7 + 4·tan 0.3.
+    let wall = g.world_to_cell(&Point2::new(1.0, 7.0 + 4.0 * 0.3f64.tan()));
+    let near = [-1, 0, 1]
+        .iter()
+        .flat_map(|&dx| [-1, 0, 1].map(|dy| CellIndex::new(wall.x + dx, wall.y + dy)))
+        .any(|c| g.log_odds(c) > 0.0);
+    assert!(near, "no occupied cell near the wall");
+    let map = g.to_grid_map();
+    let (lo, hi) = g.known_bounds().unwrap();
+    assert_eq!(map.width, (hi.x - lo.x + 1) as usize);
+    assert!(map.width as f64 * 0.05 > 7.9 && map.width as f64 * 0.05 < 8.3);
+    // The robot's own cell is free, and its map cell agrees with the grid.
+    let robot = Point2::new(-3.01, 7.01);
+    let c = g.world_to_cell(&robot);
+    let (ix, iy) = map.cell_of(&robot).unwrap();
+    assert_eq!(((ix as i32) + lo.x, (iy as i32) + lo.y), (c.x, c.y));
+    assert!(map.get(ix, iy).unwrap() < 50 && map.get(ix, iy).unwrap() >= 0);
+    assert!(map.cells.iter().any(|&v| v > 50));
+}
+
+#[test]
+fn clone_shares_tiles_and_writes_copy_only_touched_ones() {
+    // A 100 m × 100 m... no: 10⁶ cells = 50 m × 50 m at 5 cm, all tiles allocated.
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    for y in 0..5 {
+        for x in 0..5 {
+            let p = Pose2::new(-20.0 + 10.0 * x as f64, -20.0 + 10.0 * y as f64, 0.0);
+            g.integrate_scan(&p, &room_scan(&Pose2::IDENTITY, 4.9, 720));
+        }
+    }
+    let before = g.allocated_tiles();
+    assert!(before >= 900, "{before} tiles allocated");
+    let mut c = g.clone();
+    assert_eq!(c.shared_tiles(), before);
+    c.reset_copy_stats();
+    // One short-range scan (3 m room) touches a handful of tiles only.
+    let pose = Pose2::new(0.0, 0.0, 0.0);
+    let s = room_scan(&Pose2::IDENTITY, 1.5, 360);
+    c.integrate_scan(&pose, &s);
+    let st = c.copy_stats();
+    // The scan spans 3 m = 60 cells: at most ⌈60/32⌉+1 = 3 tiles per axis.
+    assert!(st.tiles_copied >= 1 && st.tiles_copied <= 9, "{st:?}");
+    assert_eq!(
+        st.bytes_copied,
+        st.tiles_copied * OccupancyGrid::TILE_BYTES as u64
+    );
+    assert_eq!(st.tiles_created, 0);
+    // The original is untouched; the copy changed.
+    let wall = c.world_to_cell(&Point2::new(1.5, 0.0));
+    assert!(c.log_odds(wall) > 0.0);
+    assert!(g.log_odds(wall) < 0.0, "original grid was modified");
+    assert_eq!(c.shared_tiles() as u64, before as u64 - st.tiles_copied);
+    // Writing the same scan again copies nothing more (the tiles are now private).
+    c.reset_copy_stats();
+    c.integrate_scan(&pose, &s);
+    assert_eq!(c.copy_stats().tiles_copied, 0);
+}
+
+#[test]
+fn tile_fields_match_dense_field_and_brute_force() {
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    g.integrate_scan(
+        &Pose2::new(0.3, -0.2, 0.1),
+        &room_scan(&Pose2::new(0.3, -0.2, 0.1), 2.0, 360),
+    );
+    let params = g.likelihood_params();
+    let (lo, hi) = g.known_bounds().unwrap();
+    let lo = CellIndex::new(lo.x - 8, lo.y - 8);
+    let hi = CellIndex::new(hi.x + 8, hi.y + 8);
+    let dense = LikelihoodField::from_grid(&g, lo, hi);
+    let obstacles: Vec<CellIndex> = (lo.y..=hi.y)
+        .flat_map(|y| (lo.x..=hi.x).map(move |x| CellIndex::new(x, y)))
+        .filter(|&c| g.is_obstacle(c))
+        .collect();
+    assert!(obstacles.len() > 100);
+    for y in (lo.y..=hi.y).step_by(3) {
+        for x in (lo.x..=hi.x).step_by(3) {
+            let c = CellIndex::new(x, y);
+            let d = obstacles
+                .iter()
+                .map(|o| (((o.x - x) as f64).powi(2) + ((o.y - y) as f64).powi(2)).sqrt())
+                .fold(f64::INFINITY, f64::min)
+                * 0.05;
+            let want = params.field_value(d);
+            assert!((dense.value(c) - want).abs() < 1e-6, "dense at {c:?}");
+            assert!((g.likelihood(c) - want).abs() < 1e-6, "tile at {c:?}");
+        }
+    }
+    // A write far away keeps cached fields; a write changing obstacles here refreshes them.
+    let probe = g.world_to_cell(&Point2::new(1.0, 0.0));
+    let before = g.likelihood(probe);
+    g.integrate_scan(&Pose2::new(0.0, 0.0, 0.0), &scan(vec![1.0; 5], -0.02, 0.01));
+    g.integrate_scan(&Pose2::new(0.0, 0.0, 0.0), &scan(vec![1.0; 5], -0.02, 0.01));
+    let after = g.likelihood(probe);
+    assert!(
+        before < 0.9 && (after - 1.0).abs() < 1e-6,
+        "{before} -> {after}"
+    );
+}
+
+#[test]
+fn interpolation_gradient_matches_finite_differences() {
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    g.integrate_scan(&Pose2::IDENTITY, &room_scan(&Pose2::IDENTITY, 1.0, 360));
+    for &(x, y) in &[(0.913, 0.1234), (0.87, -0.55), (-0.9311, 0.402)] {
+        let p = Point2::new(x, y);
+        let (_, grad) = g.likelihood_interpolated(&p);
+        let h = 1e-5;
+        let fx = (g.likelihood_interpolated(&Point2::new(x + h, y)).0
+            - g.likelihood_interpolated(&Point2::new(x - h, y)).0)
+            / (2.0 * h);
+        let fy = (g.likelihood_interpolated(&Point2::new(x, y + h)).0
+            - g.likelihood_interpolated(&Point2::new(x, y - h)).0)
+            / (2.0 * h);
+        assert!(
+            (grad[0] - fx).abs() < 1e-4 && (grad[1] - fy).abs() < 1e-4,
+            "{grad:?} vs {fx},{fy}"
+        );
+    }
+}
+
+#[test]
+fn rejects_invalid_input() {
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    assert!(g
+        .try_integrate_scan(&Pose2::new(f64::NAN, 0.0, 0.0), &scan(vec![1.0], 0.0, 0.0))
+        .is_err());
+    assert!(g
+        .try_integrate_scan(&Pose2::IDENTITY, &scan(vec![f64::INFINITY], 0.0, 0.0))
+        .is_err());
+    assert!(g
+        .try_integrate_scan(&Pose2::IDENTITY, &scan(vec![-1.0], 0.0, 0.0))
+        .is_err());
+    assert_eq!(g.allocated_tiles(), 0);
+    assert!(OccupancyGrid::try_new(0.0, InverseSensorModel::default()).is_err());
+}

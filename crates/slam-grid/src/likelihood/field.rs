@@ -1,0 +1,136 @@
+//! Field values over regions and tiles.
+
+use super::edt::{edt_2d, EdtScratch};
+use super::params::LikelihoodParams;
+use crate::cell::{CellIndex, GridFrame};
+use crate::grid::tiles::TILE_CELLS;
+use crate::grid::OccupancyGrid;
+use slam_models::Point2;
+
+/// Field values of one tile (row-major like the tile), s ∈ (0, 1].
+#[derive(Clone)]
+pub(crate) struct FieldTile {
+    pub(crate) values: [f32; TILE_CELLS],
+}
+
+/// Number of cells the obstacle search must look beyond a region for distances to be exact
+/// up to `max_distance`.
+#[inline]
+pub(crate) fn margin_cells(params: &LikelihoodParams, resolution: f64) -> i32 {
+    (params.max_distance / resolution).ceil().clamp(0.0, 4096.0) as i32
+}
+
+/// Field values s(c) for the `w × h` cells starting at `min` (row-major), from an exact EDT
+/// of the grid's obstacles in the region grown by the margin, or `None` when that grown
+/// region holds no obstacle (every value is then [`LikelihoodParams::far_value`]).
+/// `margin` may be given smaller than [`margin_cells`] (tiles clamp it to one tile edge).
+pub(crate) fn compute_region(
+    grid: &OccupancyGrid,
+    min: CellIndex,
+    w: usize,
+    h: usize,
+    margin: i32,
+) -> Option<Vec<f32>> {
+    let params = grid.likelihood_params();
+    let m = margin.max(0) as usize;
+    let (gw, gh) = (w + 2 * m, h + 2 * m);
+    let ox = min.x - m as i32;
+    let oy = min.y - m as i32;
+    let obstacles = grid.obstacle_mask(CellIndex::new(ox, oy), gw, gh);
+    if !obstacles.iter().any(|&o| o) {
+        return None;
+    }
+    let mut scratch = EdtScratch::default();
+    let d2 = edt_2d(&obstacles, gw, gh, &mut scratch);
+    let res = grid.resolution();
+    let mut out = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let d = d2[(y + m) * gw + x + m].sqrt() * res;
+            out.push(params.field_value(d));
+        }
+    }
+    Some(out)
+}
+
+/// A dense likelihood field over a rectangle of cells of a grid: s = exp(−d²/(2σ²)) with d
+/// the exact Euclidean distance (metres, clamped to `max_distance`) from the cell centre to
+/// the nearest obstacle cell centre.
+///
+/// ```
+/// use slam_grid::{CellIndex, InverseSensorModel, LikelihoodField, OccupancyGrid};
+/// use slam_models::{LaserScan, Pose2};
+/// let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
+/// let scan = LaserScan { angle_min: -0.5, angle_increment: 0.01, ranges: vec![2.0; 101],
+///                        max_range: 30.0, sensor_pose: Pose2::IDENTITY };
+/// grid.integrate_scan(&Pose2::IDENTITY, &scan);
+/// let field = LikelihoodField::from_grid(&grid, CellIndex::new(0, -20), CellIndex::new(60, 20));
+/// let wall = grid.world_to_cell(&slam_models::Point2::new(2.0, 0.0));
+/// assert!((field.value(wall) - 1.0).abs() < 1e-6);
+/// ```
+#[derive(Debug, Clone)]
+pub struct LikelihoodField {
+    frame: GridFrame,
+    min: CellIndex,
+    width: usize,
+    height: usize,
+    far: f32,
+    values: Vec<f32>,
+}
+
+impl LikelihoodField {
+    /// The field over cells `min ..= max` (inclusive corners) of `grid`, computed by one EDT
+    /// over that rectangle grown by ⌈max_distance/resolution⌉ cells on each side.
+    pub fn from_grid(grid: &OccupancyGrid, min: CellIndex, max: CellIndex) -> Self {
+        let width = (max.x - min.x + 1).max(0) as usize;
+        let height = (max.y - min.y + 1).max(0) as usize;
+        let params = grid.likelihood_params();
+        let far = params.far_value();
+        let margin = margin_cells(&params, grid.resolution());
+        let values = compute_region(grid, min, width, height, margin)
+            .unwrap_or_else(|| vec![far; width * height]);
+        Self {
+            frame: grid.frame(),
+            min,
+            width,
+            height,
+            far,
+            values,
+        }
+    }
+
+    /// Field value of cell `c` (the far value outside the rectangle).
+    #[inline]
+    pub fn value(&self, c: CellIndex) -> f32 {
+        let x = c.x - self.min.x;
+        let y = c.y - self.min.y;
+        if x < 0 || y < 0 || x as usize >= self.width || y as usize >= self.height {
+            self.far
+        } else {
+            self.values[y as usize * self.width + x as usize]
+        }
+    }
+
+    /// Field value at the cell containing world point `p`.
+    #[inline]
+    pub fn value_at(&self, p: &Point2) -> f32 {
+        self.value(self.frame.world_to_cell(p))
+    }
+
+    /// Lower-left cell, width and height (cells).
+    pub fn extent(&self) -> (CellIndex, usize, usize) {
+        (self.min, self.width, self.height)
+    }
+
+    /// The world ↔ cell frame (the grid's).
+    pub fn frame(&self) -> GridFrame {
+        self.frame
+    }
+}
+
+/// [`margin_cells`] clamped to one tile edge (what per-tile fields use: their EDT looks at
+/// the 3×3 tiles around them).
+#[inline]
+pub(crate) fn margin_cells_clamped(params: &LikelihoodParams, resolution: f64) -> i32 {
+    margin_cells(params, resolution).min(crate::grid::tiles::TILE_SIZE as i32)
+}

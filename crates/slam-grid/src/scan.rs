@@ -1,0 +1,133 @@
+//! Scans prepared once for many uses: beam directions and end points computed a single time,
+//! so that integrating or scoring a scan at a pose costs one `sin_cos` per pose, never one
+//! per beam.
+
+use crate::error::GridError;
+use slam_models::{LaserScan, Point2, Pose2};
+
+/// One beam of a prepared scan: its unit direction in the sensor frame and its reading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct PreparedBeam {
+    /// cos and sin of the beam angle (sensor frame).
+    pub(crate) dir: (f64, f64),
+    /// Range reading, metres.
+    pub(crate) range: f64,
+    /// True for a return (`range < scan.max_range`).
+    pub(crate) hit: bool,
+}
+
+/// A laser scan with its beam directions and hit end points precomputed.
+///
+/// * `beams`: every beam (direction in the sensor frame, reading, hit or no return), for
+///   map updates;
+/// * `points`: the end points of hits in the **robot** frame (the sensor offset applied),
+///   for scan matching; a point p under robot pose x is at R(θ)·p + t in the world.
+///
+/// Build it once per scan and share it (e.g. across the particles of a filter).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PreparedScan {
+    pub(crate) sensor_pose: Pose2,
+    pub(crate) beams: Vec<PreparedBeam>,
+    pub(crate) points: Vec<Point2>,
+    pub(crate) max_point_range: f64,
+}
+
+impl PreparedScan {
+    /// Prepares a scan, rejecting NaN/∞ or negative readings and a non-finite geometry.
+    /// All hits become matching points.
+    pub fn new(scan: &LaserScan) -> Result<Self, GridError> {
+        Self::with_limits(scan, 0.0, f64::INFINITY)
+    }
+
+    /// Like [`PreparedScan::new`], but only hits with `min_range ≤ r ≤ max_range` become
+    /// matching points (all beams are still kept for map updates).
+    pub fn with_limits(
+        scan: &LaserScan,
+        min_range: f64,
+        max_range: f64,
+    ) -> Result<Self, GridError> {
+        scan.validate()?;
+        if !scan.sensor_pose.is_finite() {
+            return Err(GridError::NonFinite {
+                what: "scan sensor pose",
+                value: f64::NAN,
+            });
+        }
+        let mut beams = Vec::with_capacity(scan.len());
+        let mut points = Vec::with_capacity(scan.len());
+        let mut max_point_range: f64 = 0.0;
+        for (k, &r) in scan.ranges.iter().enumerate() {
+            let (s, c) = scan.beam_angle(k).sin_cos();
+            let hit = scan.is_hit(k);
+            beams.push(PreparedBeam {
+                dir: (c, s),
+                range: r,
+                hit,
+            });
+            if hit && r >= min_range && r <= max_range {
+                let p = scan.sensor_pose.transform_point(&Point2::new(r * c, r * s));
+                max_point_range = max_point_range.max(p.coords.norm());
+                points.push(p);
+            }
+        }
+        Ok(Self {
+            sensor_pose: scan.sensor_pose,
+            beams,
+            points,
+            max_point_range,
+        })
+    }
+
+    /// Hit end points in the robot frame (metres) used for matching.
+    #[inline]
+    pub fn points(&self) -> &[Point2] {
+        &self.points
+    }
+
+    /// Largest distance of a matching point from the robot origin, metres.
+    #[inline]
+    pub fn max_point_range(&self) -> f64 {
+        self.max_point_range
+    }
+
+    /// The sensor's pose in the robot frame.
+    #[inline]
+    pub fn sensor_pose(&self) -> Pose2 {
+        self.sensor_pose
+    }
+
+    /// Number of beams (hits and no-returns).
+    #[inline]
+    pub fn beam_count(&self) -> usize {
+        self.beams.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_match_laser_scan_hit_points() {
+        let scan = LaserScan {
+            angle_min: -1.0,
+            angle_increment: 0.1,
+            ranges: (0..21)
+                .map(|k| 1.0 + 0.1 * k as f64)
+                .chain([30.0])
+                .collect(),
+            max_range: 30.0,
+            sensor_pose: Pose2::new(0.2, -0.1, 0.3),
+        };
+        let p = PreparedScan::new(&scan).unwrap();
+        let expected = scan.hit_points();
+        assert_eq!(p.points().len(), 21);
+        assert_eq!(p.beam_count(), 22);
+        for (a, b) in p.points().iter().zip(&expected) {
+            assert!((a - b).norm() < 1e-12);
+        }
+        let mut bad = scan.clone();
+        bad.ranges[3] = f64::NAN;
+        assert!(PreparedScan::new(&bad).is_err());
+    }
+}
