@@ -287,12 +287,10 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             expected: "at least one FLASER, RLASER, ROBOTLASER1 or ODOM record".into(),
         });
     }
-    let flaser_max_range = (!pending.is_empty()).then(|| {
-        if flaser_max >= NO_RETURN_MIN {
-            flaser_max
-        } else {
-            SICK_NO_RETURN
-        }
+    let flaser_max_range = (!pending.is_empty()).then_some(if flaser_max >= NO_RETURN_MIN {
+        flaser_max
+    } else {
+        SICK_NO_RETURN
     });
     let param_offset = |name: &str| -> f64 {
         params

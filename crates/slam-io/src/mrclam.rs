@@ -227,8 +227,11 @@ pub(crate) fn parse_landmarks(f: &TextFile) -> Result<Vec<(LandmarkId, Point2)>,
     Ok(out)
 }
 
+/// One odometry row: (t [s], v [m/s], ω [rad/s]).
+pub(crate) type OdometryRow = (f64, f64, f64);
+
 /// `time v ω` rows; returns (t, v, ω) and whether the file is the resampled variant.
-pub(crate) fn parse_odometry(f: &TextFile) -> Result<(Vec<(f64, f64, f64)>, bool), IoError> {
+pub(crate) fn parse_odometry(f: &TextFile) -> Result<(Vec<OdometryRow>, bool), IoError> {
     f.ensure_not_empty("lines `time v w`")?;
     let mut rows = Vec::new();
     let mut resampled = false;

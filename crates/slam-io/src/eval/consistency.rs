@@ -55,7 +55,7 @@ fn ln_gamma(x: f64) -> f64 {
 /// its series for x < a + 1 and the Lentz continued fraction of Q = 1 − P otherwise
 /// (Numerical Recipes, 3rd ed., §6.2). NaN for invalid arguments.
 pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
-    if !(a > 0.0) || !(x >= 0.0) || !a.is_finite() || x.is_nan() {
+    if a.is_nan() || x.is_nan() || a <= 0.0 || x < 0.0 || a.is_infinite() {
         return f64::NAN;
     }
     if x == 0.0 {
