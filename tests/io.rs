@@ -303,3 +303,160 @@ fn relations_metric_reproduces_intel_figures() {
     assert!((r.rot_mean_deg - 2.32).abs() < 0.05, "{r:?}");
     assert!(r.used > 2900, "{r:?}");
 }
+
+/// Pictures and writers on real data: the files land in cargo's per-test temp folder
+/// (`CARGO_TARGET_TMPDIR/io-pictures`) to be looked at.
+#[test]
+fn pictures_and_writers_on_real_data() {
+    use slam::io::picture::{self, Picture, Series};
+    use slam_models::{GridMap, LandmarkEstimate, Matrix2, Point2, WeightedPose};
+    let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("io-pictures");
+    std::fs::create_dir_all(&out).unwrap();
+
+    // Freiburg: dead reckoning, true landmarks, and "estimates" at the true positions with
+    // a made-up covariance, plus a particle cloud around the last pose.
+    if let Some(dir) = common::dataset("freiburg-robot-mapping") {
+        let d = freiburg::read_freiburg(&dir).unwrap();
+        let dr: Vec<Pose2> = slam::io::dead_reckoning(&d)
+            .iter()
+            .map(|p| p.pose)
+            .collect();
+        let lms = d.landmarks.clone().unwrap();
+        let est: Vec<LandmarkEstimate> = lms
+            .iter()
+            .map(|(id, p)| LandmarkEstimate {
+                id: *id,
+                mean: Point2::new(p.x + 0.1, p.y - 0.1),
+                covariance: Matrix2::new(0.04, 0.015, 0.015, 0.02),
+            })
+            .collect();
+        let last = *dr.last().unwrap();
+        let parts: Vec<WeightedPose> = (0..200)
+            .map(|k| {
+                let a = k as f64 * 2.399;
+                let r = 0.3 * (k as f64 / 200.0).sqrt();
+                WeightedPose {
+                    pose: Pose2::new(last.x + r * a.cos(), last.y + r * a.sin(), 0.0),
+                    weight: 1.0 / 200.0,
+                }
+            })
+            .collect();
+        Picture::new()
+            .trajectory(&dr, picture::RED)
+            .true_landmarks(&lms)
+            .landmarks(&est)
+            .particles(&parts)
+            .save_png(&out.join("freiburg.png"))
+            .unwrap();
+        slam::io::landmarks_csv::write_landmarks_csv(&out.join("freiburg-landmarks.csv"), &est)
+            .unwrap();
+        let back = slam::io::landmarks_csv::read_landmarks_csv(&out.join("freiburg-landmarks.csv"))
+            .unwrap();
+        assert_eq!(back, est);
+        let e = eval::landmark_error(&est, &lms, true);
+        assert!(
+            (e.rmse - 0.02f64.sqrt()).abs() < 1e-9 && e.rmse_aligned < 1e-9,
+            "{e:?}"
+        );
+    }
+
+    // MRCLAM: ground truth and dead reckoning, true landmarks.
+    if let Some(dir) = common::dataset("utias-mrclam/MRCLAM_Dataset1_resampled") {
+        let d = mrclam::read_mrclam(&dir, 1).unwrap();
+        let gt: Vec<Pose2> = d
+            .ground_truth
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|p| p.pose)
+            .collect();
+        let dr: Vec<Pose2> = slam::io::dead_reckoning(&d)
+            .iter()
+            .map(|p| p.pose)
+            .collect();
+        Picture::new()
+            .ground_truth(&gt)
+            .trajectory(&dr, picture::RED)
+            .true_landmarks(d.landmarks.as_ref().unwrap())
+            .save_png(&out.join("mrclam-robot1.png"))
+            .unwrap();
+        slam::io::tum::write_tum(
+            &out.join("mrclam-robot1-dr.tum"),
+            &slam::io::dead_reckoning(&d),
+        )
+        .unwrap();
+    }
+
+    // Intel: a crude map of the scan end points at GMapping's poses (a real grid mapper is
+    // not this crate's job), written as PNG and as a map_server map, then read back.
+    if let (Some(log), Some(reff)) = (
+        common::dataset("bench/intel.log"),
+        common::dataset("bench/intel.ref.tum"),
+    ) {
+        let d = carmen::read_carmen(&log).unwrap().dataset;
+        let reference = tum::read_tum(&reff).unwrap();
+        let sorted = eval::sorted_by_time(&reference);
+        let res = 0.1;
+        let (ox, oy, w, h) = (-20.0, -25.0, 500, 500);
+        let mut map = GridMap::unknown(res, Point2::new(ox, oy), w, h);
+        for r in &d.records {
+            let (Some(scan), Some(i)) = (&r.scan, eval::lookup(&sorted, r.t, 0.006)) else {
+                continue;
+            };
+            let pose = sorted[i].pose;
+            for q in scan.hit_points() {
+                if let Some((ix, iy)) = map.cell_of(&pose.transform_point(&q)) {
+                    map.cells[iy * w + ix] = 100;
+                }
+            }
+            if let Some((ix, iy)) = map.cell_of(&pose.translation()) {
+                map.cells[iy * w + ix] = 0;
+            }
+        }
+        let odo: Vec<Pose2> = slam::io::odometry_trajectory(&d)
+            .iter()
+            .map(|p| p.pose)
+            .collect();
+        let refp: Vec<Pose2> = reference.iter().map(|p| p.pose).collect();
+        Picture::new()
+            .map(&map)
+            .trajectory(&refp, picture::RED)
+            .trajectory(&odo, picture::PURPLE)
+            .save_png(&out.join("intel.png"))
+            .unwrap();
+        slam::io::ros_map::write_ros_map(&out, "intel-map", &map).unwrap();
+        let back = slam::io::ros_map::read_ros_map(&out.join("intel-map.yaml")).unwrap();
+        assert_eq!(back, map);
+        // CARMEN round trip of the real log.
+        let p = out.join("intel-rewritten.log.gz");
+        carmen::write_carmen(&p, &d).unwrap();
+        let again = carmen::read_carmen(&p).unwrap().dataset;
+        assert_eq!(again.records.len(), d.records.len());
+        for (a, b) in d.records.iter().zip(&again.records) {
+            assert_eq!((a.t, a.odometry), (b.t, b.odometry));
+            assert_eq!(
+                a.scan.as_ref().map(|s| &s.ranges),
+                b.scan.as_ref().map(|s| &s.ranges)
+            );
+        }
+    }
+
+    // A NEES-style series with its 95 % band for 50 runs of a 3-dof error.
+    let x: Vec<f64> = (0..200).map(|i| i as f64).collect();
+    let y: Vec<f64> = x
+        .iter()
+        .map(|t| 3.0 + 0.6 * (t * 0.13).sin() + if *t > 150.0 { 1.5 } else { 0.0 })
+        .collect();
+    let band = eval::chi2_band(3, 50, 0.95);
+    picture::plot_series(
+        &out.join("nees.png"),
+        &x,
+        &[Series {
+            y: &y,
+            colour: picture::RED,
+        }],
+        Some(band),
+    )
+    .unwrap();
+    println!("pictures in {}", out.display());
+}
