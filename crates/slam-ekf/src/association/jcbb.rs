@@ -1,0 +1,172 @@
+//! Joint compatibility branch and bound (J. Neira, J. D. Tardós, "Data association in
+//! stochastic mapping using the joint compatibility test", IEEE T-RA 17(6), 2001).
+//!
+//! A hypothesis H pairs some observations with distinct landmarks. It is jointly
+//! compatible when the stacked innovation ν_H and its covariance S_H = H·Σ·Hᵀ + Q satisfy
+//! D²_H = ν_Hᵀ·S_H⁻¹·ν_H < χ²_{2k}(p), k the number of pairings; cross-covariances
+//! between the pairings (through the pose and between landmarks) are included, which is
+//! what rejects spurious pairings that are individually plausible. The interpretation tree
+//! is searched depth first; a branch is abandoned when it cannot beat the best hypothesis'
+//! number of pairings (the paper's bound). D²_H and S_H⁻¹ are updated incrementally by the
+//! block-inverse (Schur complement) formula, O(k²) per node:
+//!
+//! ```text
+//! S' = [S B; Bᵀ C],  t = S⁻¹B,  Z = (C − Bᵀt)⁻¹,
+//! D²' = D² + (ν_new − tᵀν)ᵀ Z (ν_new − tᵀν),
+//! S'⁻¹ = [S⁻¹ + tZtᵀ, −tZ; −Ztᵀ, Z]
+//! ```
+//!
+//! Among hypotheses with equally many pairings the one with the smaller D² is kept.
+
+use super::compatibility::cross_cov;
+use super::Candidate;
+use crate::chi2::GateTable;
+use crate::state::State;
+use nalgebra::{DMatrix, DVector};
+
+/// The outcome of one JCBB search.
+#[derive(Debug, Clone)]
+pub(crate) struct JcbbResult {
+    /// Per observation, the index into its candidate list, or `None` (unpaired).
+    pub assignment: Vec<Option<usize>>,
+    /// Nodes of the interpretation tree visited.
+    pub nodes: usize,
+    /// True when the node budget ran out before the search finished.
+    pub exhausted: bool,
+}
+
+struct Hyp {
+    /// (observation, candidate) of each pairing, in order.
+    pairs: Vec<(usize, usize)>,
+    nu: DVector<f64>,
+    s_inv: DMatrix<f64>,
+    d2: f64,
+}
+
+struct Search<'a> {
+    state: &'a State,
+    cands: &'a [Vec<Candidate>],
+    order: Vec<usize>,
+    gates: &'a mut GateTable,
+    max_nodes: usize,
+    nodes: usize,
+    cur: Vec<Option<usize>>,
+    best: Vec<Option<usize>>,
+    best_pairs: usize,
+    best_d2: f64,
+}
+
+impl Search<'_> {
+    fn extend(&mut self, h: &Hyp, i: usize, c: usize) -> Option<Hyp> {
+        let cand = &self.cands[i][c];
+        let k = h.pairs.len();
+        let mut b = DMatrix::<f64>::zeros(2 * k, 2);
+        for (p, &(pi, pc)) in h.pairs.iter().enumerate() {
+            let x = cross_cov(self.state, &self.cands[pi][pc].lin, &cand.lin);
+            b.view_mut((2 * p, 0), (2, 2)).copy_from(&x);
+        }
+        let t = &h.s_inv * &b;
+        let c_mat = DMatrix::from_fn(2, 2, |r, q| cand.s[(r, q)]);
+        let schur = &c_mat - b.transpose() * &t;
+        let z = schur.try_inverse()?;
+        let nu_new = DVector::from_column_slice(cand.lin.nu.as_slice());
+        let e = &nu_new - t.transpose() * &h.nu;
+        let d2 = h.d2 + (e.transpose() * &z * &e)[(0, 0)];
+        if !(d2.is_finite() && d2 >= 0.0) || d2 >= self.gates.threshold(k + 1) {
+            return None;
+        }
+        let mut s_inv = DMatrix::<f64>::zeros(2 * k + 2, 2 * k + 2);
+        let tz = &t * &z;
+        s_inv
+            .view_mut((0, 0), (2 * k, 2 * k))
+            .copy_from(&(&h.s_inv + &tz * t.transpose()));
+        s_inv.view_mut((0, 2 * k), (2 * k, 2)).copy_from(&(-&tz));
+        s_inv
+            .view_mut((2 * k, 0), (2, 2 * k))
+            .copy_from(&(-tz.transpose()));
+        s_inv.view_mut((2 * k, 2 * k), (2, 2)).copy_from(&z);
+        let mut nu = DVector::<f64>::zeros(2 * k + 2);
+        nu.rows_mut(0, 2 * k).copy_from(&h.nu);
+        nu.rows_mut(2 * k, 2).copy_from(&nu_new);
+        let mut pairs = h.pairs.clone();
+        pairs.push((i, c));
+        Some(Hyp {
+            pairs,
+            nu,
+            s_inv,
+            d2,
+        })
+    }
+
+    fn recurse(&mut self, level: usize, h: &Hyp) {
+        if self.nodes >= self.max_nodes {
+            return;
+        }
+        self.nodes += 1;
+        if level == self.order.len() {
+            let k = h.pairs.len();
+            if k > self.best_pairs || (k == self.best_pairs && h.d2 < self.best_d2) {
+                self.best_pairs = k;
+                self.best_d2 = h.d2;
+                self.best.clone_from(&self.cur);
+            }
+            return;
+        }
+        let i = self.order[level];
+        for c in 0..self.cands[i].len() {
+            let lm = self.cands[i][c].lin.landmark;
+            if h.pairs
+                .iter()
+                .any(|&(pi, pc)| self.cands[pi][pc].lin.landmark == lm)
+            {
+                continue;
+            }
+            if let Some(h2) = self.extend(h, i, c) {
+                self.cur[i] = Some(c);
+                self.recurse(level + 1, &h2);
+                self.cur[i] = None;
+            }
+        }
+        let remaining = self.order.len() - level - 1;
+        if h.pairs.len() + remaining > self.best_pairs
+            || (self.best_pairs == 0 && level + 1 == self.order.len())
+        {
+            self.recurse(level + 1, h);
+        }
+    }
+}
+
+/// Runs JCBB over the candidate lists (one per observation, each individually gated).
+/// `gates` gives χ²_{2k}(p) for the joint test.
+pub(crate) fn associate(
+    state: &State,
+    cands: &[Vec<Candidate>],
+    gates: &mut GateTable,
+    max_nodes: usize,
+) -> JcbbResult {
+    let order: Vec<usize> = (0..cands.len()).filter(|&i| !cands[i].is_empty()).collect();
+    let mut search = Search {
+        state,
+        cands,
+        order,
+        gates,
+        max_nodes,
+        nodes: 0,
+        cur: vec![None; cands.len()],
+        best: vec![None; cands.len()],
+        best_pairs: 0,
+        best_d2: f64::INFINITY,
+    };
+    let root = Hyp {
+        pairs: Vec::new(),
+        nu: DVector::zeros(0),
+        s_inv: DMatrix::zeros(0, 0),
+        d2: 0.0,
+    };
+    search.recurse(0, &root);
+    JcbbResult {
+        exhausted: search.nodes >= search.max_nodes,
+        nodes: search.nodes,
+        assignment: search.best,
+    }
+}

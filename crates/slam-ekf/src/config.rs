@@ -1,0 +1,212 @@
+//! Configuration of EKF-SLAM.
+
+use crate::error::EkfError;
+use serde::{Deserialize, Serialize};
+use slam_models::measurement::RangeBearingModel;
+use slam_models::motion::MotionModels;
+
+/// How observations are matched to landmarks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum AssociationMode {
+    /// Use an observation's id when it has one; match id-less observations with JCBB.
+    #[default]
+    Auto,
+    /// Every observation must carry its landmark's id; a missing id is an error.
+    KnownIds,
+    /// Ignore ids. Individual compatibility (Mahalanobis gate) and maximum-likelihood
+    /// nearest neighbour, conflicts resolved greedily by likelihood.
+    NearestNeighbour,
+    /// Ignore ids. Joint compatibility branch and bound (Neira & Tardós 2001).
+    Jcbb,
+}
+
+/// Parameters of [`crate::EkfSlam`].
+///
+/// ```
+/// let c: slam_ekf::EkfConfig = toml::from_str("min_sightings = 2").unwrap();
+/// assert_eq!(c.min_sightings, 2);
+/// ```
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EkfConfig {
+    /// Motion models (velocity and odometry, PR tables 5.3/5.6) with their noise
+    /// parameters; the one used is chosen by the kind of each control.
+    pub motion: MotionModels,
+    /// Extra process noise added to the pose each prediction, variances
+    /// (m², m², rad²) on the diagonal of R (the Freiburg course's additive pose noise).
+    pub extra_motion_noise: [f64; 3],
+    /// Range-bearing sensor noise Q = diag(σr², σφ²).
+    pub sensor: RangeBearingModel,
+    /// Initial pose covariance, diagonal variances (m², m², rad²). Zero fixes the world
+    /// frame at the initial pose (the usual SLAM convention).
+    pub initial_pose_variance: [f64; 3],
+    /// Data association mode.
+    pub association: AssociationMode,
+    /// Individual-compatibility gate: an observation may match a landmark when its
+    /// Mahalanobis distance d² = νᵀS⁻¹ν is below the chi-square quantile with 2 dof at this
+    /// probability. Also the gate inside which an unmatched observation is deemed
+    /// ambiguous and discarded rather than starting a new landmark.
+    pub gate_probability: f64,
+    /// Joint-compatibility gate of JCBB: a hypothesis with k pairings is accepted when its
+    /// joint d² is below χ²_{2k} at this probability.
+    pub joint_probability: f64,
+    /// Outlier gate for observations with known ids (χ²₂ quantile at this probability);
+    /// `None` accepts every observation of a known landmark.
+    pub known_id_gate_probability: Option<f64>,
+    /// k: an id-less observation that matches no landmark starts a provisional landmark,
+    /// which joins the state after this many consistent sightings (1 = at once).
+    /// Landmarks with known ids always join at their first sighting.
+    pub min_sightings: usize,
+    /// A provisional landmark not seen for this many updates is dropped.
+    pub provisional_max_age: usize,
+    /// Gate (χ²₂ probability) for matching a sighting to a provisional landmark.
+    pub provisional_gate_probability: f64,
+    /// Search budget of JCBB (nodes of the interpretation tree per update); when it is
+    /// exhausted the best hypothesis found so far is used.
+    pub jcbb_max_nodes: usize,
+}
+
+impl Default for EkfConfig {
+    /// slam-models' default motion and sensor models, no extra motion noise, a zero
+    /// initial pose covariance, `Auto` association, gates at 99.9 % (individual), 99 %
+    /// (joint) and 99.99 % (known-id outliers), k = 3 sightings within 20 updates
+    /// (provisional gate 99.9 %), 100 000 JCBB nodes.
+    fn default() -> Self {
+        Self {
+            motion: MotionModels::default(),
+            extra_motion_noise: [0.0; 3],
+            sensor: RangeBearingModel::default(),
+            initial_pose_variance: [0.0; 3],
+            association: AssociationMode::Auto,
+            gate_probability: 0.999,
+            joint_probability: 0.99,
+            known_id_gate_probability: Some(0.9999),
+            min_sightings: 3,
+            provisional_max_age: 20,
+            provisional_gate_probability: 0.999,
+            jcbb_max_nodes: 100_000,
+        }
+    }
+}
+
+fn check(
+    field: &'static str,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), EkfError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(EkfError::InvalidConfig {
+            field,
+            value,
+            expected,
+        })
+    }
+}
+
+fn probability(field: &'static str, p: f64) -> Result<(), EkfError> {
+    check(field, p, p > 0.0 && p < 1.0, "a probability in (0, 1)")
+}
+
+impl EkfConfig {
+    /// Checks every field against its documented range.
+    pub fn validate(&self) -> Result<(), EkfError> {
+        for a in self.motion.odometry.alpha {
+            check("motion.odometry.alpha", a, a >= 0.0, "finite and >= 0")?;
+        }
+        for a in self.motion.velocity.alpha {
+            check("motion.velocity.alpha", a, a >= 0.0, "finite and >= 0")?;
+        }
+        for v in self.extra_motion_noise {
+            check("extra_motion_noise", v, v >= 0.0, "finite and >= 0")?;
+        }
+        for v in self.initial_pose_variance {
+            check("initial_pose_variance", v, v >= 0.0, "finite and >= 0")?;
+        }
+        let s = &self.sensor;
+        check(
+            "sensor.sigma_range",
+            s.sigma_range,
+            s.sigma_range > 0.0,
+            "finite and > 0",
+        )?;
+        check(
+            "sensor.sigma_bearing",
+            s.sigma_bearing,
+            s.sigma_bearing > 0.0,
+            "finite and > 0",
+        )?;
+        check(
+            "sensor.min_range",
+            s.min_range,
+            s.min_range >= 0.0,
+            "finite and >= 0",
+        )?;
+        probability("gate_probability", self.gate_probability)?;
+        probability("joint_probability", self.joint_probability)?;
+        probability(
+            "provisional_gate_probability",
+            self.provisional_gate_probability,
+        )?;
+        if let Some(p) = self.known_id_gate_probability {
+            probability("known_id_gate_probability", p)?;
+        }
+        let k = self.min_sightings as f64;
+        check("min_sightings", k, self.min_sightings >= 1, "at least 1")?;
+        let age = self.provisional_max_age as f64;
+        check(
+            "provisional_max_age",
+            age,
+            self.provisional_max_age >= 1,
+            "at least 1",
+        )?;
+        let nodes = self.jcbb_max_nodes as f64;
+        check(
+            "jcbb_max_nodes",
+            nodes,
+            self.jcbb_max_nodes >= 1,
+            "at least 1",
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_valid_and_round_trips() {
+        let c = EkfConfig::default();
+        c.validate().unwrap();
+        let s = toml::to_string(&c).unwrap();
+        let back: EkfConfig = toml::from_str(&s).unwrap();
+        assert_eq!(back.min_sightings, c.min_sightings);
+        assert!(toml::from_str::<EkfConfig>("no_such_field = 1").is_err());
+    }
+
+    #[test]
+    fn rejects_bad_values() {
+        let c = EkfConfig {
+            gate_probability: 1.0,
+            ..EkfConfig::default()
+        };
+        assert!(matches!(
+            c.validate(),
+            Err(EkfError::InvalidConfig {
+                field: "gate_probability",
+                ..
+            })
+        ));
+        let mut c = EkfConfig::default();
+        c.sensor.sigma_range = f64::NAN;
+        assert!(c.validate().is_err());
+        let c = EkfConfig {
+            min_sightings: 0,
+            ..EkfConfig::default()
+        };
+        assert!(c.validate().is_err());
+    }
+}

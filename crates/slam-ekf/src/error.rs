@@ -1,0 +1,60 @@
+//! The error type of slam-ekf.
+
+use slam_models::{FilterError, ModelError};
+use thiserror::Error;
+
+/// What went wrong in EKF-SLAM. Each variant says what was expected.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum EkfError {
+    /// A configuration value was outside its documented range.
+    #[error("invalid EKF configuration: {field} = {value} (expected {expected})")]
+    InvalidConfig {
+        /// The offending field of [`crate::EkfConfig`].
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// What was expected, in words.
+        expected: &'static str,
+    },
+    /// An input (control, observation, initial pose) was non-finite or otherwise invalid.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// An observation carried no landmark id although the association mode is
+    /// [`crate::AssociationMode::KnownIds`].
+    #[error("observation {index} has no landmark id, but association mode is KnownIds")]
+    MissingId {
+        /// Index of the observation in the batch.
+        index: usize,
+    },
+    /// The innovation covariance S of an update was not positive definite (the covariance
+    /// of the state has lost positive definiteness).
+    #[error("innovation covariance of a {dim}-dimensional update is not positive definite")]
+    InnovationNotPositiveDefinite {
+        /// Dimension of the stacked innovation.
+        dim: usize,
+    },
+    /// A diagonal entry of the state covariance became non-positive or non-finite.
+    #[error("state covariance entry ({index}, {index}) = {value} is not positive and finite")]
+    CovarianceNotPositive {
+        /// Index into the state vector.
+        index: usize,
+        /// The diagonal value found.
+        value: f64,
+    },
+    /// A model computation failed.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+}
+
+impl From<EkfError> for FilterError {
+    fn from(e: EkfError) -> Self {
+        match e {
+            EkfError::Model(m) => FilterError::Model(m),
+            EkfError::InvalidInput(s) => FilterError::InvalidInput(s),
+            e @ EkfError::MissingId { .. } => FilterError::InvalidInput(e.to_string()),
+            e @ (EkfError::InnovationNotPositiveDefinite { .. }
+            | EkfError::CovarianceNotPositive { .. }) => FilterError::Numerical(e.to_string()),
+            e => FilterError::Other(Box::new(e)),
+        }
+    }
+}

@@ -1,0 +1,386 @@
+//! [`EkfSlam`]: the filter, its per-update diagnostics and the `LandmarkSlam` impl.
+
+use crate::association::compatibility::{linearise, projected_cov};
+use crate::association::{candidates, jcbb, nearest, Candidate};
+use crate::chi2::{quantile_even, GateTable};
+use crate::config::{AssociationMode, EkfConfig};
+use crate::error::EkfError;
+use crate::provisional::ProvisionalList;
+use crate::state::{Linearised, State};
+use slam_models::gaussian::mahalanobis_squared;
+use slam_models::{
+    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3, Pose2,
+    RangeBearing, UpdateInfo, Vector3,
+};
+use std::collections::HashMap;
+
+/// Ids the filter assigns to landmarks found without ids start here in
+/// [`AssociationMode::Auto`] (so they cannot clash with the data's own ids); in
+/// `NearestNeighbour` and `Jcbb` mode they start at 0.
+pub const AUTO_ID_BASE: u32 = 1 << 30;
+
+/// What became of one observation in the last update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Association {
+    /// Matched to this mapped landmark and used in the update.
+    Landmark(LandmarkId),
+    /// Started (or completed the k sightings of) a landmark, which joined the map with this id.
+    New(LandmarkId),
+    /// Recorded as a sighting of a provisional landmark (not yet in the map).
+    Provisional,
+    /// Not used: outside the known-id outlier gate, ambiguous (inside an individual gate
+    /// but not paired by the association), a negative range, or degenerate geometry.
+    Rejected,
+}
+
+/// EKF-specific diagnostics of one update (faer-style info struct), in addition to the
+/// common [`UpdateInfo`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct EkfUpdateInfo {
+    /// The common counts. `rejected` includes sightings held as provisional landmarks.
+    pub common: UpdateInfo,
+    /// Observations recorded as provisional sightings.
+    pub provisional: usize,
+    /// Id-less observations discarded because they fell inside some landmark's individual
+    /// gate without being paired (neither safe to use nor to map).
+    pub ambiguous: usize,
+    /// Nodes visited by JCBB (0 when it did not run).
+    pub jcbb_nodes: usize,
+    /// True when JCBB hit its node budget and returned the best hypothesis found so far.
+    pub jcbb_exhausted: bool,
+}
+
+/// EKF-SLAM (Probabilistic Robotics table 10.1 with known correspondences, §10.3 with
+/// unknown ones): one Gaussian over the pose and every landmark.
+///
+/// ```
+/// use slam_ekf::{EkfConfig, EkfSlam};
+/// use slam_models::{Control, LandmarkId, LandmarkSlam, OdometryControl, Pose2, RangeBearing};
+/// let mut ekf = EkfSlam::new(EkfConfig::default(), Pose2::IDENTITY).unwrap();
+/// ekf.predict(&Control::Odometry(OdometryControl { rot1: 0.0, trans: 1.0, rot2: 0.0 })).unwrap();
+/// let z = RangeBearing::new(2.0, 0.5, Some(LandmarkId(7))).unwrap();
+/// let info = ekf.update(&[z]).unwrap();
+/// assert_eq!(info.new_landmarks, 1);
+/// assert_eq!(ekf.landmarks()[0].id, LandmarkId(7));
+/// ```
+#[derive(Debug, Clone)]
+pub struct EkfSlam {
+    config: EkfConfig,
+    state: State,
+    ids: Vec<LandmarkId>,
+    index: HashMap<LandmarkId, usize>,
+    next_id: u32,
+    provisional: ProvisionalList,
+    step: u64,
+    associations: Vec<Association>,
+    info: EkfUpdateInfo,
+    gate: f64,
+    known_gate: Option<f64>,
+    provisional_gate: f64,
+    joint: GateTable,
+}
+
+impl EkfSlam {
+    /// A filter at `initial_pose` with covariance `config.initial_pose_variance` and an
+    /// empty map. Rejects invalid configurations and non-finite poses.
+    pub fn new(config: EkfConfig, initial_pose: Pose2) -> Result<Self, EkfError> {
+        config.validate()?;
+        if !initial_pose.is_finite() {
+            return Err(EkfError::InvalidInput(format!(
+                "initial pose {initial_pose:?} is not finite"
+            )));
+        }
+        let v = config.initial_pose_variance;
+        let state = State::new(
+            Pose2::new(initial_pose.x, initial_pose.y, initial_pose.theta),
+            Matrix3::from_diagonal(&Vector3::new(v[0], v[1], v[2])),
+        );
+        Ok(Self {
+            gate: quantile_even(2, config.gate_probability),
+            known_gate: config
+                .known_id_gate_probability
+                .map(|p| quantile_even(2, p)),
+            provisional_gate: quantile_even(2, config.provisional_gate_probability),
+            joint: GateTable::new(config.joint_probability),
+            next_id: if config.association == AssociationMode::Auto {
+                AUTO_ID_BASE
+            } else {
+                0
+            },
+            config,
+            state,
+            ids: Vec::new(),
+            index: HashMap::new(),
+            provisional: ProvisionalList::default(),
+            step: 0,
+            associations: Vec::new(),
+            info: EkfUpdateInfo::default(),
+        })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &EkfConfig {
+        &self.config
+    }
+
+    /// Number of landmarks in the map (provisional ones excluded).
+    pub fn landmark_count(&self) -> usize {
+        self.state.landmark_count()
+    }
+
+    /// Number of provisional landmarks waiting for more sightings.
+    pub fn provisional_count(&self) -> usize {
+        self.provisional.len()
+    }
+
+    /// The state mean μ = (x, y, θ, m₁ₓ, m₁ᵧ, …), metres and radians; landmark `k` of
+    /// [`EkfSlam::landmarks`] sits at indices 3 + 2k and 4 + 2k.
+    pub fn mean(&self) -> &[f64] {
+        self.state.mean()
+    }
+
+    /// The full (3 + 2n)² state covariance Σ, ordered as [`EkfSlam::mean`].
+    pub fn covariance(&self) -> faer::MatRef<'_, f64> {
+        self.state.covariance()
+    }
+
+    /// What became of each observation of the last update, in input order.
+    pub fn last_associations(&self) -> &[Association] {
+        &self.associations
+    }
+
+    /// Diagnostics of the last update.
+    pub fn last_update_info(&self) -> EkfUpdateInfo {
+        self.info
+    }
+
+    fn fresh_id(&mut self) -> LandmarkId {
+        while self.index.contains_key(&LandmarkId(self.next_id)) {
+            self.next_id = self.next_id.wrapping_add(1);
+        }
+        let id = LandmarkId(self.next_id);
+        self.next_id = self.next_id.wrapping_add(1);
+        id
+    }
+
+    fn insert_landmark(&mut self, z: &RangeBearing, id: LandmarkId) -> Result<(), EkfError> {
+        let inv = self.config.sensor.inverse(&self.state.pose(), z);
+        if !(inv.landmark.x.is_finite() && inv.landmark.y.is_finite()) {
+            return Err(EkfError::InvalidInput(format!(
+                "observation {z:?} places a landmark at a non-finite position"
+            )));
+        }
+        let slot = self
+            .state
+            .add_landmark(&inv, &self.config.sensor.noise_covariance());
+        debug_assert_eq!(slot, self.ids.len());
+        self.ids.push(id);
+        self.index.insert(id, slot);
+        Ok(())
+    }
+
+    /// Moves the belief by one control: O(N), only the pose rows and columns change.
+    pub fn predict_control(&mut self, control: &Control) -> Result<(), EkfError> {
+        control.validate()?;
+        let pose = self.state.pose();
+        let m = &self.config.motion;
+        let new_pose = m.predict(&pose, control);
+        let g = m.jacobian_state(&pose, control);
+        let e = self.config.extra_motion_noise;
+        let r = m.noise_covariance(&pose, control)
+            + Matrix3::from_diagonal(&Vector3::new(e[0], e[1], e[2]));
+        if !new_pose.is_finite() || g.iter().chain(r.iter()).any(|v| !v.is_finite()) {
+            return Err(EkfError::InvalidInput(format!(
+                "control {control:?} gives a non-finite prediction"
+            )));
+        }
+        self.state.predict(&new_pose, &g, &r);
+        Ok(())
+    }
+
+    /// Incorporates a batch of observations (see the crate docs for the order of
+    /// operations) and returns the detailed diagnostics.
+    pub fn update_observations(
+        &mut self,
+        observations: &[RangeBearing],
+    ) -> Result<EkfUpdateInfo, EkfError> {
+        for z in observations {
+            if !(z.range.is_finite() && z.bearing.is_finite()) {
+                return Err(EkfError::InvalidInput(format!(
+                    "observation {z:?} is not finite"
+                )));
+            }
+        }
+        self.step += 1;
+        let mode = self.config.association;
+        let sensor = self.config.sensor;
+        let mut assoc = vec![Association::Rejected; observations.len()];
+        let mut info = EkfUpdateInfo {
+            common: UpdateInfo {
+                observations: observations.len(),
+                ..UpdateInfo::default()
+            },
+            ..EkfUpdateInfo::default()
+        };
+        let mut lins: Vec<Linearised> = Vec::new();
+        let mut new_known: Vec<usize> = Vec::new();
+        let mut unknown: Vec<usize> = Vec::new();
+        for (i, z) in observations.iter().enumerate() {
+            if z.range < 0.0 {
+                continue; // Rejected: a negative range is a sensor glitch.
+            }
+            let id = match mode {
+                AssociationMode::KnownIds => Some(z.id.ok_or(EkfError::MissingId { index: i })?),
+                AssociationMode::Auto => z.id,
+                AssociationMode::NearestNeighbour | AssociationMode::Jcbb => None,
+            };
+            let Some(id) = id else {
+                unknown.push(i);
+                continue;
+            };
+            let Some(&slot) = self.index.get(&id) else {
+                new_known.push(i);
+                continue;
+            };
+            let Some(lin) = linearise(&self.state, &sensor, z, slot) else {
+                continue;
+            };
+            if let Some(gate) = self.known_gate {
+                let s = projected_cov(&self.state, &lin) + lin.q;
+                match mahalanobis_squared(&lin.nu, &s) {
+                    Ok(d2) if d2 < gate => {}
+                    _ => continue,
+                }
+            }
+            lins.push(lin);
+            assoc[i] = Association::Landmark(id);
+        }
+        // Id-less observations: gate, then associate.
+        let cands: Vec<Vec<Candidate>> = unknown
+            .iter()
+            .map(|&i| candidates(&self.state, &sensor, &observations[i], self.gate))
+            .collect();
+        let chosen: Vec<Option<usize>> = if cands.iter().all(|c| c.is_empty()) {
+            vec![None; cands.len()]
+        } else if mode == AssociationMode::NearestNeighbour {
+            nearest::associate(&cands)
+        } else {
+            let r = jcbb::associate(
+                &self.state,
+                &cands,
+                &mut self.joint,
+                self.config.jcbb_max_nodes,
+            );
+            info.jcbb_nodes = r.nodes;
+            info.jcbb_exhausted = r.exhausted;
+            r.assignment
+        };
+        for (u, &i) in unknown.iter().enumerate() {
+            if let Some(c) = chosen[u] {
+                let lin = cands[u][c].lin;
+                assoc[i] = Association::Landmark(self.ids[lin.landmark]);
+                lins.push(lin);
+            }
+        }
+        // One batched update with every associated observation.
+        if !lins.is_empty() {
+            info.common.nis = self.state.update(&lins)?;
+            info.common.associated = lins.len();
+        }
+        // New landmarks with known ids join at once, from the updated pose.
+        for i in new_known {
+            let z = &observations[i];
+            let Some(id) = z.id else { continue };
+            if self.index.contains_key(&id) {
+                // A second sighting of an id first seen in this batch: left out rather
+                // than double counted (its first sighting initialised the landmark).
+                continue;
+            }
+            self.insert_landmark(z, id)?;
+            assoc[i] = Association::New(id);
+            info.common.new_landmarks += 1;
+        }
+        // Unpaired id-less observations: ambiguous, provisional or new.
+        let pose = self.state.pose();
+        let pxx = self.state.pose_cov();
+        let q = sensor.noise_covariance();
+        for (u, &i) in unknown.iter().enumerate() {
+            if chosen[u].is_some() {
+                continue;
+            }
+            if !cands[u].is_empty() {
+                info.ambiguous += 1;
+                continue;
+            }
+            let z = &observations[i];
+            let ready = if self.config.min_sightings <= 1 {
+                true
+            } else {
+                let inv = sensor.inverse(&pose, z);
+                let cov: Matrix2 =
+                    inv.g_pose * pxx * inv.g_pose.transpose() + inv.g_z * q * inv.g_z.transpose();
+                let (n, k) =
+                    self.provisional
+                        .sight(inv.landmark, cov, self.step, self.provisional_gate);
+                if n >= self.config.min_sightings {
+                    self.provisional.remove(k);
+                    true
+                } else {
+                    assoc[i] = Association::Provisional;
+                    info.provisional += 1;
+                    false
+                }
+            };
+            if ready {
+                let id = self.fresh_id();
+                self.insert_landmark(z, id)?;
+                assoc[i] = Association::New(id);
+                info.common.new_landmarks += 1;
+            }
+        }
+        info.common.removed = self
+            .provisional
+            .expire(self.step, self.config.provisional_max_age);
+        info.common.rejected =
+            observations.len() - info.common.associated - info.common.new_landmarks;
+        self.associations = assoc;
+        self.info = info;
+        Ok(info)
+    }
+}
+
+impl LandmarkSlam for EkfSlam {
+    fn name(&self) -> &str {
+        "ekf"
+    }
+
+    fn predict(&mut self, control: &Control) -> Result<(), FilterError> {
+        self.predict_control(control).map_err(FilterError::from)
+    }
+
+    fn update(&mut self, observations: &[RangeBearing]) -> Result<UpdateInfo, FilterError> {
+        self.update_observations(observations)
+            .map(|i| i.common)
+            .map_err(FilterError::from)
+    }
+
+    fn pose(&self) -> Pose2 {
+        self.state.pose()
+    }
+
+    fn pose_covariance(&self) -> Matrix3 {
+        self.state.pose_cov()
+    }
+
+    fn landmarks(&self) -> Vec<LandmarkEstimate> {
+        self.ids
+            .iter()
+            .enumerate()
+            .map(|(j, &id)| LandmarkEstimate {
+                id,
+                mean: self.state.landmark(j),
+                covariance: self.state.landmark_cov(j),
+            })
+            .collect()
+    }
+}
