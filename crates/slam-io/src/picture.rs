@@ -14,28 +14,40 @@
 //! | ground truth | green |
 //! | landmark estimates | blue 95 % ellipses with a dot at the mean |
 //! | true landmarks | black crosses |
-//! | particles | orange dots |
+//! | particles | teal dots |
 
 use crate::error::IoError;
-pub use image::Rgb;
 use image::RgbImage;
 use slam_models::{GridMap, LandmarkEstimate, LandmarkId, Point2, Pose2, WeightedPose};
 use std::path::Path;
 
+/// Pixel type of the rendered image.
+type Px = image::Rgb<u8>;
+
+/// An 8-bit sRGB colour `Rgb([r, g, b])`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Rgb(pub [u8; 3]);
+
+impl From<Rgb> for image::Rgb<u8> {
+    fn from(c: Rgb) -> Self {
+        image::Rgb(c.0)
+    }
+}
+
 /// Estimated trajectory default colour.
-pub const RED: Rgb<u8> = Rgb([220, 30, 30]);
+pub const RED: Rgb = Rgb([220, 30, 30]);
 /// Ground-truth colour.
-pub const GREEN: Rgb<u8> = Rgb([0, 160, 0]);
+pub const GREEN: Rgb = Rgb([0, 160, 0]);
 /// Landmark-estimate colour.
-pub const BLUE: Rgb<u8> = Rgb([30, 60, 230]);
+pub const BLUE: Rgb = Rgb([30, 60, 230]);
 /// True-landmark colour.
-pub const BLACK: Rgb<u8> = Rgb([0, 0, 0]);
+pub const BLACK: Rgb = Rgb([0, 0, 0]);
 /// Particle colour.
-pub const ORANGE: Rgb<u8> = Rgb([255, 140, 0]);
+pub const TEAL: Rgb = Rgb([0, 160, 170]);
 /// A fourth trajectory colour (e.g. raw odometry).
-pub const PURPLE: Rgb<u8> = Rgb([150, 50, 180]);
-const WHITE: Rgb<u8> = Rgb([255, 255, 255]);
-const GRID: Rgb<u8> = Rgb([232, 232, 232]);
+pub const PURPLE: Rgb = Rgb([150, 50, 180]);
+const WHITE: Px = image::Rgb([255, 255, 255]);
+const GRID: Px = image::Rgb([232, 232, 232]);
 
 /// χ²₂ 95 % quantile: the 95 % ellipse is {x : (x − μ)ᵀΣ⁻¹(x − μ) ≤ 5.991}.
 const CHI2_2_95: f64 = 5.991_464_547;
@@ -44,7 +56,7 @@ const CHI2_2_95: f64 = 5.991_464_547;
 #[derive(Debug, Clone)]
 pub struct Picture {
     map: Option<GridMap>,
-    trajectories: Vec<(Vec<Pose2>, Rgb<u8>)>,
+    trajectories: Vec<(Vec<Pose2>, Rgb)>,
     ground_truth: Vec<Pose2>,
     landmarks: Vec<LandmarkEstimate>,
     true_landmarks: Vec<Point2>,
@@ -107,7 +119,7 @@ impl Picture {
     }
 
     /// An estimated trajectory in `colour` (may be called several times).
-    pub fn trajectory(mut self, poses: &[Pose2], colour: Rgb<u8>) -> Self {
+    pub fn trajectory(mut self, poses: &[Pose2], colour: Rgb) -> Self {
         self.trajectories.push((poses.to_vec(), colour));
         self
     }
@@ -130,7 +142,7 @@ impl Picture {
         self
     }
 
-    /// A particle cloud (orange dots).
+    /// A particle cloud (teal dots).
     pub fn particles(mut self, p: &[WeightedPose]) -> Self {
         self.particles = p.to_vec();
         self
@@ -212,16 +224,16 @@ impl Picture {
         }
         for p in &self.particles {
             let (u, v) = view.px(&p.pose.translation());
-            disc(&mut img, u, v, 1.5, ORANGE);
+            disc(&mut img, u, v, 1.5, TEAL.into());
         }
         if !self.ground_truth.is_empty() {
-            polyline(&mut img, &view, &self.ground_truth, GREEN);
+            polyline(&mut img, &view, &self.ground_truth, GREEN.into());
         }
         for (t, c) in &self.trajectories {
-            polyline(&mut img, &view, t, *c);
+            polyline(&mut img, &view, t, (*c).into());
             if let Some(p) = t.first() {
                 let (u, v) = view.px(&p.translation());
-                disc(&mut img, u, v, 4.0, *c);
+                disc(&mut img, u, v, 4.0, (*c).into());
             }
         }
         for l in &self.landmarks {
@@ -232,8 +244,8 @@ impl Picture {
             for d in -5..=5 {
                 let d = d as f64;
                 for o in [-0.5, 0.5] {
-                    put(&mut img, u + d, v + d + o, BLACK);
-                    put(&mut img, u + d, v - d + o, BLACK);
+                    put(&mut img, u + d, v + d + o, BLACK.into());
+                    put(&mut img, u + d, v - d + o, BLACK.into());
                 }
             }
         }
@@ -248,13 +260,13 @@ impl Picture {
     }
 }
 
-fn put(img: &mut RgbImage, u: f64, v: f64, c: Rgb<u8>) {
+fn put(img: &mut RgbImage, u: f64, v: f64, c: Px) {
     if u >= 0.0 && v >= 0.0 && u < img.width() as f64 && v < img.height() as f64 {
         img.put_pixel(u as u32, v as u32, c);
     }
 }
 
-fn disc(img: &mut RgbImage, u: f64, v: f64, r: f64, c: Rgb<u8>) {
+fn disc(img: &mut RgbImage, u: f64, v: f64, r: f64, c: Px) {
     let ri = r.ceil() as i64;
     for dy in -ri..=ri {
         for dx in -ri..=ri {
@@ -266,7 +278,7 @@ fn disc(img: &mut RgbImage, u: f64, v: f64, r: f64, c: Rgb<u8>) {
 }
 
 /// A 2-px wide segment (sampled at half-pixel steps).
-fn segment(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>, width: f64) {
+fn segment(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Px, width: f64) {
     let len = (b.0 - a.0).hypot(b.1 - a.1);
     if !len.is_finite() || len > 1e5 {
         return;
@@ -283,7 +295,7 @@ fn segment(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>, width: 
     }
 }
 
-fn polyline(img: &mut RgbImage, view: &View, poses: &[Pose2], c: Rgb<u8>) {
+fn polyline(img: &mut RgbImage, view: &View, poses: &[Pose2], c: Px) {
     for w in poses.windows(2) {
         segment(
             img,
@@ -297,7 +309,7 @@ fn polyline(img: &mut RgbImage, view: &View, poses: &[Pose2], c: Rgb<u8>) {
 
 fn ellipse(img: &mut RgbImage, view: &View, l: &LandmarkEstimate) {
     let (u, v) = view.px(&l.mean);
-    disc(img, u, v, 2.0, BLUE);
+    disc(img, u, v, 2.0, BLUE.into());
     // Σ = R diag(λ1, λ2) Rᵀ (closed form for a symmetric 2×2 matrix).
     let c = l.covariance;
     let (a, b, d) = (c[(0, 0)], 0.5 * (c[(0, 1)] + c[(1, 0)]), c[(1, 1)]);
@@ -321,7 +333,7 @@ fn ellipse(img: &mut RgbImage, view: &View, l: &LandmarkEstimate) {
     for k in 0..n {
         let t0 = k as f64 / n as f64 * std::f64::consts::TAU;
         let t1 = (k + 1) as f64 / n as f64 * std::f64::consts::TAU;
-        segment(img, pt(t0), pt(t1), BLUE, 1.0);
+        segment(img, pt(t0), pt(t1), BLUE.into(), 1.0);
     }
 }
 
@@ -336,7 +348,7 @@ fn draw_map(img: &mut RgbImage, view: &View, m: &GridMap) {
                 } else {
                     255 - (v.min(100) as u32 * 255 / 100) as u8
                 };
-                img.put_pixel(px, py, Rgb([g, g, g]));
+                img.put_pixel(px, py, image::Rgb([g, g, g]));
             }
         }
     }
@@ -378,7 +390,7 @@ pub struct Series<'a> {
     /// y values, one per x.
     pub y: &'a [f64],
     /// Line colour.
-    pub colour: Rgb<u8>,
+    pub colour: Rgb,
 }
 
 /// A line plot of one or more series over shared `x` values, with an optional horizontal
@@ -448,21 +460,27 @@ pub fn plot_series(
         let (_, vhi) = to_px(x0, hi);
         for py in vhi.max(0.0) as u32..=(vlo.min(h as f64 - 1.0) as u32) {
             for px in m as u32..(w - m as u32) {
-                img.put_pixel(px, py, Rgb([215, 230, 250]));
+                img.put_pixel(px, py, image::Rgb([215, 230, 250]));
             }
         }
-        segment(&mut img, (m, vlo), (w as f64 - m, vlo), BLUE, 1.0);
-        segment(&mut img, (m, vhi), (w as f64 - m, vhi), BLUE, 1.0);
+        segment(&mut img, (m, vlo), (w as f64 - m, vlo), BLUE.into(), 1.0);
+        segment(&mut img, (m, vhi), (w as f64 - m, vhi), BLUE.into(), 1.0);
     }
     // Axes: left and bottom.
-    segment(&mut img, (m, m), (m, h as f64 - m), BLACK, 1.0);
+    segment(&mut img, (m, m), (m, h as f64 - m), BLACK.into(), 1.0);
     let (_, v0) = to_px(x0, y0.max(0.0).min(y1));
-    segment(&mut img, (m, v0), (w as f64 - m, v0), BLACK, 1.0);
+    segment(&mut img, (m, v0), (w as f64 - m, v0), BLACK.into(), 1.0);
     for s in series {
         for i in 1..x.len() {
             let (a, b) = ((x[i - 1], s.y[i - 1]), (x[i], s.y[i]));
             if [a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
-                segment(&mut img, to_px(a.0, a.1), to_px(b.0, b.1), s.colour, 2.0);
+                segment(
+                    &mut img,
+                    to_px(a.0, a.1),
+                    to_px(b.0, b.1),
+                    s.colour.into(),
+                    2.0,
+                );
             }
         }
     }
@@ -486,7 +504,7 @@ mod tests {
             .unwrap();
         let red_rows: Vec<u32> = img
             .enumerate_pixels()
-            .filter(|(_, _, p)| **p == RED)
+            .filter(|(_, _, p)| p.0 == RED.0)
             .map(|(_, y, _)| y)
             .collect();
         assert!(!red_rows.is_empty());
@@ -516,7 +534,7 @@ mod tests {
         let img = pic.render().unwrap();
         let blue: Vec<(u32, u32)> = img
             .enumerate_pixels()
-            .filter(|(_, _, p)| **p == BLUE)
+            .filter(|(_, _, p)| p.0 == BLUE.0)
             .map(|(x, y, _)| (x, y))
             .collect();
         let (min_x, max_x) = (
@@ -543,7 +561,7 @@ mod tests {
         // Left half free (white), right half occupied (black), y up irrelevant here.
         let mid = img.height() / 2;
         assert_eq!(*img.get_pixel(20, mid), WHITE);
-        assert_eq!(*img.get_pixel(img.width() - 20, mid), Rgb([0, 0, 0]));
+        assert_eq!(img.get_pixel(img.width() - 20, mid).0, [0, 0, 0]);
         assert!(Picture::new().render().is_err());
         let p = std::env::temp_dir().join(format!("slam-io-plot-{}.png", std::process::id()));
         assert!(plot_series(
