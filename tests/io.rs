@@ -460,3 +460,109 @@ fn pictures_and_writers_on_real_data() {
     .unwrap();
     println!("pictures in {}", out.display());
 }
+
+/// Simulated datasets round-trip through the writers and readers: Freiburg for landmark
+/// scenarios (odometry and velocity controls), CARMEN for laser scenarios.
+#[test]
+fn simulated_data_round_trips() {
+    use slam::sim::scenario::{generate, ScenarioOptions};
+    use slam::sim::SimOutput;
+    let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("io-sim-round-trip");
+    std::fs::create_dir_all(&out).unwrap();
+    let opts = ScenarioOptions {
+        seed: 7,
+        steps: Some(300),
+        ..Default::default()
+    };
+    let SimOutput::Landmark(run) = generate("loop", &opts).unwrap() else {
+        panic!("loop is a landmark scenario")
+    };
+    let dir = out.join("loop");
+    freiburg::write_freiburg(&dir, &run.dataset).unwrap();
+    let back = freiburg::read_freiburg_report(&dir).unwrap();
+    assert!(back.skipped.is_empty());
+    let d = &run.dataset;
+    assert_eq!(back.dataset.steps, d.steps);
+    assert_eq!(back.dataset.landmarks, d.landmarks);
+    assert_eq!(back.dataset.initial_pose, d.initial_pose);
+    let (g0, g1) = (
+        d.ground_truth.as_ref().unwrap(),
+        back.dataset.ground_truth.as_ref().unwrap(),
+    );
+    assert_eq!(g0.len(), g1.len());
+    for (a, b) in g0.iter().zip(g1) {
+        assert_eq!(a.t, b.t);
+        assert!(a.pose.approx_eq(&b.pose, 1e-12));
+    }
+    // Noise-free dead reckoning of the data and of the read-back data agree exactly.
+    assert_eq!(
+        slam::io::dead_reckoning(d),
+        slam::io::dead_reckoning(&back.dataset)
+    );
+
+    // Velocity controls are written as the odometry increment with the same end pose.
+    let vopts = ScenarioOptions {
+        velocity: true,
+        ..opts.clone()
+    };
+    let SimOutput::Landmark(vrun) = generate("loop", &vopts).unwrap() else {
+        panic!()
+    };
+    let vdir = out.join("loop-velocity");
+    freiburg::write_freiburg(&vdir, &vrun.dataset).unwrap();
+    let vback = freiburg::read_freiburg(&vdir).unwrap();
+    let (a, b) = (
+        slam::io::dead_reckoning(&vrun.dataset),
+        slam::io::dead_reckoning(&vback),
+    );
+    for (p, q) in a.iter().zip(&b) {
+        assert!(p.pose.approx_eq(&q.pose, 1e-9), "{p:?} vs {q:?}");
+    }
+
+    // Hidden ids cannot be written in the Freiburg format: a clear error, not a panic.
+    let SimOutput::Landmark(crun) = generate("clutter", &opts).unwrap() else {
+        panic!()
+    };
+    if crun
+        .dataset
+        .steps
+        .iter()
+        .flat_map(|s| &s.observations)
+        .any(|z| z.id.is_none())
+    {
+        let e = freiburg::write_freiburg(&out.join("clutter"), &crun.dataset).unwrap_err();
+        assert!(e.to_string().contains("no landmark id"), "{e}");
+    }
+
+    let lopts = ScenarioOptions {
+        seed: 3,
+        steps: Some(40),
+        ..Default::default()
+    };
+    let SimOutput::Laser(lrun) = generate("office", &lopts).unwrap() else {
+        panic!("office is a laser scenario")
+    };
+    for name in ["office.log", "office.log.gz"] {
+        let p = out.join(name);
+        carmen::write_carmen(&p, &lrun.dataset).unwrap();
+        let back = carmen::read_carmen(&p).unwrap();
+        assert!(back.unknown_records.is_empty());
+        assert_eq!(back.dataset.ground_truth, lrun.dataset.ground_truth);
+        assert_eq!(back.dataset.records.len(), lrun.dataset.records.len());
+        for (a, b) in lrun.dataset.records.iter().zip(&back.dataset.records) {
+            assert_eq!((a.t, a.odometry), (b.t, b.odometry));
+            match (&a.scan, &b.scan) {
+                (None, None) => {}
+                (Some(x), Some(y)) => {
+                    assert_eq!(x.ranges, y.ranges);
+                    assert_eq!(
+                        (x.angle_min, x.angle_increment, x.max_range),
+                        (y.angle_min, y.angle_increment, y.max_range)
+                    );
+                    assert!(x.sensor_pose.approx_eq(&y.sensor_pose, 1e-12));
+                }
+                _ => panic!("scan presence differs"),
+            }
+        }
+    }
+}
