@@ -281,6 +281,20 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
         }
         *counts.entry(kind.to_string()).or_insert(0) += 1;
     }
+    if records.is_empty() && !unknown.is_empty() {
+        let seen: Vec<String> = unknown
+            .iter()
+            .take(5)
+            .map(|(k, v)| format!("{v}× {k:?}"))
+            .collect();
+        return Err(IoError::invalid(
+            &f.path,
+            format!(
+                "not a CARMEN log: no FLASER, RLASER, ROBOTLASER1 or ODOM record; line types seen: {}",
+                seen.join(", ")
+            ),
+        ));
+    }
     if records.is_empty() {
         return Err(IoError::Empty {
             path: f.path.clone(),
@@ -456,7 +470,8 @@ mod tests {
         for (text, want) in [
             ("", "empty"),
             ("# only a comment\n", "empty"),
-            ("NEFF 1\n", "at least one"),
+            ("NEFF 1\n", "not a CARMEN log"),
+            ("PARAM a b\n", "at least one"),
             ("ODOM 1 2 3 0 0 0 5 h\n", "logger_timestamp"),
             ("ODOM 1 2 3 0 0 0 5 h 5 extra\n", "end of line"),
             ("ODOM 1 2 nan 0 0 0 5 h 5\n", "not finite"),

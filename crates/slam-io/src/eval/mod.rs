@@ -23,7 +23,9 @@ mod trajectory;
 pub use align::align_se2;
 pub use associate::{lookup, sorted_by_time, DEFAULT_MAX_DT};
 pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
-pub use landmarks::{landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching};
+pub use landmarks::{
+    landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,
+};
 pub use relations::{relations_error, relations_error_with, RelationsResult};
 pub use trajectory::{ate, ate_with, rpe, rpe_with, AteResult, RpeResult};
 
