@@ -22,6 +22,22 @@ pub enum Dataset {
 /// The summary line names the format, the counts of steps/records, observations or scans,
 /// whether ground truth is present, and what the reader left out (invalid observations,
 /// other robots' barcodes, unknown record types).
+///
+/// # Example
+///
+/// ```
+/// use slam_io::{open_dataset, Dataset};
+/// let dir = std::env::temp_dir().join(format!("slam-io-doc-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// std::fs::write(dir.join("world.dat"), "1 2 1\n")?;
+/// std::fs::write(dir.join("sensor_data.dat"), "ODOMETRY 0 1 0\nSENSOR 1 1.0 0.5\n")?;
+/// let (data, what) = open_dataset(&dir, None)?;
+/// assert!(what.starts_with("Freiburg course data"));
+/// let Dataset::Landmark(d) = data else { unreachable!() };
+/// assert_eq!(d.steps.len(), 1);
+/// # std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn open_dataset(path: &Path, robot: Option<u32>) -> Result<(Dataset, String), IoError> {
     if path.is_dir() {
         if path.join("sensor_data.dat").is_file() {

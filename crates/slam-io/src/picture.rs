@@ -53,6 +53,17 @@ const GRID: Px = image::Rgb([232, 232, 232]);
 const CHI2_2_95: f64 = 5.991_464_547;
 
 /// A picture under construction (builder style); see the module docs for the layers.
+///
+/// # Example
+///
+/// ```
+/// use slam_io::picture::{Picture, RED};
+/// use slam_models::Pose2;
+/// let path: Vec<Pose2> = (0..50).map(|i| Pose2::new(0.1 * i as f64, (0.1 * i as f64).sin(), 0.0)).collect();
+/// let img = Picture::new().size(200).ground_truth(&path).trajectory(&path, RED).render()?;
+/// assert_eq!(img.width(), 200);
+/// # Ok::<(), slam_io::IoError>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct Picture {
     map: Option<GridMap>,

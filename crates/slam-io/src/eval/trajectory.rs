@@ -43,6 +43,18 @@ pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
 /// RMSE = √(1/n Σ‖p_est,i − p_gt,i‖²) as is and after aligning the estimate's positions
 /// onto the ground truth's with [`align_se2`] (Umeyama without scale). Errors when no
 /// ground-truth pose finds an estimate, or values are not finite.
+///
+/// # Example
+///
+/// ```
+/// use slam_io::eval::ate;
+/// use slam_models::{Pose2, TimedPose};
+/// let gt = [TimedPose { t: 0.0, pose: Pose2::new(0.0, 0.0, 0.0) }, TimedPose { t: 1.0, pose: Pose2::new(1.0, 0.0, 0.0) }];
+/// let est = [TimedPose { t: 0.0, pose: Pose2::new(0.0, 0.0, 0.0) }, TimedPose { t: 1.0, pose: Pose2::new(1.0, 0.2, 0.0) }];
+/// let r = ate(&est, &gt)?;
+/// assert!((r.rmse - (0.04f64 / 2.0).sqrt()).abs() < 1e-12); // errors 0 and 0.2 m
+/// # Ok::<(), slam_io::IoError>(())
+/// ```
 pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteResult, IoError> {
     check(est, "estimate")?;
     check(gt, "ground truth")?;
