@@ -32,3 +32,14 @@ pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
 pub use grid::{CopyStats, OccupancyGrid};
 pub use likelihood::{LikelihoodField, LikelihoodParams};
 pub use scan::PreparedScan;
+pub mod matcher;
+
+#[cfg(test)]
+pub(crate) mod testutil;
+
+pub use matcher::{
+    CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, MatchResult,
+    RefinedCorrelativeMatcher, ScanMatcher,
+};
+pub mod scanmatch;
+pub use scanmatch::{ScanMatchConfig, ScanMatchOdometry};

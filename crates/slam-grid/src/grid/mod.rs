@@ -564,6 +564,36 @@ impl OccupancyGrid {
         (val, [du * inv, dv * inv])
     }
 
+    /// Bicubic (Catmull-Rom) interpolation of the likelihood field at world point `p` over
+    /// the 4×4 surrounding cell centres, with its gradient in the world frame (per metre).
+    ///
+    /// Unlike the bilinear interpolant, whose maxima sit on cell centres, this one is C¹
+    /// and peaks between two equally likely cells (a wall lying on a cell boundary), which
+    /// is what sub-cell matching needs.
+    #[inline]
+    pub fn likelihood_bicubic(&self, p: &Point2) -> (f64, [f64; 2]) {
+        let (u, v) = self.frame.world_to_continuous(p);
+        let (u, v) = (u - 0.5, v - 0.5);
+        let (x0, y0) = (u.floor(), v.floor());
+        let (wx, dwx) = catmull_rom_weights(u - x0);
+        let (wy, dwy) = catmull_rom_weights(v - y0);
+        let (i, j) = (x0 as i32, y0 as i32);
+        let (mut val, mut du, mut dv) = (0.0, 0.0, 0.0);
+        for (b, (&wyb, &dwyb)) in wy.iter().zip(&dwy).enumerate() {
+            let (mut row, mut drow) = (0.0, 0.0);
+            for (a, (&wxa, &dwxa)) in wx.iter().zip(&dwx).enumerate() {
+                let m = self.likelihood(CellIndex::new(i + a as i32 - 1, j + b as i32 - 1)) as f64;
+                row += wxa * m;
+                drow += dwxa * m;
+            }
+            val += wyb * row;
+            du += wyb * drow;
+            dv += dwyb * row;
+        }
+        let inv = 1.0 / self.frame.resolution;
+        (val, [du * inv, dv * inv])
+    }
+
     /// Copies the likelihood-field values of the `w × h` cells starting at `min` into a
     /// row-major buffer
     /// (tile by tile; cells outside the table get the far value).
@@ -646,6 +676,28 @@ impl OccupancyGrid {
         }
         map
     }
+}
+
+/// Catmull-Rom weights of the samples at −1, 0, 1, 2 for a point at t ∈ [0, 1), and
+/// their derivatives with respect to t.
+#[inline]
+fn catmull_rom_weights(t: f64) -> ([f64; 4], [f64; 4]) {
+    let t2 = t * t;
+    let t3 = t2 * t;
+    (
+        [
+            0.5 * (-t3 + 2.0 * t2 - t),
+            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+            0.5 * (t3 - t2),
+        ],
+        [
+            0.5 * (-3.0 * t2 + 4.0 * t - 1.0),
+            0.5 * (9.0 * t2 - 10.0 * t),
+            0.5 * (-9.0 * t2 + 8.0 * t + 1.0),
+            0.5 * (3.0 * t2 - 2.0 * t),
+        ],
+    )
 }
 
 #[cfg(test)]

@@ -190,6 +190,22 @@ fn interpolation_gradient_matches_finite_differences() {
         let p = Point2::new(x, y);
         let (_, grad) = g.likelihood_interpolated(&p);
         let h = 1e-5;
+        let (_, gc) = g.likelihood_bicubic(&p);
+        let cx = (g.likelihood_bicubic(&Point2::new(x + h, y)).0
+            - g.likelihood_bicubic(&Point2::new(x - h, y)).0)
+            / (2.0 * h);
+        let cy = (g.likelihood_bicubic(&Point2::new(x, y + h)).0
+            - g.likelihood_bicubic(&Point2::new(x, y - h)).0)
+            / (2.0 * h);
+        assert!(
+            (gc[0] - cx).abs() < 1e-4 && (gc[1] - cy).abs() < 1e-4,
+            "{gc:?} vs {cx},{cy}"
+        );
+        // Both interpolants reproduce the samples at cell centres.
+        let c = g.world_to_cell(&p);
+        let centre = g.cell_center(c);
+        assert!((g.likelihood_bicubic(&centre).0 - g.likelihood(c) as f64).abs() < 1e-6);
+        assert!((g.likelihood_interpolated(&centre).0 - g.likelihood(c) as f64).abs() < 1e-6);
         let fx = (g.likelihood_interpolated(&Point2::new(x + h, y)).0
             - g.likelihood_interpolated(&Point2::new(x - h, y)).0)
             / (2.0 * h);

@@ -1,0 +1,258 @@
+//! Correlative multi-resolution scan matching (Olson, "Real-time correlative scan
+//! matching", ICRA 2009).
+
+use super::{check_input, covariance_by_sampling, MatchResult, ScanMatcher};
+use crate::cell::CellIndex;
+use crate::error::{ensure_config, GridError};
+use crate::grid::OccupancyGrid;
+use crate::scan::PreparedScan;
+use serde::{Deserialize, Serialize};
+use slam_models::Pose2;
+
+/// Exhaustive search of a window of poses around the initial guess, made fast with two
+/// resolutions (Olson 2009, §IV):
+///
+/// 1. the likelihood field around the search area is copied once into a dense window W;
+/// 2. a max-pooled copy C, C(c) = max of W over the f×f cells c … c + (f−1, f−1), bounds
+///    the score of every translation in an f×f block of candidate offsets from above;
+/// 3. for each rotation (step chosen so the farthest end point moves about one cell) the
+///    end points are rotated once; every block gets its upper bound from C;
+/// 4. blocks are visited in order of decreasing bound, scoring each of their translations
+///    exactly on W, until the best exact score beats every remaining bound.
+///
+/// The result is the exact maximum over the fine lattice (translations in cells, rotations
+/// in angular steps) of Σ s(cell of pᵢ), the same answer as brute force. Follow it with
+/// [`super::GaussNewtonMatcher`] for sub-cell accuracy ([`super::RefinedCorrelativeMatcher`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CorrelativeMatcher {
+    /// Half-width of the translation window in x and y, metres. Default 0.4 m.
+    pub linear_window: f64,
+    /// Half-width of the rotation window, radians. Default 0.21 rad (12°).
+    pub angular_window: f64,
+    /// Rotation step, radians; 0 chooses the angle that moves the farthest end point by
+    /// one cell, acos(1 − res²/(2 r²)) (Olson 2009 / Cartographer). Default 0.
+    pub angular_step: f64,
+    /// Edge of a coarse block, in fine cells (≥ 1). Default 8.
+    pub coarse_factor: u32,
+    /// Fewer end points than this is an error. Default 10.
+    pub min_points: usize,
+}
+
+impl Default for CorrelativeMatcher {
+    fn default() -> Self {
+        Self {
+            linear_window: 0.4,
+            angular_window: 0.21,
+            angular_step: 0.0,
+            coarse_factor: 8,
+            min_points: 10,
+        }
+    }
+}
+
+impl CorrelativeMatcher {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<(), GridError> {
+        ensure_config(
+            self.linear_window >= 0.0,
+            "linear_window",
+            self.linear_window,
+            ">= 0 m",
+        )?;
+        ensure_config(
+            (0.0..=std::f64::consts::PI).contains(&self.angular_window),
+            "angular_window",
+            self.angular_window,
+            "in [0, π] rad",
+        )?;
+        ensure_config(
+            self.angular_step >= 0.0,
+            "angular_step",
+            self.angular_step,
+            ">= 0 rad (0: automatic)",
+        )?;
+        ensure_config(
+            self.coarse_factor >= 1 && self.coarse_factor <= 64,
+            "coarse_factor",
+            self.coarse_factor as f64,
+            "in 1..=64",
+        )
+    }
+
+    /// Searches the window around `initial`; see the type documentation.
+    pub fn match_prepared(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &PreparedScan,
+        initial: &Pose2,
+    ) -> Result<MatchResult, GridError> {
+        self.validate()?;
+        check_input(scan, initial, self.min_points)?;
+        let res = grid.resolution();
+        let frame = grid.frame();
+        let r_max = scan.max_point_range.max(res);
+        let dtheta = if self.angular_step > 0.0 {
+            self.angular_step
+        } else {
+            (1.0 - res * res / (2.0 * r_max * r_max))
+                .clamp(-1.0, 1.0)
+                .acos()
+                .max(1e-4)
+        };
+        let k_max = (self.angular_window / dtheta).ceil() as i32;
+        let l = (self.linear_window / res).ceil() as i32;
+        let f = self.coarse_factor as i32;
+        let n = scan.points.len();
+
+        // End-point cells for every rotation (translation = initial), and their bounds.
+        let n_rot = (2 * k_max + 1) as usize;
+        let mut cells: Vec<CellIndex> = Vec::with_capacity(n_rot * n);
+        let (mut lo, mut hi) = (
+            CellIndex::new(i32::MAX, i32::MAX),
+            CellIndex::new(i32::MIN, i32::MIN),
+        );
+        for k in -k_max..=k_max {
+            let theta = initial.theta + k as f64 * dtheta;
+            let pose = Pose2::new(initial.x, initial.y, theta);
+            for w in super::transform_points(&scan.points, &pose) {
+                let c = frame.world_to_cell(&w);
+                lo = CellIndex::new(lo.x.min(c.x), lo.y.min(c.y));
+                hi = CellIndex::new(hi.x.max(c.x), hi.y.max(c.y));
+                cells.push(c);
+            }
+        }
+        // Window: every cell an end point can reach with offsets in [−l, l + f − 1].
+        let min = CellIndex::new(lo.x - l, lo.y - l);
+        let w = (hi.x - lo.x + 2 * l + f) as usize;
+        let h = (hi.y - lo.y + 2 * l + f) as usize;
+        if w.saturating_mul(h) > 64_000_000 {
+            return Err(GridError::InvalidConfig {
+                name: "correlative search window (cells)",
+                value: (w * h) as f64,
+                expected: "at most 64e6 cells: shorten the matching range or the window",
+            });
+        }
+        let fine = grid.field_window(min, w, h);
+        let coarse = sliding_max(&fine, w, h, f as usize);
+        // Linear indices of each rotation's end points at offset (−l, −l).
+        let idx: Vec<u32> = cells
+            .iter()
+            .map(|c| ((c.y - l - min.y) as usize * w + (c.x - l - min.x) as usize) as u32)
+            .collect();
+
+        // Upper bounds of every (rotation, block).
+        let blocks: Vec<i32> = (0..).map(|b| b * f).take_while(|&o| o <= 2 * l).collect();
+        let mut candidates: Vec<(f32, u32, i32, i32)> =
+            Vec::with_capacity(n_rot * blocks.len() * blocks.len());
+        for r in 0..n_rot {
+            let pts = &idx[r * n..(r + 1) * n];
+            for &by in &blocks {
+                for &bx in &blocks {
+                    let off = by as usize * w + bx as usize;
+                    let ub: f32 = pts.iter().map(|&i| coarse[i as usize + off]).sum();
+                    candidates.push((ub, r as u32, bx, by));
+                }
+            }
+        }
+        candidates.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+
+        // Branch and bound over the fine offsets.
+        let mut best = (f32::NEG_INFINITY, 0u32, 0i32, 0i32);
+        for &(ub, r, bx, by) in &candidates {
+            if ub <= best.0 {
+                break;
+            }
+            let pts = &idx[r as usize * n..(r as usize + 1) * n];
+            for oy in by..(by + f).min(2 * l + 1) {
+                for ox in bx..(bx + f).min(2 * l + 1) {
+                    let off = oy as usize * w + ox as usize;
+                    let s: f32 = pts.iter().map(|&i| fine[i as usize + off]).sum();
+                    if s > best.0 {
+                        best = (s, r, ox, oy);
+                    }
+                }
+            }
+        }
+        let (s, r, ox, oy) = best;
+        let pose = Pose2::new(
+            initial.x + (ox - l) as f64 * res,
+            initial.y + (oy - l) as f64 * res,
+            initial.theta + (r as i32 - k_max) as f64 * dtheta,
+        );
+        let covariance = covariance_by_sampling(grid, scan, &pose, [res, res, dtheta]);
+        Ok(MatchResult {
+            pose,
+            score: s as f64 / n as f64,
+            covariance,
+        })
+    }
+}
+
+/// C(x, y) = max of `src` over [x, x + f) × [y, y + f) (clipped at the far edges):
+/// separable sliding maximum, O(w·h·f).
+fn sliding_max(src: &[f32], w: usize, h: usize, f: usize) -> Vec<f32> {
+    if f <= 1 {
+        return src.to_vec();
+    }
+    let mut tmp = vec![0.0f32; w * h];
+    for y in 0..h {
+        let row = &src[y * w..(y + 1) * w];
+        for x in 0..w {
+            let end = (x + f).min(w);
+            tmp[y * w + x] = row[x..end]
+                .iter()
+                .copied()
+                .fold(f32::NEG_INFINITY, f32::max);
+        }
+    }
+    let mut out = vec![0.0f32; w * h];
+    for y in 0..h {
+        let end = (y + f).min(h);
+        let (dst, rest) = out[y * w..].split_at_mut(w);
+        let _ = rest;
+        dst.copy_from_slice(&tmp[y * w..(y + 1) * w]);
+        for yy in y + 1..end {
+            for x in 0..w {
+                dst[x] = dst[x].max(tmp[yy * w + x]);
+            }
+        }
+    }
+    out
+}
+
+impl ScanMatcher for CorrelativeMatcher {
+    fn match_prepared(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &PreparedScan,
+        initial: &Pose2,
+    ) -> Result<MatchResult, GridError> {
+        CorrelativeMatcher::match_prepared(self, grid, scan, initial)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sliding_max_matches_brute_force() {
+        let (w, h) = (13, 9);
+        let src: Vec<f32> = (0..w * h).map(|i| ((i * 7919) % 101) as f32).collect();
+        for f in [1, 2, 3, 8] {
+            let got = sliding_max(&src, w, h, f);
+            for y in 0..h {
+                for x in 0..w {
+                    let mut m = f32::NEG_INFINITY;
+                    for yy in y..(y + f).min(h) {
+                        for xx in x..(x + f).min(w) {
+                            m = m.max(src[yy * w + xx]);
+                        }
+                    }
+                    assert_eq!(got[y * w + x], m);
+                }
+            }
+        }
+    }
+}

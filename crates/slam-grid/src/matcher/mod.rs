@@ -1,0 +1,196 @@
+//! Scan matchers: find the robot pose at which a scan best fits a grid's likelihood field.
+//!
+//! Every matcher takes a [`PreparedScan`] (end points precomputed in the robot frame, so a
+//! candidate pose costs one `sin_cos`, never one per beam) and returns a [`MatchResult`]:
+//!
+//! * [`HillClimbMatcher`]: GMapping-style greedy search over (x, y, θ) with step halving;
+//! * [`CorrelativeMatcher`]: exhaustive two-level (coarse max-pooled / fine) correlative
+//!   search with branch and bound (Olson, ICRA 2009), for large initial errors;
+//! * [`GaussNewtonMatcher`]: Gauss-Newton on the bilinearly interpolated field (Hector SLAM,
+//!   Kohlbrecher et al. 2011), for sub-cell accuracy;
+//! * [`RefinedCorrelativeMatcher`]: correlative search, then Gauss-Newton refinement.
+//!
+//! Scores are the mean field value s̄ = (1/n)·Σ s(pᵢ) ∈ (0, 1] over the n end points
+//! (1: every end point on an obstacle).
+
+mod correlative;
+mod gauss_newton;
+mod hill_climb;
+mod refined;
+
+pub use correlative::CorrelativeMatcher;
+pub use gauss_newton::{GaussNewtonMatcher, Interpolation};
+pub use hill_climb::HillClimbMatcher;
+pub use refined::RefinedCorrelativeMatcher;
+
+use crate::error::GridError;
+use crate::grid::OccupancyGrid;
+use crate::scan::PreparedScan;
+use slam_models::{LaserScan, Matrix3, Point2, Pose2};
+
+/// The outcome of a scan match.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatchResult {
+    /// The matched robot pose (world frame).
+    pub pose: Pose2,
+    /// Mean field value of the end points at `pose`, in (0, 1].
+    pub score: f64,
+    /// Estimated 3×3 covariance of `pose` (m², rad²), symmetric positive definite.
+    pub covariance: Matrix3,
+}
+
+/// Common interface of the matchers (object safe).
+pub trait ScanMatcher {
+    /// Matches a prepared scan against `grid`, starting from (or searching around) `initial`.
+    fn match_prepared(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &PreparedScan,
+        initial: &Pose2,
+    ) -> Result<MatchResult, GridError>;
+
+    /// Prepares `scan` and matches it.
+    fn match_scan(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &LaserScan,
+        initial: &Pose2,
+    ) -> Result<MatchResult, GridError> {
+        let prepared = PreparedScan::new(scan)?;
+        self.match_prepared(grid, &prepared, initial)
+    }
+}
+
+/// Rejects a non-finite initial pose and scans with fewer than `min_points` end points.
+pub(crate) fn check_input(
+    scan: &PreparedScan,
+    initial: &Pose2,
+    min_points: usize,
+) -> Result<(), GridError> {
+    if !initial.is_finite() {
+        return Err(GridError::NonFinite {
+            what: "initial pose",
+            value: f64::NAN,
+        });
+    }
+    if scan.points.len() < min_points.max(1) {
+        return Err(GridError::TooFewPoints {
+            found: scan.points.len(),
+            needed: min_points.max(1),
+        });
+    }
+    Ok(())
+}
+
+/// World positions of the scan's end points under `pose`: R(θ)·p + t.
+#[inline]
+pub(crate) fn transform_points<'a>(
+    points: &'a [Point2],
+    pose: &Pose2,
+) -> impl Iterator<Item = Point2> + 'a {
+    let (s, c) = pose.theta.sin_cos();
+    let (x, y) = (pose.x, pose.y);
+    points
+        .iter()
+        .map(move |p| Point2::new(x + c * p.x - s * p.y, y + s * p.x + c * p.y))
+}
+
+/// Mean field value of the end points at `pose`, looking up the cell of each end point.
+pub fn mean_field_value(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+    if scan.points.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = transform_points(&scan.points, pose)
+        .map(|p| grid.likelihood(grid.world_to_cell(&p)) as f64)
+        .sum();
+    sum / scan.points.len() as f64
+}
+
+/// Mean of the bilinearly interpolated field over the end points at `pose`.
+pub(crate) fn mean_interpolated(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+    if scan.points.is_empty() {
+        return 0.0;
+    }
+    let sum: f64 = transform_points(&scan.points, pose)
+        .map(|p| grid.likelihood_interpolated(&p).0)
+        .sum();
+    sum / scan.points.len() as f64
+}
+
+/// ln p(z | x, m) of the whole scan under the likelihood-field model (PR table 6.3): the sum
+/// over end points of ln(z_hit·N(d; 0, σ²) + z_rand/z_max), with d read from the cell of each
+/// end point. Beams are treated as independent, as in the book.
+pub fn scan_log_likelihood(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+    let params = grid.likelihood_params();
+    transform_points(&scan.points, pose)
+        .map(|p| params.log_likelihood(grid.likelihood(grid.world_to_cell(&p))))
+        .sum()
+}
+
+/// Covariance of the pose by sampling the scan likelihood on a 3×3×3 lattice of poses
+/// around `mode` with spacings `steps` (x, y, θ): weights wₖ ∝ p(z | xₖ, m) (the Gaussian
+/// fit GMapping's improved proposal uses, Grisetti et al. 2007 eq. 16–18), plus the
+/// lattice's own quantisation variance step²/12 on the diagonal so the result stays PD
+/// when the likelihood is sharper than the lattice.
+pub(crate) fn covariance_by_sampling(
+    grid: &OccupancyGrid,
+    scan: &PreparedScan,
+    mode: &Pose2,
+    steps: [f64; 3],
+) -> Matrix3 {
+    let mut samples = Vec::with_capacity(27);
+    for i in -1..=1 {
+        for j in -1..=1 {
+            for k in -1..=1 {
+                let d = [
+                    i as f64 * steps[0],
+                    j as f64 * steps[1],
+                    k as f64 * steps[2],
+                ];
+                let pose = Pose2::new(mode.x + d[0], mode.y + d[1], mode.theta + d[2]);
+                samples.push((d, scan_log_likelihood(grid, scan, &pose)));
+            }
+        }
+    }
+    let max = samples
+        .iter()
+        .map(|s| s.1)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let mut wsum = 0.0;
+    let mut mean = [0.0; 3];
+    for (d, ll) in &samples {
+        let w = (ll - max).exp();
+        wsum += w;
+        for a in 0..3 {
+            mean[a] += w * d[a];
+        }
+    }
+    let mut cov = Matrix3::zeros();
+    if wsum > 0.0 && wsum.is_finite() {
+        mean.iter_mut().for_each(|m| *m /= wsum);
+        for (d, ll) in &samples {
+            let w = (ll - max).exp() / wsum;
+            for a in 0..3 {
+                for b in 0..3 {
+                    cov[(a, b)] += w * (d[a] - mean[a]) * (d[b] - mean[b]);
+                }
+            }
+        }
+    }
+    for a in 0..3 {
+        cov[(a, a)] += steps[a] * steps[a] / 12.0;
+    }
+    (cov + cov.transpose()) * 0.5
+}
+
+/// Lattice spacings for [`covariance_by_sampling`]: one cell in x and y, and the rotation
+/// that moves the mean end point by one cell.
+pub(crate) fn default_steps(grid: &OccupancyGrid, scan: &PreparedScan) -> [f64; 3] {
+    let res = grid.resolution();
+    let n = scan.points.len().max(1) as f64;
+    let mean_r = (scan.points.iter().map(|p| p.coords.norm()).sum::<f64>() / n).max(res);
+    [res, res, res / mean_r]
+}
+
+#[cfg(test)]
+mod tests;

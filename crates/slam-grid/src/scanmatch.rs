@@ -1,0 +1,251 @@
+//! Scan-matching odometry: every scan matched against the map built so far.
+
+use crate::error::{ensure_config, GridError};
+use crate::grid::OccupancyGrid;
+use crate::likelihood::LikelihoodParams;
+use crate::matcher::RefinedCorrelativeMatcher;
+use crate::scan::PreparedScan;
+use crate::InverseSensorModel;
+use serde::{Deserialize, Serialize};
+use slam_models::{normalize_angle, FilterError, GridMap, Pose2, ScanRecord, ScanSlam};
+use slam_models::{ScanUpdateInfo, TimedPose};
+
+/// Configuration of [`ScanMatchOdometry`].
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ScanMatchConfig {
+    /// Map cell size, metres. Default 0.05 m.
+    pub resolution: f64,
+    /// Inverse sensor model of the map updates.
+    pub sensor_model: InverseSensorModel,
+    /// Likelihood field used by the matcher.
+    pub likelihood: LikelihoodParams,
+    /// The matcher: correlative search around the odometry prediction, then Gauss-Newton.
+    pub matcher: RefinedCorrelativeMatcher,
+    /// End points farther than this from the sensor are not used for matching, metres.
+    /// Default 20 m.
+    pub match_max_range: f64,
+    /// Matches whose mean field value is below this are rejected (the odometry prediction
+    /// is kept instead). Default 0.2.
+    pub min_score: f64,
+    /// A scan is processed only once the robot moved this far since the last processed
+    /// scan (by odometry), metres. Default 0.1 m. The first scan is always processed.
+    pub linear_update: f64,
+    /// … or turned this much, radians. Default 0.1 rad.
+    pub angular_update: f64,
+}
+
+impl Default for ScanMatchConfig {
+    fn default() -> Self {
+        Self {
+            resolution: 0.05,
+            sensor_model: InverseSensorModel::default(),
+            likelihood: LikelihoodParams::default(),
+            matcher: RefinedCorrelativeMatcher::default(),
+            match_max_range: 20.0,
+            min_score: 0.2,
+            linear_update: 0.1,
+            angular_update: 0.1,
+        }
+    }
+}
+
+/// Scan-matching odometry, the baseline of the SLAM benchmarks: each processed scan is
+/// matched ([`RefinedCorrelativeMatcher`]) against the map built from all earlier processed
+/// scans, starting from the last corrected pose composed with the odometry increment since;
+/// the scan is then written into the map at the matched pose. No loop closure: errors
+/// accumulate, more slowly than with odometry alone.
+///
+/// Every record gets a pose: the last corrected pose ⊕ (odometry since that scan), so
+/// [`ScanSlam::trajectory`] has one entry per record. The first record defines the world
+/// origin (the robot starts at the identity pose).
+#[derive(Debug, Clone)]
+pub struct ScanMatchOdometry {
+    config: ScanMatchConfig,
+    grid: OccupancyGrid,
+    /// Pose at the last processed scan and the odometry reading there.
+    anchor: Option<(Pose2, Pose2)>,
+    current: Pose2,
+    trajectory: Vec<TimedPose>,
+    map_has_scan: bool,
+    failures: usize,
+}
+
+impl ScanMatchOdometry {
+    /// A filter with an empty map; rejects invalid configuration.
+    pub fn new(config: ScanMatchConfig) -> Result<Self, GridError> {
+        ensure_config(
+            config.match_max_range > 0.0,
+            "match_max_range",
+            config.match_max_range,
+            "> 0 m",
+        )?;
+        ensure_config(
+            (0.0..=1.0).contains(&config.min_score),
+            "min_score",
+            config.min_score,
+            "in [0, 1]",
+        )?;
+        ensure_config(
+            config.linear_update >= 0.0,
+            "linear_update",
+            config.linear_update,
+            ">= 0 m",
+        )?;
+        ensure_config(
+            config.angular_update >= 0.0,
+            "angular_update",
+            config.angular_update,
+            ">= 0 rad",
+        )?;
+        config.matcher.correlative.validate()?;
+        config.matcher.refine.validate()?;
+        let grid = OccupancyGrid::try_new(config.resolution, config.sensor_model)?
+            .with_likelihood(config.likelihood)?;
+        Ok(Self {
+            config,
+            grid,
+            anchor: None,
+            current: Pose2::IDENTITY,
+            trajectory: Vec::new(),
+            map_has_scan: false,
+            failures: 0,
+        })
+    }
+
+    /// The working occupancy grid.
+    pub fn grid(&self) -> &OccupancyGrid {
+        &self.grid
+    }
+
+    /// Processed scans whose match was rejected or failed (odometry used instead).
+    pub fn match_failures(&self) -> usize {
+        self.failures
+    }
+
+    fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridError> {
+        if !record.odometry.is_finite() || !record.t.is_finite() {
+            return Err(GridError::NonFinite {
+                what: "record odometry or time",
+                value: f64::NAN,
+            });
+        }
+        let (anchor_pose, anchor_odom) = *self
+            .anchor
+            .get_or_insert((Pose2::IDENTITY, record.odometry));
+        let predicted = anchor_pose.compose(&anchor_odom.between(&record.odometry));
+        let mut info = ScanUpdateInfo::default();
+        self.current = predicted;
+        if let Some(scan) = &record.scan {
+            let moved = anchor_pose.distance(&predicted);
+            let turned = normalize_angle(predicted.theta - anchor_pose.theta).abs();
+            let due = !self.map_has_scan
+                || moved >= self.config.linear_update
+                || turned >= self.config.angular_update;
+            if due {
+                let prepared = PreparedScan::with_limits(scan, 0.0, self.config.match_max_range)?;
+                let pose = if self.map_has_scan {
+                    match self
+                        .config
+                        .matcher
+                        .match_prepared(&self.grid, &prepared, &predicted)
+                    {
+                        Ok(m) if m.score >= self.config.min_score => m.pose,
+                        _ => {
+                            self.failures += 1;
+                            info.match_failures = 1;
+                            predicted
+                        }
+                    }
+                } else {
+                    predicted
+                };
+                self.grid.try_integrate_prepared(&pose, &prepared)?;
+                self.map_has_scan = true;
+                self.anchor = Some((pose, record.odometry));
+                self.current = pose;
+                info.processed_scan = true;
+            }
+        }
+        self.trajectory.push(TimedPose {
+            t: record.t,
+            pose: self.current,
+        });
+        Ok(info)
+    }
+}
+
+impl ScanSlam for ScanMatchOdometry {
+    fn name(&self) -> &str {
+        "scanmatch"
+    }
+
+    fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
+        self.step(record)
+            .map_err(|e| FilterError::Other(Box::new(e)))
+    }
+
+    fn pose(&self) -> Pose2 {
+        self.current
+    }
+
+    fn trajectory(&self) -> Vec<TimedPose> {
+        self.trajectory.clone()
+    }
+
+    fn map(&self) -> GridMap {
+        self.grid.to_grid_map()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::SegmentWorld;
+
+    /// Drive through the synthetic office with odometry that under-reports translation by
+    /// 5 % and drifts in heading: scan matching keeps the pose within 10 cm over 9 m,
+    /// odometry alone does not.
+    #[test]
+    fn corrects_biased_odometry_and_keeps_one_pose_per_record() {
+        let world = SegmentWorld::office();
+        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).unwrap();
+        let mut odo = Pose2::IDENTITY;
+        let mut prev_true = Pose2::new(1.5, 3.0, 0.0);
+        let start = prev_true;
+        let mut worst: f64 = 0.0;
+        let mut odo_err: f64 = 0.0;
+        let n = 120;
+        for k in 0..n {
+            // Along the room y = 3 to x = 10.5, turning slowly.
+            let truth = Pose2::new(
+                1.5 + 9.0 * k as f64 / n as f64,
+                3.0 + 0.5 * (k as f64 * 0.05).sin(),
+                0.3 * (k as f64 * 0.03).sin(),
+            );
+            let d = prev_true.between(&truth);
+            odo = odo.compose(&Pose2::new(0.95 * d.x, 0.95 * d.y, d.theta + 0.004));
+            prev_true = truth;
+            let scan = (k % 2 == 0).then(|| world.scan(&truth, 181, std::f64::consts::PI, 20.0));
+            let rec = ScanRecord {
+                t: k as f64 * 0.1,
+                odometry: odo,
+                scan,
+            };
+            f.process(&rec).unwrap();
+            let est = start.compose(&f.pose());
+            worst = worst.max(est.distance(&truth));
+            odo_err = odo_err.max(start.compose(&odo).distance(&truth));
+        }
+        assert_eq!(f.trajectory().len(), n);
+        assert!(worst < 0.1, "scan matching error {worst}");
+        assert!(odo_err > 0.3, "odometry error {odo_err}");
+        assert_eq!(f.name(), "scanmatch");
+        let bad = ScanRecord {
+            t: 0.0,
+            odometry: Pose2::new(f64::NAN, 0.0, 0.0),
+            scan: None,
+        };
+        assert!(f.process(&bad).is_err());
+    }
+}
