@@ -1,0 +1,131 @@
+//! Whole-Intel benchmark run: relations error, wall time, real-time factor and peak RSS.
+//!
+//! ```text
+//! cargo run --release -p slam-gridfast --example intel -- \
+//!     [--particles 30] [--proposal improved|odometry|scan-matched-odometry] [--threads 1] \
+//!     [--seed 1] [--config file.json] [--log PATH] [--relations PATH] [--pgm map.pgm]
+//! ```
+//!
+//! Defaults read `../shared/datasets/bench/intel.log` and
+//! `../shared/datasets/slam-benchmark-relations/intel.relations` (or under `$SLAM_DATASETS`).
+//! The relations error uses the datasets README's rule (slam-io `relations_error`).
+
+use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
+use slam_models::ScanSlam;
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn peak_rss_mb() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// CPU seconds (user + system) of this process so far, from /proc/self/stat.
+fn cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = &s[s.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let data = std::env::var_os("SLAM_DATASETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets")
+        });
+    let mut log = data.join("bench/intel.log");
+    let mut relations = data.join("slam-benchmark-relations/intel.relations");
+    let mut config = GridFastConfig::default();
+    let (mut threads, mut seed, mut png) = (1usize, 1u64, None::<PathBuf>);
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut val = || args.next().ok_or_else(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--particles" => config.particles = val()?.parse()?,
+            "--proposal" => {
+                config.proposal = serde_json::from_str::<Proposal>(&format!("\"{}\"", val()?))?
+            }
+            "--threads" => threads = val()?.parse()?,
+            "--seed" => seed = val()?.parse()?,
+            "--log" => log = val()?.into(),
+            "--relations" => relations = val()?.into(),
+            "--pgm" => png = Some(val()?.into()),
+            "--config" => {
+                let text = std::fs::read_to_string(val()?)?;
+                let particles = config.particles;
+                config = serde_json::from_str(&text)?;
+                if config.particles == GridFastConfig::default().particles {
+                    config.particles = particles;
+                }
+            }
+            other => return Err(format!("unknown argument {other}").into()),
+        }
+    }
+    let carmen = slam_io::carmen::read_carmen(&log)?;
+    let rel = slam_io::relations::read_relations(&relations)?;
+    let records = &carmen.dataset.records;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    let (proposal, particles) = (config.proposal, config.particles);
+    let mut slam = GridFastSlam::new(config, seed)?;
+    let start = Instant::now();
+    let cpu0 = cpu_seconds().unwrap_or(f64::NAN);
+    let (mut failures, mut resamples, mut processed) = (0usize, 0usize, 0usize);
+    pool.install(|| -> Result<(), slam_models::FilterError> {
+        for r in records {
+            let info = slam.process(r)?;
+            failures += info.match_failures;
+            resamples += info.resampled as usize;
+            processed += info.processed_scan as usize;
+        }
+        Ok(())
+    })?;
+    let wall = start.elapsed().as_secs_f64();
+    let cpu = cpu_seconds().unwrap_or(f64::NAN) - cpu0;
+    let traj = slam.trajectory();
+    let span =
+        records.last().map(|r| r.t).unwrap_or(0.0) - records.first().map(|r| r.t).unwrap_or(0.0);
+    let e = slam_io::eval::relations_error(&traj, &rel);
+    println!(
+        "proposal={proposal:?} particles={particles} threads={threads} seed={seed} records={} processed={processed} \
+         resamples={resamples} match_failures={failures}",
+        records.len()
+    );
+    println!(
+        "relations: trans {:.4} ± {:.4} m, rot {:.3} ± {:.3} deg (used {}, dropped {})",
+        e.trans_mean, e.trans_std, e.rot_mean_deg, e.rot_std_deg, e.used, e.dropped
+    );
+    println!(
+        "wall {:.2} s (cpu {:.2} s), real-time factor {:.1}x, {:.3} ms per particle per processed scan, peak RSS {:.1} MB",
+        wall,
+        cpu,
+        span / wall,
+        1e3 * wall / (processed.max(1) * particles) as f64,
+        peak_rss_mb().unwrap_or(f64::NAN)
+    );
+    if let Some(p) = png {
+        write_pgm(&slam.render_map(0.05), &p)?;
+    }
+    Ok(())
+}
+
+/// Writes a GridMap as a binary PGM (unknown grey, free white, occupied black), top row first.
+fn write_pgm(m: &slam_models::GridMap, path: &std::path::Path) -> std::io::Result<()> {
+    let mut out = format!("P5\n{} {}\n255\n", m.width, m.height).into_bytes();
+    for iy in (0..m.height).rev() {
+        for ix in 0..m.width {
+            let v = m.cells[iy * m.width + ix];
+            out.push(if v < 0 {
+                205
+            } else {
+                (255.0 * (1.0 - v as f64 / 100.0)) as u8
+            });
+        }
+    }
+    std::fs::write(path, out)
+}

@@ -1,0 +1,517 @@
+//! The Rao-Blackwellized particle filter on occupancy grids.
+
+use crate::config::{GridFastConfig, Proposal};
+use crate::error::GridFastError;
+use crate::map::{MapParams, Scratch, TileMap};
+use crate::matcher::{hill_climb, HillClimb, Likelihood, PreparedScan};
+use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
+use crate::trajectory::Node;
+use rand::SeedableRng;
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+use slam_models::motion::{MotionModel, OdometryModel};
+use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
+use slam_models::{
+    normalize_angle, FilterError, GridMap, LaserScan, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo,
+    TimedPose, Vector3, WeightedPose,
+};
+use std::sync::Arc;
+
+/// One particle: its current corrected pose, its trajectory (a leaf of the shared tree),
+/// its map (copy-on-write tiles) and its log weight.
+#[derive(Clone)]
+struct Particle {
+    pose: Pose2,
+    log_w: f64,
+    map: TileMap,
+    node: Option<Arc<Node>>,
+}
+
+/// Grid-based FastSLAM: a Rao-Blackwellized particle filter whose particles each carry a
+/// trajectory and an occupancy grid (Murphy 2000; Hähnel et al. IROS 2003; Grisetti,
+/// Stachniss & Burgard, T-RO 2007 — the GMapping family).
+///
+/// Each input record moves the estimate by its odometry; a record with a scan triggers a
+/// filter update once the odometry path since the last update exceeds
+/// [`GridFastConfig::linear_update`] metres or its accumulated turning exceeds
+/// [`GridFastConfig::angular_update`] radians, both summed from scan record to scan record
+/// (GMapping's rule; the first scan is always used). An update
+/// draws every particle's pose from the configured [`Proposal`], updates the weights,
+/// resamples when N_eff < `resample_threshold`·M, and integrates the scan into every
+/// surviving particle's map. Between updates a pose is the last corrected pose ⊕ the
+/// odometry increment since.
+///
+/// The world frame is the odometry frame of the first record. Particles run in parallel
+/// (rayon); each particle draws from its own random stream derived from `(seed, processed
+/// scan index, particle index)`, so the output is identical for any number of threads.
+///
+/// ```
+/// use slam_gridfast::{GridFastConfig, GridFastSlam};
+/// use slam_models::{LaserScan, Pose2, ScanRecord, ScanSlam};
+/// let mut slam = GridFastSlam::new(GridFastConfig { particles: 5, ..Default::default() }, 7).unwrap();
+/// let scan = LaserScan { angle_min: -1.5, angle_increment: 0.1, ranges: vec![2.0; 31],
+///                        max_range: 30.0, sensor_pose: Pose2::IDENTITY };
+/// slam.process(&ScanRecord { t: 0.0, odometry: Pose2::IDENTITY, scan: Some(scan) }).unwrap();
+/// slam.process(&ScanRecord { t: 0.1, odometry: Pose2::new(0.1, 0.0, 0.0), scan: None }).unwrap();
+/// assert_eq!(slam.trajectory().len(), 2);
+/// ```
+pub struct GridFastSlam {
+    config: GridFastConfig,
+    seed: u64,
+    params: Arc<MapParams>,
+    lk: Likelihood,
+    hc: HillClimb,
+    offsets: Vec<[f64; 3]>,
+    particles: Vec<Particle>,
+    best: usize,
+    n_eff: f64,
+    /// Per record: time, odometry, and the processed scan at or before it (u32::MAX: none).
+    times: Vec<f64>,
+    odometry: Vec<Pose2>,
+    last_scan_of_record: Vec<u32>,
+    /// Per processed scan: the record index and the scan itself (kept for re-rendering).
+    scan_records: Vec<usize>,
+    scans: Vec<LaserScan>,
+    acc_linear: f64,
+    acc_angular: f64,
+    last_scan_odometry: Option<Pose2>,
+}
+
+/// splitmix64: a bijective 64-bit mixer (Steele, Lea & Flood 2014), used to derive
+/// independent random streams.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The random stream of particle `i` (or `u64::MAX` for the resampler) at scan `step`.
+fn stream(seed: u64, step: usize, i: u64) -> Pcg64Mcg {
+    Pcg64Mcg::seed_from_u64(mix(mix(mix(seed) ^ step as u64) ^ i))
+}
+
+impl GridFastSlam {
+    /// A filter with `config.particles` particles at the origin of the odometry frame, all
+    /// with empty maps. `seed` fixes every random draw.
+    pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
+        config.validate()?;
+        let radius = (config.field_radius / config.resolution).round() as i32;
+        let params = Arc::new(MapParams::new(
+            config.resolution,
+            config.log_odds_hit,
+            config.log_odds_miss,
+            config.log_odds_clamp,
+            radius,
+            config.max_range,
+        ));
+        let lk = Likelihood {
+            k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
+            radius: radius as f64 * config.resolution,
+        };
+        let hc = HillClimb {
+            linear_step: config.match_linear_step,
+            angular_step: config.match_angular_step,
+            refinements: config.match_refinements,
+        };
+        let offsets = sample_offsets(
+            config.samples_per_axis,
+            config.sample_range_xy,
+            config.sample_range_theta,
+        );
+        let m = config.particles;
+        let empty = TileMap::new(Arc::clone(&params));
+        let particles = (0..m)
+            .map(|_| Particle {
+                pose: Pose2::IDENTITY,
+                log_w: -(m as f64).ln(),
+                map: empty.clone(),
+                node: None,
+            })
+            .collect();
+        Ok(Self {
+            config,
+            seed,
+            params,
+            lk,
+            hc,
+            offsets,
+            particles,
+            best: 0,
+            n_eff: m as f64,
+            times: Vec::new(),
+            odometry: Vec::new(),
+            last_scan_of_record: Vec::new(),
+            scan_records: Vec::new(),
+            scans: Vec::new(),
+            acc_linear: 0.0,
+            acc_angular: 0.0,
+            last_scan_odometry: None,
+        })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &GridFastConfig {
+        &self.config
+    }
+
+    /// Number of scans the filter has processed (full updates).
+    pub fn processed_scans(&self) -> usize {
+        self.scans.len()
+    }
+
+    /// The best particle's corrected pose at each processed scan, with the scan's time.
+    pub fn corrected_poses(&self) -> Vec<TimedPose> {
+        self.best_path()
+            .into_iter()
+            .zip(&self.scan_records)
+            .map(|(pose, &r)| TimedPose {
+                t: self.times[r],
+                pose,
+            })
+            .collect()
+    }
+
+    /// Re-renders the best particle's map at `resolution` metres per cell (e.g. 0.01 for
+    /// a 5 cm matching grid) by integrating every processed scan at the best particle's
+    /// corrected trajectory, with the same inverse sensor model. Returns an empty map for
+    /// a non-positive or non-finite resolution.
+    pub fn render_map(&self, resolution: f64) -> GridMap {
+        if !(resolution > 0.0 && resolution.is_finite()) {
+            return GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0);
+        }
+        let params = Arc::new(MapParams::new(
+            resolution,
+            self.config.log_odds_hit,
+            self.config.log_odds_miss,
+            self.config.log_odds_clamp,
+            0,
+            self.config.max_range,
+        ));
+        let mut map = TileMap::new(params);
+        let mut scratch = Scratch::default();
+        for (pose, scan) in self.best_path().iter().zip(&self.scans) {
+            map.integrate(pose, scan, &mut scratch);
+        }
+        map.to_grid_map()
+    }
+
+    fn best_path(&self) -> Vec<Pose2> {
+        match &self.particles[self.best].node {
+            Some(n) => n.path(),
+            None => Vec::new(),
+        }
+    }
+
+    fn pose_at_record(&self, i: usize, path: &[Pose2]) -> Pose2 {
+        match self.last_scan_of_record[i] {
+            u32::MAX => self.odometry[i],
+            k => {
+                let k = k as usize;
+                let r = self.scan_records[k];
+                path[k].compose(&self.odometry[r].between(&self.odometry[i]))
+            }
+        }
+    }
+
+    fn check_record(&self, record: &ScanRecord) -> Result<(), GridFastError> {
+        let bad = |reason: String| GridFastError::InvalidRecord {
+            index: self.times.len(),
+            t: record.t,
+            reason,
+        };
+        if !record.t.is_finite() {
+            return Err(bad("time is not finite".into()));
+        }
+        if !record.odometry.is_finite() {
+            return Err(bad(format!("odometry {:?} is not finite", record.odometry)));
+        }
+        if let Some(s) = &record.scan {
+            s.validate().map_err(|e| bad(format!("scan: {e}")))?;
+            if !s.sensor_pose.is_finite() {
+                return Err(bad("scan sensor_pose is not finite".into()));
+            }
+        }
+        Ok(())
+    }
+
+    /// Processes one record (the [`ScanSlam::process`] contract, with this crate's error).
+    pub fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridFastError> {
+        self.check_record(record)?;
+        // Motion is accumulated from scan to scan, as GMapping does: the odometry-only
+        // records in between would add their jitter to the path length.
+        if record.scan.is_some() {
+            if let Some(prev) = self.last_scan_odometry {
+                self.acc_linear += prev.distance(&record.odometry);
+                self.acc_angular += normalize_angle(record.odometry.theta - prev.theta).abs();
+            }
+            self.last_scan_odometry = Some(record.odometry);
+        }
+        self.times.push(record.t);
+        self.odometry.push(record.odometry);
+        let first = self.scans.is_empty();
+        let update = match &record.scan {
+            Some(_) => {
+                first
+                    || self.acc_linear >= self.config.linear_update
+                    || self.acc_angular >= self.config.angular_update
+            }
+            None => false,
+        };
+        let scan = match (&record.scan, update) {
+            (Some(s), true) => s,
+            _ => {
+                let last = self.last_scan_of_record.last().copied().unwrap_or(u32::MAX);
+                self.last_scan_of_record.push(last);
+                return Ok(ScanUpdateInfo {
+                    processed_scan: false,
+                    n_eff: Some(self.n_eff),
+                    resampled: false,
+                    match_failures: 0,
+                });
+            }
+        };
+        let k = self.scans.len();
+        let info = if first {
+            self.first_scan(scan, record.odometry)
+        } else {
+            self.update(k, scan)?
+        };
+        self.scan_records.push(self.times.len() - 1);
+        self.scans.push(scan.clone());
+        self.last_scan_of_record.push(k as u32);
+        self.acc_linear = 0.0;
+        self.acc_angular = 0.0;
+        Ok(info)
+    }
+
+    fn first_scan(&mut self, scan: &LaserScan, odometry: Pose2) -> ScanUpdateInfo {
+        let node = Node::child(None, odometry, 0);
+        let mut map = self.particles[0].map.clone();
+        map.integrate(&odometry, scan, &mut Scratch::default());
+        for p in &mut self.particles {
+            p.pose = odometry;
+            p.node = Some(Arc::clone(&node));
+            p.map = map.clone();
+        }
+        ScanUpdateInfo {
+            processed_scan: true,
+            n_eff: Some(self.n_eff),
+            resampled: false,
+            match_failures: 0,
+        }
+    }
+
+    fn update(&mut self, k: usize, scan: &LaserScan) -> Result<ScanUpdateInfo, GridFastError> {
+        let cfg = &self.config;
+        let m = self.particles.len();
+        let r_prev = self.scan_records[k - 1];
+        let odo_now = *self.odometry.last().unwrap_or(&Pose2::IDENTITY);
+        let u = cfg
+            .motion
+            .control_from_poses(&self.odometry[r_prev], &odo_now);
+        let prepared = PreparedScan::new(scan, cfg.beam_step, cfg.max_range);
+        let min_inliers =
+            ((cfg.match_min_inlier_fraction * prepared.points.len() as f64).ceil() as usize).max(1);
+        let ctx = StepContext {
+            scan: &prepared,
+            lk: self.lk,
+            hc: self.hc,
+            u,
+            motion: cfg.motion,
+            min_var: Vector3::new(
+                cfg.motion_min_std[0].powi(2),
+                cfg.motion_min_std[0].powi(2),
+                cfg.motion_min_std[1].powi(2),
+            ),
+            min_inliers,
+            offsets: &self.offsets,
+        };
+        // Scan-matched odometry: one match against the best particle's map corrects the
+        // increment for every particle (Hähnel et al. 2003).
+        let mut shared_failures = 0;
+        let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
+            let best = &self.particles[self.best];
+            let predicted = cfg.motion.predict(&best.pose, &u);
+            let matched = hill_climb(&best.map, &prepared, &predicted, &self.lk, &self.hc);
+            let s2 = cfg.corrected_odometry_noise_scale.powi(2);
+            let a = cfg.motion.alpha;
+            let scaled = OdometryModel {
+                alpha: [a[0] * s2, a[1] * s2, a[2] * s2, a[3] * s2],
+                ..cfg.motion
+            };
+            if matched.score.inliers >= min_inliers {
+                (
+                    cfg.motion.control_from_poses(&best.pose, &matched.pose),
+                    scaled,
+                )
+            } else {
+                shared_failures = m;
+                (u, cfg.motion)
+            }
+        } else {
+            (u, cfg.motion)
+        };
+        let (seed, proposal) = (self.seed, cfg.proposal);
+        let drawn: Vec<Drawn> = self
+            .particles
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let mut rng = stream(seed, k, i as u64);
+                match proposal {
+                    Proposal::Improved => improved(&p.pose, &p.map, &ctx, &mut rng),
+                    Proposal::Odometry => {
+                        motion_and_likelihood(&p.pose, &p.map, &ctx, &ctx.motion, &ctx.u, &mut rng)
+                    }
+                    Proposal::ScanMatchedOdometry => {
+                        motion_and_likelihood(&p.pose, &p.map, &ctx, &smo_motion, &smo_u, &mut rng)
+                    }
+                }
+            })
+            .collect();
+        let mut failures = shared_failures;
+        let mut log_w: Vec<f64> = Vec::with_capacity(m);
+        for (p, d) in self.particles.iter_mut().zip(&drawn) {
+            p.pose = d.pose;
+            p.log_w += d.log_weight;
+            p.node = Some(Node::child(p.node.take(), d.pose, k));
+            failures += d.match_failed as usize;
+            log_w.push(p.log_w);
+        }
+        normalize_log_weights(&mut log_w).map_err(|e| GridFastError::Numerical {
+            scan: k,
+            reason: e.to_string(),
+        })?;
+        let n_eff = effective_sample_size_log(&log_w);
+        let mut best = 0;
+        for (i, (p, &l)) in self.particles.iter_mut().zip(&log_w).enumerate() {
+            p.log_w = l;
+            if l > log_w[best] {
+                best = i;
+            }
+        }
+        let resample = n_eff < self.config.resample_threshold * m as f64;
+        let mut old = std::mem::take(&mut self.particles);
+        // Groups of identical particles: (leader, copies), in order.
+        let mut groups: Vec<(Particle, usize)> = Vec::new();
+        if resample {
+            let w: Vec<f64> = log_w.iter().map(|l| l.exp()).collect();
+            let idx = self
+                .config
+                .resampler
+                .resample(&w, &mut stream(seed, k, u64::MAX))
+                .map_err(|e| GridFastError::Numerical {
+                    scan: k,
+                    reason: e.to_string(),
+                })?;
+            let mut new_best = None;
+            let mut j = 0;
+            while j < idx.len() {
+                let a = idx[j];
+                let mut n = 1;
+                while j + n < idx.len() && idx[j + n] == a {
+                    n += 1;
+                }
+                if a == best && new_best.is_none() {
+                    new_best = Some(groups.len());
+                }
+                let mut p = std::mem::replace(
+                    &mut old[a],
+                    Particle {
+                        pose: Pose2::IDENTITY,
+                        log_w: 0.0,
+                        map: TileMap::new(Arc::clone(&self.params)),
+                        node: None,
+                    },
+                );
+                p.log_w = -(m as f64).ln();
+                groups.push((p, n));
+                j += n;
+            }
+            // Dead particles release their tiles before the survivors write theirs.
+            drop(old);
+            let g = new_best.unwrap_or(0);
+            best = groups[..g].iter().map(|(_, n)| n).sum();
+        } else {
+            groups = old.into_iter().map(|p| (p, 1)).collect();
+        }
+        groups
+            .par_iter_mut()
+            .for_each_init(Scratch::default, |s, (p, _)| {
+                p.map.integrate(&p.pose, scan, s);
+            });
+        let mut particles = Vec::with_capacity(m);
+        for (p, n) in groups {
+            for _ in 1..n {
+                particles.push(p.clone());
+            }
+            particles.push(p);
+        }
+        self.particles = particles;
+        self.best = best;
+        self.n_eff = n_eff;
+        Ok(ScanUpdateInfo {
+            processed_scan: true,
+            n_eff: Some(n_eff),
+            resampled: resample,
+            match_failures: failures,
+        })
+    }
+}
+
+impl ScanSlam for GridFastSlam {
+    fn name(&self) -> &str {
+        "gridfast"
+    }
+
+    /// See [`GridFastSlam::step`]. `n_eff` in the returned info is the effective sample
+    /// size of the weights after the update and before any resampling (the value the
+    /// resampling decision used).
+    fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
+        self.step(record).map_err(|e| match e {
+            GridFastError::InvalidRecord { .. } => FilterError::InvalidInput(e.to_string()),
+            GridFastError::Numerical { .. } => FilterError::Numerical(e.to_string()),
+            other => FilterError::Other(Box::new(other)),
+        })
+    }
+
+    fn pose(&self) -> Pose2 {
+        match self.times.len() {
+            0 => Pose2::IDENTITY,
+            n => {
+                let path = self.best_path();
+                self.pose_at_record(n - 1, &path)
+            }
+        }
+    }
+
+    fn trajectory(&self) -> Vec<TimedPose> {
+        let path = self.best_path();
+        (0..self.times.len())
+            .map(|i| TimedPose {
+                t: self.times[i],
+                pose: self.pose_at_record(i, &path),
+            })
+            .collect()
+    }
+
+    fn map(&self) -> GridMap {
+        self.particles[self.best].map.to_grid_map()
+    }
+
+    fn particles(&self) -> Option<Vec<WeightedPose>> {
+        let mut lw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
+        normalize_log_weights(&mut lw).ok()?;
+        Some(
+            self.particles
+                .iter()
+                .zip(lw)
+                .map(|(p, l)| WeightedPose {
+                    pose: p.pose,
+                    weight: l.exp(),
+                })
+                .collect(),
+        )
+    }
+}

@@ -1,0 +1,260 @@
+//! Scan likelihood and hill-climbing scan matching against one particle's map.
+//!
+//! The beam end points are computed once per scan in the robot frame
+//! ([`PreparedScan`]); every pose evaluation is then one rotation and translation per beam
+//! and a bilinear look-up in the map's incremental distance field, with no trigonometry
+//! per beam (GMapping recomputes sin/cos and rounding for every beam of every
+//! evaluation).
+//!
+//! Endpoint model (PR §6.4, "likelihood field"): a beam ending at distance d from the
+//! nearest occupied cell contributes ln p = −min(d, r)²/(2σ²) (r the field radius; the
+//! truncation is the outlier floor). The scan's log-likelihood is Σ ln p divided by the
+//! gain g (GMapping's `ogain`).
+
+use crate::map::{TileMap, DIST_SCALE};
+use slam_models::{LaserScan, Pose2};
+
+/// A scan reduced to what matching needs: the end points of the used beams in the robot
+/// frame (metres).
+#[derive(Debug, Clone)]
+pub(crate) struct PreparedScan {
+    pub points: Vec<[f64; 2]>,
+}
+
+impl PreparedScan {
+    /// End points of every `step`-th beam that hit within `max_range` (the scan's
+    /// `sensor_pose` applied).
+    pub fn new(scan: &LaserScan, step: usize, max_range: f64) -> Self {
+        let max_range = max_range.min(scan.max_range);
+        let points = (0..scan.len())
+            .step_by(step.max(1))
+            .filter(|&k| scan.ranges[k] > 0.0 && scan.ranges[k] < max_range)
+            .map(|k| {
+                let a = scan.beam_angle(k);
+                let r = scan.ranges[k];
+                let p = scan
+                    .sensor_pose
+                    .transform_point(&slam_models::Point2::new(r * a.cos(), r * a.sin()));
+                [p.x, p.y]
+            })
+            .collect();
+        Self { points }
+    }
+}
+
+/// The endpoint-model parameters of one filter.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Likelihood {
+    /// 1/(2σ²·g), per m².
+    pub k: f64,
+    /// Field radius r, metres.
+    pub radius: f64,
+}
+
+/// The score of one pose: Σ ln p / g, and how many beams ended within the field radius.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Score {
+    pub log_likelihood: f64,
+    pub inliers: usize,
+}
+
+/// Evaluates the scan log-likelihood at `pose` (bilinear interpolation of the distance
+/// field between the four cell centres around each end point).
+#[inline]
+pub(crate) fn score(map: &TileMap, scan: &PreparedScan, pose: &Pose2, lk: &Likelihood) -> Score {
+    let res = map.params().resolution;
+    let inv = 1.0 / res;
+    let unit = res / DIST_SCALE;
+    let (s, c) = pose.theta.sin_cos();
+    let (tx, ty) = (pose.x * inv - 0.5, pose.y * inv - 0.5);
+    let (s, c) = (s * inv, c * inv);
+    let mut sum = 0.0;
+    let mut inliers = 0;
+    let r_in = lk.radius * 0.999;
+    for p in &scan.points {
+        // Cell-centre coordinates: cell (i, j) has its centre at (i, j).
+        let u = c * p[0] - s * p[1] + tx;
+        let v = s * p[0] + c * p[1] + ty;
+        let (fu, fv) = (u.floor(), v.floor());
+        let (au, av) = (u - fu, v - fv);
+        let d = map.dist4(fu as i32, fv as i32);
+        let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
+        let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
+        let dm = (d0 + av * (d1 - d0)) * unit;
+        if dm < r_in {
+            inliers += 1;
+        }
+        sum += dm * dm;
+    }
+    Score {
+        log_likelihood: -lk.k * sum,
+        inliers,
+    }
+}
+
+/// The outcome of a match.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MatchOutcome {
+    pub pose: Pose2,
+    pub score: Score,
+}
+
+/// Hill-climbing parameters.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct HillClimb {
+    pub linear_step: f64,
+    pub angular_step: f64,
+    pub refinements: usize,
+}
+
+/// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
+/// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
+/// the score, otherwise halve both steps, `refinements` times.
+pub(crate) fn hill_climb(
+    map: &TileMap,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    lk: &Likelihood,
+    hc: &HillClimb,
+) -> MatchOutcome {
+    let mut best = *initial;
+    let mut best_score = score(map, scan, &best, lk);
+    let (mut ls, mut as_) = (hc.linear_step, hc.angular_step);
+    let mut halvings = 0;
+    // A hard cap keeps pathological inputs bounded (≈ GMapping's ~121 evaluations).
+    let mut budget = 64;
+    while halvings <= hc.refinements && budget > 0 {
+        budget -= 1;
+        let moves = [
+            Pose2::new(best.x + ls, best.y, best.theta),
+            Pose2::new(best.x - ls, best.y, best.theta),
+            Pose2::new(best.x, best.y + ls, best.theta),
+            Pose2::new(best.x, best.y - ls, best.theta),
+            Pose2::new(best.x, best.y, best.theta + as_),
+            Pose2::new(best.x, best.y, best.theta - as_),
+        ];
+        let mut improved = None;
+        let mut top = best_score.log_likelihood;
+        for m in moves {
+            let s = score(map, scan, &m, lk);
+            if s.log_likelihood > top {
+                top = s.log_likelihood;
+                improved = Some((m, s));
+            }
+        }
+        match improved {
+            Some((m, s)) => {
+                best = m;
+                best_score = s;
+            }
+            None => {
+                ls *= 0.5;
+                as_ *= 0.5;
+                halvings += 1;
+            }
+        }
+    }
+    MatchOutcome {
+        pose: best,
+        score: best_score,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::{MapParams, Scratch};
+    use std::sync::Arc;
+
+    /// A closed room 8 m × 5 m with a pillar, scanned with 361 beams over 360°.
+    fn room_scan(pose: &Pose2) -> LaserScan {
+        let n = 361;
+        let inc = 2.0 * std::f64::consts::PI / n as f64;
+        let ranges = (0..n)
+            .map(|k| {
+                let a = pose.theta - std::f64::consts::PI + k as f64 * inc;
+                let (dx, dy) = (a.cos(), a.sin());
+                let mut t = f64::INFINITY;
+                for (wall, dir, coord) in [
+                    (4.0, dx, pose.x),
+                    (-4.0, dx, pose.x),
+                    (2.5, dy, pose.y),
+                    (-2.5, dy, pose.y),
+                ] {
+                    if dir != 0.0 {
+                        let tt = (wall - coord) / dir;
+                        if tt > 0.0 {
+                            t = t.min(tt);
+                        }
+                    }
+                }
+                // Pillar: a circle of radius 0.3 m at (1.5, 1.0).
+                let (ox, oy) = (pose.x - 1.5, pose.y - 1.0);
+                let b = ox * dx + oy * dy;
+                let disc = b * b - (ox * ox + oy * oy - 0.09);
+                if disc > 0.0 && -b - disc.sqrt() > 0.0 {
+                    t = t.min(-b - disc.sqrt());
+                }
+                t
+            })
+            .collect();
+        LaserScan {
+            angle_min: -std::f64::consts::PI,
+            angle_increment: inc,
+            ranges,
+            max_range: 30.0,
+            sensor_pose: Pose2::IDENTITY,
+        }
+    }
+
+    #[test]
+    fn hill_climbing_recovers_an_offset_pose() {
+        let params = Arc::new(MapParams::new(0.05, 0.85, -0.4, [-2.0, 3.5], 4, 50.0));
+        let mut map = TileMap::new(params);
+        let mut s = Scratch::default();
+        for p in [
+            Pose2::new(0.0, 0.0, 0.0),
+            Pose2::new(-1.0, -0.5, 1.0),
+            Pose2::new(1.0, -1.0, -2.0),
+        ] {
+            map.integrate(&p, &room_scan(&p), &mut s);
+        }
+        let truth = Pose2::new(0.3, 0.4, 0.3);
+        let scan = PreparedScan::new(&room_scan(&truth), 1, 50.0);
+        let lk = Likelihood {
+            k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
+            radius: 0.2,
+        };
+        let hc = HillClimb {
+            linear_step: 0.05,
+            angular_step: 0.05,
+            refinements: 5,
+        };
+        for off in [
+            Pose2::new(0.1, -0.08, 0.05),
+            Pose2::new(-0.12, 0.1, -0.08),
+            Pose2::new(0.0, 0.15, 0.0),
+        ] {
+            let init = Pose2::new(truth.x + off.x, truth.y + off.y, truth.theta + off.theta);
+            let m = hill_climb(&map, &scan, &init, &lk, &hc);
+            assert!(
+                m.pose.distance(&truth) < 0.02,
+                "{:?} from {:?}",
+                m.pose,
+                init
+            );
+            assert!(slam_models::normalize_angle(m.pose.theta - truth.theta).abs() < 0.01);
+            assert!(m.score.inliers as f64 > 0.9 * scan.points.len() as f64);
+        }
+        // An empty map has no inliers.
+        let empty = TileMap::new(Arc::new(MapParams::new(
+            0.05,
+            0.85,
+            -0.4,
+            [-2.0, 3.5],
+            4,
+            50.0,
+        )));
+        assert_eq!(score(&empty, &scan, &truth, &lk).inliers, 0);
+    }
+}
