@@ -466,6 +466,36 @@ mod tests {
     }
 
     #[test]
+    fn rear_laser_and_offsets() {
+        // RLASER with the robot's heading in its pose: the sensor looks backwards.
+        // FLASER whose laser pose is 0.2 m ahead of the robot (heading 90°): offset (0.2, 0).
+        // FLASER in another frame (laser pose 50 m away): the PARAM offset is used.
+        let text = "PARAM robot_frontlaser_offset 0.1\n\
+            RLASER 2 1 2 0 0 0 0 0 0 1 h 1\n\
+            FLASER 2 1 2 1 2.2 1.5707963267948966 1 2 1.5707963267948966 2 h 2\n\
+            FLASER 2 1 2 50 50 0 0 0 0 3 h 3\n";
+        let log = parse_carmen(&from_str("r.log", text)).unwrap();
+        let s: Vec<&LaserScan> = log
+            .dataset
+            .records
+            .iter()
+            .map(|r| r.scan.as_ref().unwrap())
+            .collect();
+        assert!(s[0]
+            .sensor_pose
+            .approx_eq(&Pose2::new(0.0, 0.0, std::f64::consts::PI), 1e-12));
+        assert!(s[1]
+            .sensor_pose
+            .approx_eq(&Pose2::new(0.2, 0.0, 0.0), 1e-12));
+        assert!(s[2]
+            .sensor_pose
+            .approx_eq(&Pose2::new(0.1, 0.0, 0.0), 1e-12));
+        // Largest reading 2 m < 20 m: no reading is taken as "no return".
+        assert_eq!(log.flaser_max_range, Some(81.91));
+        assert!(s[0].is_hit(1));
+    }
+
+    #[test]
     fn error_paths() {
         for (text, want) in [
             ("", "empty"),

@@ -466,7 +466,7 @@ pub fn plot_series(
         segment(&mut img, (m, v), (w as f64 - m, v), GRID, 1.0);
         g += step;
     }
-    if let Some((lo, hi)) = band {
+    if let Some((lo, hi)) = band.filter(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi) {
         let (_, vlo) = to_px(x0, lo);
         let (_, vhi) = to_px(x0, hi);
         for py in vhi.max(0.0) as u32..=(vlo.min(h as f64 - 1.0) as u32) {
