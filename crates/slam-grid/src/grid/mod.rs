@@ -12,7 +12,7 @@ pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
 use slam_models::{GridMap, LaserScan, Point2, Pose2};
 use std::sync::{Arc, OnceLock};
-use tiles::{split, Tile, TileLayout, TILE_CELLS, TILE_SIZE};
+use tiles::{split, Tile, TileLayout, HIT_CAP, TILE_CELLS, TILE_SIZE};
 
 /// Counters of the copy-on-write machinery (since creation or the last
 /// [`OccupancyGrid::reset_copy_stats`]); clones start from the source's counters.
@@ -94,9 +94,7 @@ impl OccupancyGrid {
             layout: TileLayout::default(),
             tiles: Vec::new(),
             fields: Vec::new(),
-            far_field: Arc::new(FieldTile {
-                values: [params.far_value(); TILE_CELLS],
-            }),
+            far_field: Arc::new(FieldTile::far(&params)),
             stats: CopyStats::default(),
         }
     }
@@ -112,9 +110,7 @@ impl OccupancyGrid {
     pub fn with_likelihood(mut self, params: LikelihoodParams) -> Result<Self, GridError> {
         params.validate()?;
         self.params = params;
-        self.far_field = Arc::new(FieldTile {
-            values: [params.far_value(); TILE_CELLS],
-        });
+        self.far_field = Arc::new(FieldTile::far(&params));
         self.fields = (0..self.layout.len()).map(|_| OnceLock::new()).collect();
         Ok(self)
     }
@@ -214,7 +210,7 @@ impl OccupancyGrid {
             .count()
     }
 
-    /// Bytes held by one tile's cells.
+    /// Bytes held by one tile (log-odds and mean hit positions of its cells).
     pub const TILE_BYTES: usize = std::mem::size_of::<Tile>();
 
     /// Inclusive range of cells covered by the tile table (`None` while empty).
@@ -376,7 +372,7 @@ impl OccupancyGrid {
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
         // written under one copy-on-write check.
         let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
-        let mut hits: Vec<(u32, u16)> = Vec::with_capacity(segs.len());
+        let mut hits: Vec<(u32, u16, i8, i8)> = Vec::with_capacity(segs.len());
         let layout = self.layout;
         let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
             let ((tx, ty), local) = split(cell);
@@ -387,14 +383,21 @@ impl OccupancyGrid {
         for &(end, hit) in &segs {
             let end_cell = trace_segment(start, end, |cell| push(&mut free, cell));
             if hit {
-                push(&mut hits, end_cell);
+                let ((tx, ty), local) = split(end_cell);
+                if let Some(slot) = layout.slot(tx, ty) {
+                    // End point relative to its cell centre, in 1/256 cell.
+                    let q = |f: f64| (f * 256.0).round().clamp(-128.0, 127.0) as i8;
+                    let ox = q(end.0 - end_cell.x as f64 - 0.5);
+                    let oy = q(end.1 - end_cell.y as f64 - 0.5);
+                    hits.push((slot as u32, local as u16, ox, oy));
+                }
             } else {
                 push(&mut free, end_cell);
             }
         }
         let mut changed: Vec<usize> = Vec::new();
         self.apply(&free, m.l_free, &mut changed);
-        self.apply(&hits, m.l_occ, &mut changed);
+        self.apply_hits(&hits, m.l_occ, &mut changed);
         self.invalidate_fields(changed);
         Ok(())
     }
@@ -427,21 +430,7 @@ impl OccupancyGrid {
             if !needs_write {
                 continue;
             }
-            let entry = &mut self.tiles[slot];
-            let arc = match entry {
-                None => {
-                    self.stats.tiles_created += 1;
-                    entry.insert(Arc::new(Tile::unknown()))
-                }
-                Some(a) => {
-                    if Arc::strong_count(a) > 1 {
-                        self.stats.tiles_copied += 1;
-                        self.stats.bytes_copied += Self::TILE_BYTES as u64;
-                    }
-                    a
-                }
-            };
-            let tile = Arc::make_mut(arc);
+            let tile = self.tile_for_write(slot);
             let mut status_changed = false;
             for &(_, l) in run {
                 let v = &mut tile.cells[l as usize];
@@ -450,6 +439,81 @@ impl OccupancyGrid {
                 *v = nv;
             }
             if status_changed && changed.last() != Some(&slot) {
+                changed.push(slot);
+            }
+        }
+    }
+
+    /// The tile of `slot`, private to this grid: created if absent, copied if shared
+    /// (copy-on-write, counted in the stats).
+    fn tile_for_write(&mut self, slot: usize) -> &mut Tile {
+        let entry = &mut self.tiles[slot];
+        let arc = match entry {
+            None => {
+                self.stats.tiles_created += 1;
+                entry.insert(Arc::new(Tile::unknown()))
+            }
+            Some(a) => {
+                if Arc::strong_count(a) > 1 {
+                    self.stats.tiles_copied += 1;
+                    self.stats.bytes_copied += Self::TILE_BYTES as u64;
+                }
+                a
+            }
+        };
+        Arc::make_mut(arc)
+    }
+
+    /// Adds `delta` (= l_occ) to the hit cells and folds each end point into its cell's
+    /// mean hit position (running mean over the first [`HIT_CAP`] hits).
+    fn apply_hits(&mut self, updates: &[(u32, u16, i8, i8)], delta: f32, changed: &mut Vec<usize>) {
+        let (lmin, lmax, thr) = (
+            self.model.l_min,
+            self.model.l_max,
+            self.params.occupied_threshold,
+        );
+        let mut i = 0;
+        while i < updates.len() {
+            let slot = updates[i].0 as usize;
+            let mut j = i;
+            while j < updates.len() && updates[j].0 as usize == slot {
+                j += 1;
+            }
+            let run = &updates[i..j];
+            i = j;
+            let needs_write = match &self.tiles[slot] {
+                None => true,
+                Some(t) => run.iter().any(|&(_, l, _, _)| {
+                    let v = t.cells[l as usize];
+                    (v + delta).clamp(lmin, lmax) != v || t.hits[l as usize] < HIT_CAP
+                }),
+            };
+            if !needs_write {
+                continue;
+            }
+            let tile = self.tile_for_write(slot);
+            let mut field_changed = false;
+            for &(_, l, ox, oy) in run {
+                let l = l as usize;
+                let v = tile.cells[l];
+                let nv = (v + delta).clamp(lmin, lmax);
+                field_changed |= (v > thr) != (nv > thr);
+                tile.cells[l] = nv;
+                let n = tile.hits[l];
+                if n < HIT_CAP {
+                    let mean = |m: i8, o: i8| {
+                        let m = m as i32;
+                        (m + ((o as i32 - m) as f32 / (n as f32 + 1.0)).round() as i32)
+                            .clamp(-128, 127) as i8
+                    };
+                    let (mx, my) = (mean(tile.hit_x[l], ox), mean(tile.hit_y[l], oy));
+                    field_changed |= nv > thr && (mx != tile.hit_x[l] || my != tile.hit_y[l]);
+                    tile.hit_x[l] = mx;
+                    tile.hit_y[l] = my;
+                    tile.hits[l] = n + 1;
+                }
+            }
+            if field_changed && changed.last() != Some(&slot) {
                 changed.push(slot);
             }
         }
@@ -472,10 +536,17 @@ impl OccupancyGrid {
         }
     }
 
-    /// Row-major obstacle flags of the `w × h` cells starting at `min`.
-    pub(crate) fn obstacle_mask(&self, min: CellIndex, w: usize, h: usize) -> Vec<bool> {
+    /// Row-major obstacle flags of the `w × h` cells starting at `min`, and the mean hit
+    /// offsets (1/256 cell from the centre) of those cells.
+    pub(crate) fn obstacle_mask(
+        &self,
+        min: CellIndex,
+        w: usize,
+        h: usize,
+    ) -> (Vec<bool>, Vec<(i8, i8)>) {
         let thr = self.params.occupied_threshold;
         let mut out = vec![false; w * h];
+        let mut offsets = vec![(0i8, 0i8); w * h];
         let t = TILE_SIZE as i32;
         // Walk tile by tile so each cell costs one array read.
         let (tx_lo, ty_lo) = (min.x >> tiles::TILE_BITS, min.y >> tiles::TILE_BITS);
@@ -498,13 +569,15 @@ impl OccupancyGrid {
                     let ly = (y - ty * t) as usize;
                     let oy = (y - min.y) as usize * w;
                     for x in x0..=x1 {
-                        let lx = (x - tx * t) as usize;
-                        out[oy + (x - min.x) as usize] = tile.cells[ly * TILE_SIZE + lx] > thr;
+                        let k = ly * TILE_SIZE + (x - tx * t) as usize;
+                        let o = oy + (x - min.x) as usize;
+                        out[o] = tile.cells[k] > thr;
+                        offsets[o] = (tile.hit_x[k], tile.hit_y[k]);
                     }
                 }
             }
         }
-        out
+        (out, offsets)
     }
 
     /// The cached field tile of a slot, computed on first use.
@@ -522,18 +595,21 @@ impl OccupancyGrid {
                 margin,
             ) {
                 None => self.far_field.clone(),
-                Some(v) => {
+                Some((v, d2)) => {
                     let mut values = [0.0f32; TILE_CELLS];
                     values.copy_from_slice(&v);
-                    Arc::new(FieldTile { values })
+                    let mut dist2 = [0.0f32; TILE_CELLS];
+                    dist2.copy_from_slice(&d2);
+                    Arc::new(FieldTile { values, dist2 })
                 }
             }
         })
     }
 
     /// Likelihood-field value s ∈ (0, 1] of cell `c` (PR §6.4): exp(−d²/(2σ²)) with d the
-    /// distance from the cell centre to the nearest obstacle cell centre, clamped to
-    /// `max_distance`. Computed per tile on first use and cached.
+    /// distance from the cell centre to the nearest obstacle cell (its mean hit position
+    /// when `subcell` is on, else its centre), clamped to `max_distance`. Computed per tile
+    /// on first use and cached.
     #[inline]
     pub fn likelihood(&self, c: CellIndex) -> f32 {
         let ((tx, ty), local) = split(c);
@@ -564,12 +640,25 @@ impl OccupancyGrid {
         (val, [du * inv, dv * inv])
     }
 
-    /// Bicubic (Catmull-Rom) interpolation of the likelihood field at world point `p` over
-    /// the 4×4 surrounding cell centres, with its gradient in the world frame (per metre).
+    /// Squared distance d² (m², clamped to max_distance²) from the centre of cell `c` to the
+    /// nearest obstacle, the quantity the field value is computed from.
+    #[inline]
+    pub fn distance_squared(&self, c: CellIndex) -> f32 {
+        let ((tx, ty), local) = split(c);
+        match self.layout.slot(tx, ty) {
+            Some(s) => self.field_tile(s).dist2[local],
+            None => self.far_field.dist2[0],
+        }
+    }
+
+    /// The likelihood field at world point `p` from a bicubic (Catmull-Rom) interpolation
+    /// of the squared obstacle distance over the 4×4 surrounding cell centres:
+    /// M = exp(−D/(2σ²)) with D the interpolated d², and its gradient in the world frame
+    /// (per metre), ∇M = −M·∇D/(2σ²).
     ///
-    /// Unlike the bilinear interpolant, whose maxima sit on cell centres, this one is C¹
-    /// and peaks between two equally likely cells (a wall lying on a cell boundary), which
-    /// is what sub-cell matching needs.
+    /// Interpolating d² rather than M matters: Catmull-Rom reproduces quadratics, and
+    /// d² = (x − w)² across a straight wall at w is one, so the peak lands on the wall's
+    /// (mean hit) position instead of on a cell centre, as the bilinear interpolant's does.
     #[inline]
     pub fn likelihood_bicubic(&self, p: &Point2) -> (f64, [f64; 2]) {
         let (u, v) = self.frame.world_to_continuous(p);
@@ -582,7 +671,8 @@ impl OccupancyGrid {
         for (b, (&wyb, &dwyb)) in wy.iter().zip(&dwy).enumerate() {
             let (mut row, mut drow) = (0.0, 0.0);
             for (a, (&wxa, &dwxa)) in wx.iter().zip(&dwx).enumerate() {
-                let m = self.likelihood(CellIndex::new(i + a as i32 - 1, j + b as i32 - 1)) as f64;
+                let m = self.distance_squared(CellIndex::new(i + a as i32 - 1, j + b as i32 - 1))
+                    as f64;
                 row += wxa * m;
                 drow += dwxa * m;
             }
@@ -591,7 +681,9 @@ impl OccupancyGrid {
             dv += dwyb * row;
         }
         let inv = 1.0 / self.frame.resolution;
-        (val, [du * inv, dv * inv])
+        let k = -0.5 / (self.params.sigma * self.params.sigma);
+        let m = (k * val.max(0.0)).exp();
+        (m, [m * k * du * inv, m * k * dv * inv])
     }
 
     /// Copies the likelihood-field values of the `w × h` cells starting at `min` into a

@@ -1,7 +1,7 @@
 //! Unit tests of the occupancy grid: beam updates, growth, copy-on-write, fields, export.
 
 use super::*;
-use crate::likelihood::LikelihoodField;
+use crate::likelihood::{LikelihoodField, LikelihoodParams};
 
 fn scan(ranges: Vec<f64>, angle_min: f64, inc: f64) -> LaserScan {
     LaserScan {
@@ -142,7 +142,12 @@ fn clone_shares_tiles_and_writes_copy_only_touched_ones() {
 
 #[test]
 fn tile_fields_match_dense_field_and_brute_force() {
-    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_likelihood(LikelihoodParams {
+            subcell: false,
+            ..Default::default()
+        })
+        .unwrap();
     g.integrate_scan(
         &Pose2::new(0.3, -0.2, 0.1),
         &room_scan(&Pose2::new(0.3, -0.2, 0.1), 2.0, 360),
@@ -204,7 +209,7 @@ fn interpolation_gradient_matches_finite_differences() {
         // Both interpolants reproduce the samples at cell centres.
         let c = g.world_to_cell(&p);
         let centre = g.cell_center(c);
-        assert!((g.likelihood_bicubic(&centre).0 - g.likelihood(c) as f64).abs() < 1e-6);
+        assert!((g.likelihood_bicubic(&centre).0 - g.likelihood(c) as f64).abs() < 1e-5);
         assert!((g.likelihood_interpolated(&centre).0 - g.likelihood(c) as f64).abs() < 1e-6);
         let fx = (g.likelihood_interpolated(&Point2::new(x + h, y)).0
             - g.likelihood_interpolated(&Point2::new(x - h, y)).0)
@@ -233,4 +238,49 @@ fn rejects_invalid_input() {
         .is_err());
     assert_eq!(g.allocated_tiles(), 0);
     assert!(OccupancyGrid::try_new(0.0, InverseSensorModel::default()).is_err());
+}
+
+#[test]
+fn subcell_field_measures_to_mean_hit_positions() {
+    // A wall at x = 1.013 (not on a cell boundary), seen head-on by many beams.
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    let n = 41;
+    let ranges: Vec<f64> = (0..n)
+        .map(|k| 1.013 / (-0.2 + 0.01 * k as f64).cos())
+        .collect();
+    let s = scan(ranges, -0.2, 0.01);
+    g.integrate_scan(&Pose2::IDENTITY, &s);
+    // Cell column 20 covers [1.00, 1.05): its centre (1.025) is 1.2 cm from the wall; the
+    // mean of the end points that fell in the cell is where the field is measured from.
+    let c = g.world_to_cell(&Point2::new(1.013, 0.0));
+    assert_eq!(c.x, 20);
+    let inside: Vec<Point2> = s
+        .hit_points()
+        .into_iter()
+        .filter(|p| g.world_to_cell(p) == c)
+        .collect();
+    let mean = inside
+        .iter()
+        .fold(Point2::origin(), |a, p| a + p.coords / inside.len() as f64);
+    let params = g.likelihood_params();
+    let want = params.field_value((mean - g.cell_center(c)).norm());
+    assert!(
+        (g.likelihood(c) - want).abs() < 2e-3,
+        "{} vs {want}",
+        g.likelihood(c)
+    );
+    // Two cells in front: 1.013 − 0.925 = 8.8 cm.
+    let f = CellIndex::new(c.x - 2, c.y);
+    let want = params.field_value((mean - g.cell_center(f)).norm());
+    assert!((g.likelihood(f) - want).abs() < 2e-3);
+    // The bicubic interpolant along x peaks within 1 mm of the wall.
+    let best = (0..200)
+        .map(|i| 0.95 + i as f64 * 0.0005)
+        .max_by(|a, b| {
+            let fa = g.likelihood_bicubic(&Point2::new(*a, 0.01)).0;
+            let fb = g.likelihood_bicubic(&Point2::new(*b, 0.01)).0;
+            fa.total_cmp(&fb)
+        })
+        .unwrap();
+    assert!((best - 1.013).abs() < 0.001, "peak at {best}");
 }

@@ -15,17 +15,30 @@ pub const TILE_SIZE: usize = 1 << TILE_BITS;
 pub const TILE_CELLS: usize = TILE_SIZE * TILE_SIZE;
 const TILE_MASK: i32 = (TILE_SIZE as i32) - 1;
 
-/// One tile of log-odds values, row-major (index = ly·TILE_SIZE + lx).
+/// Hits after which a cell's mean hit position is frozen (so re-observing a mapped wall
+/// leaves a shared tile shared).
+pub(crate) const HIT_CAP: u8 = 16;
+
+/// One tile, row-major (index = ly·TILE_SIZE + lx): log-odds values, and per cell the mean
+/// position of the beam end points that hit it (GMapping keeps the same statistic), as an
+/// offset from the cell centre in 1/256 cell, with the number of hits averaged (≤
+/// [`HIT_CAP`]).
 #[derive(Clone)]
 pub(crate) struct Tile {
     pub(crate) cells: [f32; TILE_CELLS],
+    pub(crate) hit_x: [i8; TILE_CELLS],
+    pub(crate) hit_y: [i8; TILE_CELLS],
+    pub(crate) hits: [u8; TILE_CELLS],
 }
 
 impl Tile {
-    /// An all-unknown tile (log-odds 0).
+    /// An all-unknown tile (log-odds 0, no hits).
     pub(crate) fn unknown() -> Self {
         Self {
             cells: [0.0; TILE_CELLS],
+            hit_x: [0; TILE_CELLS],
+            hit_y: [0; TILE_CELLS],
+            hits: [0; TILE_CELLS],
         }
     }
 }

@@ -12,13 +12,16 @@ pub(crate) struct EdtScratch {
     z: Vec<f64>,
     f: Vec<f64>,
     d: Vec<f64>,
+    a: Vec<usize>,
 }
 
 /// 1-D transform of `f` (∞ entries are "no site") into `d`: d[q] = min_p ((q − p)² + f[p]),
-/// or ∞ when every f[p] is infinite.
+/// or ∞ when every f[p] is infinite; `arg[q]` receives the minimising p (the feature
+/// transform; 0 when there is none).
 pub(crate) fn edt_1d(
     f: &[f64],
     d: &mut [f64],
+    arg: &mut [usize],
     scratch_v: &mut Vec<usize>,
     scratch_z: &mut Vec<f64>,
 ) {
@@ -56,10 +59,11 @@ pub(crate) fn edt_1d(
     }
     if v.is_empty() {
         d.iter_mut().for_each(|x| *x = f64::INFINITY);
+        arg.iter_mut().for_each(|a| *a = 0);
         return;
     }
     let mut k = 0;
-    for (q, dq) in d.iter_mut().enumerate() {
+    for (q, (dq, aq)) in d.iter_mut().zip(arg.iter_mut()).enumerate() {
         let qf = q as f64;
         while k + 1 < v.len() && z[k + 1] < qf {
             k += 1;
@@ -67,40 +71,56 @@ pub(crate) fn edt_1d(
         let p = v[k];
         let dp = qf - p as f64;
         *dq = dp * dp + f[p];
+        *aq = p;
     }
 }
 
 /// Squared Euclidean distance, in cells², from every cell of a `w × h` row-major raster to
-/// the nearest cell where `obstacle` is true (∞ when there is none).
-pub(crate) fn edt_2d(obstacle: &[bool], w: usize, h: usize, scratch: &mut EdtScratch) -> Vec<f64> {
+/// the nearest cell where `obstacle` is true (∞ when there is none), and the row-major index
+/// of that nearest obstacle cell (the feature transform; meaningless where the distance is
+/// ∞).
+pub(crate) fn edt_2d(
+    obstacle: &[bool],
+    w: usize,
+    h: usize,
+    scratch: &mut EdtScratch,
+) -> (Vec<f64>, Vec<u32>) {
     debug_assert_eq!(obstacle.len(), w * h);
     let mut out: Vec<f64> = obstacle
         .iter()
         .map(|&o| if o { 0.0 } else { f64::INFINITY })
         .collect();
-    let EdtScratch { v, z, f, d } = scratch;
+    // Row of the nearest site in the cell's column, after the column pass.
+    let mut col_arg = vec![0u32; w * h];
+    let mut site = vec![0u32; w * h];
+    let EdtScratch { v, z, f, d, a } = scratch;
+    let n = w.max(h);
+    f.resize(n, 0.0);
+    d.resize(n, 0.0);
+    a.resize(n, 0);
     // Columns.
-    f.resize(h, 0.0);
-    d.resize(h, 0.0);
     for x in 0..w {
         for y in 0..h {
             f[y] = out[y * w + x];
         }
-        edt_1d(&f[..h], &mut d[..h], v, z);
+        edt_1d(&f[..h], &mut d[..h], &mut a[..h], v, z);
         for y in 0..h {
             out[y * w + x] = d[y];
+            col_arg[y * w + x] = a[y] as u32;
         }
     }
-    // Rows.
-    f.resize(w.max(h), 0.0);
-    d.resize(w.max(h), 0.0);
+    // Rows: the nearest site of cell (x, y) is in column p = arg, at that column's row.
     for y in 0..h {
         let row = &mut out[y * w..(y + 1) * w];
         f[..w].copy_from_slice(row);
-        edt_1d(&f[..w], &mut d[..w], v, z);
+        edt_1d(&f[..w], &mut d[..w], &mut a[..w], v, z);
         row.copy_from_slice(&d[..w]);
+        for x in 0..w {
+            let p = a[x];
+            site[y * w + x] = col_arg[y * w + p] * w as u32 + p as u32;
+        }
     }
-    out
+    (out, site)
 }
 
 #[cfg(test)]
@@ -117,7 +137,7 @@ mod tests {
             let h = rng.random_range(1..40);
             let density = [0.0, 0.002, 0.02, 0.2, 0.9][trial % 5];
             let obst: Vec<bool> = (0..w * h).map(|_| rng.random_bool(density)).collect();
-            let got = edt_2d(&obst, w, h, &mut scratch);
+            let (got, site) = edt_2d(&obst, w, h, &mut scratch);
             let sites: Vec<(usize, usize)> = (0..w * h)
                 .filter(|&i| obst[i])
                 .map(|i| (i % w, i / w))
@@ -137,6 +157,14 @@ mod tests {
                         (g == brute) || (g - brute).abs() < 1e-9,
                         "cell ({x},{y}) of {w}x{h}: EDT {g}, brute force {brute}"
                     );
+                    if brute.is_finite() {
+                        // The feature transform names an obstacle at that distance.
+                        let s = site[y * w + x] as usize;
+                        assert!(obst[s]);
+                        let (sx, sy) = ((s % w) as f64, (s / w) as f64);
+                        let ds = (sx - x as f64).powi(2) + (sy - y as f64).powi(2);
+                        assert!((ds - brute).abs() < 1e-9, "site at {ds}, nearest {brute}");
+                    }
                 }
             }
         }

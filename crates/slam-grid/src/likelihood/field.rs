@@ -7,10 +7,22 @@ use crate::grid::tiles::TILE_CELLS;
 use crate::grid::OccupancyGrid;
 use slam_models::Point2;
 
-/// Field values of one tile (row-major like the tile), s ∈ (0, 1].
+/// Field of one tile (row-major like the tile): values s ∈ (0, 1] and the squared
+/// distances d² (m², clamped to max_distance²) they come from.
 #[derive(Clone)]
 pub(crate) struct FieldTile {
     pub(crate) values: [f32; TILE_CELLS],
+    pub(crate) dist2: [f32; TILE_CELLS],
+}
+
+impl FieldTile {
+    /// A tile far from every obstacle.
+    pub(crate) fn far(params: &LikelihoodParams) -> Self {
+        Self {
+            values: [params.far_value(); TILE_CELLS],
+            dist2: [(params.max_distance * params.max_distance) as f32; TILE_CELLS],
+        }
+    }
 }
 
 /// Number of cells the obstacle search must look beyond a region for distances to be exact
@@ -20,7 +32,8 @@ pub(crate) fn margin_cells(params: &LikelihoodParams, resolution: f64) -> i32 {
     (params.max_distance / resolution).ceil().clamp(0.0, 4096.0) as i32
 }
 
-/// Field values s(c) for the `w × h` cells starting at `min` (row-major), from an exact EDT
+/// Field values s(c) and squared distances d(c)² (m², clamped) for the `w × h` cells
+/// starting at `min` (row-major), from an exact EDT
 /// of the grid's obstacles in the region grown by the margin, or `None` when that grown
 /// region holds no obstacle (every value is then [`LikelihoodParams::far_value`]).
 /// `margin` may be given smaller than [`margin_cells`] (tiles clamp it to one tile edge).
@@ -30,32 +43,49 @@ pub(crate) fn compute_region(
     w: usize,
     h: usize,
     margin: i32,
-) -> Option<Vec<f32>> {
+) -> Option<(Vec<f32>, Vec<f32>)> {
     let params = grid.likelihood_params();
     let m = margin.max(0) as usize;
     let (gw, gh) = (w + 2 * m, h + 2 * m);
     let ox = min.x - m as i32;
     let oy = min.y - m as i32;
-    let obstacles = grid.obstacle_mask(CellIndex::new(ox, oy), gw, gh);
+    let (obstacles, offsets) = grid.obstacle_mask(CellIndex::new(ox, oy), gw, gh);
     if !obstacles.iter().any(|&o| o) {
         return None;
     }
     let mut scratch = EdtScratch::default();
-    let d2 = edt_2d(&obstacles, gw, gh, &mut scratch);
+    let (d2, site) = edt_2d(&obstacles, gw, gh, &mut scratch);
     let res = grid.resolution();
     let mut out = Vec::with_capacity(w * h);
+    let mut dist2 = Vec::with_capacity(w * h);
+    let dmax = params.max_distance;
     for y in 0..h {
         for x in 0..w {
-            let d = d2[(y + m) * gw + x + m].sqrt() * res;
+            let k = (y + m) * gw + x + m;
+            let d = if !d2[k].is_finite() {
+                f64::INFINITY
+            } else if params.subcell {
+                // Distance to the nearest obstacle cell's mean hit position (the nearest
+                // cell chosen by centre distance, the exact EDT's feature transform).
+                let s = site[k] as usize;
+                let (o_x, o_y) = offsets[s];
+                let sx = (s % gw) as f64 + o_x as f64 / 256.0;
+                let sy = (s / gw) as f64 + o_y as f64 / 256.0;
+                ((x + m) as f64 - sx).hypot((y + m) as f64 - sy) * res
+            } else {
+                d2[k].sqrt() * res
+            };
             out.push(params.field_value(d));
+            dist2.push((d.min(dmax) * d.min(dmax)) as f32);
         }
     }
-    Some(out)
+    Some((out, dist2))
 }
 
 /// A dense likelihood field over a rectangle of cells of a grid: s = exp(−d²/(2σ²)) with d
-/// the exact Euclidean distance (metres, clamped to `max_distance`) from the cell centre to
-/// the nearest obstacle cell centre.
+/// the Euclidean distance (metres, clamped to `max_distance`) from the cell centre to the
+/// nearest obstacle cell, found by an exact EDT (to its centre when
+/// [`LikelihoodParams::subcell`] is off; to its mean hit position when on).
 ///
 /// ```
 /// use slam_grid::{CellIndex, InverseSensorModel, LikelihoodField, OccupancyGrid};
@@ -65,8 +95,10 @@ pub(crate) fn compute_region(
 ///                        max_range: 30.0, sensor_pose: Pose2::IDENTITY };
 /// grid.integrate_scan(&Pose2::IDENTITY, &scan);
 /// let field = LikelihoodField::from_grid(&grid, CellIndex::new(0, -20), CellIndex::new(60, 20));
-/// let wall = grid.world_to_cell(&slam_models::Point2::new(2.0, 0.0));
-/// assert!((field.value(wall) - 1.0).abs() < 1e-6);
+/// // The end points lie on an arc of radius 2 m: high likelihood there, low 1 m closer.
+/// let wall = grid.world_to_cell(&slam_models::Point2::new(1.99, 0.0));
+/// assert!(field.value(wall) > 0.8);
+/// assert!(field.value(grid.world_to_cell(&slam_models::Point2::new(1.0, 0.0))) < 0.01);
 /// ```
 #[derive(Debug, Clone)]
 pub struct LikelihoodField {
@@ -88,6 +120,7 @@ impl LikelihoodField {
         let far = params.far_value();
         let margin = margin_cells(&params, grid.resolution());
         let values = compute_region(grid, min, width, height, margin)
+            .map(|(v, _)| v)
             .unwrap_or_else(|| vec![far; width * height]);
         Self {
             frame: grid.frame(),

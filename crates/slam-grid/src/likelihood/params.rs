@@ -12,7 +12,8 @@ use serde::{Deserialize, Serialize};
 ///
 /// The field stores the unnormalised Gaussian part s = exp(−d²/(2σ²)) ∈ (0, 1] per cell, with
 /// d clamped to `max_distance` (so the field is exact within `max_distance` and constant
-/// beyond). A cell is an obstacle when its log-odds exceed `occupied_threshold`.
+/// beyond). A cell is an obstacle when its log-odds exceed `occupied_threshold`; d is
+/// measured to the obstacle cell's mean hit position when `subcell` is on.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LikelihoodParams {
@@ -29,6 +30,9 @@ pub struct LikelihoodParams {
     pub z_rand: f64,
     /// Range over which random readings are spread, metres (z_max in PR). Default 30 m.
     pub z_max: f64,
+    /// Measure distances to the mean hit position of the nearest obstacle cell (sub-cell
+    /// accuracy, as GMapping's per-cell hit mean) instead of to its centre. Default true.
+    pub subcell: bool,
 }
 
 impl Default for LikelihoodParams {
@@ -40,6 +44,7 @@ impl Default for LikelihoodParams {
             z_hit: 0.9,
             z_rand: 0.1,
             z_max: 30.0,
+            subcell: true,
         }
     }
 }

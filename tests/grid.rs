@@ -1,0 +1,204 @@
+//! slam-grid on simulated and real laser data: matching accuracy in the simulated office,
+//! scan-matching odometry on a real log with perturbed odometry, and mapping with known
+//! poses on the CSAIL course log.
+
+mod common;
+
+use rand::{Rng, SeedableRng};
+use slam::grid::{
+    InverseSensorModel, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher, ScanMatchConfig,
+    ScanMatchOdometry,
+};
+use slam::models::{normalize_angle, Pose2, ScanSlam, TimedPose};
+use slam::sim::laser::LaserScanner;
+use slam::sim::scenario::{generate, ScenarioOptions};
+use slam::sim::SimOutput;
+
+/// Outcome of the office matching trials.
+struct Trials {
+    ok: usize,
+    n: usize,
+    median_err: f64,
+    p99_err: f64,
+    median_rot_deg: f64,
+}
+
+/// Builds the office map at `res` from the first `scans` scans of the simulated run at
+/// their true poses, then matches `n` fresh scans (simulated at random true poses of the
+/// run) from initial offsets up to 0.3 m and 10°.
+fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
+    let opts = ScenarioOptions {
+        seed: 1,
+        ..Default::default()
+    };
+    let Ok(SimOutput::Laser(run)) = generate("office", &opts) else {
+        panic!("office scenario did not generate a laser run");
+    };
+    let gt = run.dataset.ground_truth.as_ref().expect("ground truth");
+    let mut grid = OccupancyGrid::new(res, InverseSensorModel::default());
+    let mut poses = Vec::new();
+    for (rec, truth) in run.dataset.records.iter().zip(gt) {
+        if let Some(scan) = &rec.scan {
+            grid.integrate_scan(&truth.pose, scan);
+            poses.push(truth.pose);
+        }
+    }
+    let scanner = LaserScanner::default();
+    let matcher = RefinedCorrelativeMatcher::default();
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+    let mut errs = Vec::with_capacity(n);
+    let mut rots = Vec::with_capacity(n);
+    let mut ok = 0;
+    for _ in 0..n {
+        let truth = poses[rng.random_range(0..poses.len())];
+        let scan = scanner.scan(&run.world, &truth, &mut rng);
+        let r = 0.3 * rng.random::<f64>().sqrt();
+        let a = rng.random_range(0.0..std::f64::consts::TAU);
+        let dth = rng.random_range(-10f64..=10.0).to_radians();
+        let initial = Pose2::new(
+            truth.x + r * a.cos(),
+            truth.y + r * a.sin(),
+            truth.theta + dth,
+        );
+        let prepared = PreparedScan::new(&scan).expect("valid simulated scan");
+        let m = matcher
+            .match_prepared(&grid, &prepared, &initial)
+            .expect("match");
+        let e = m.pose.distance(&truth);
+        let de = normalize_angle(m.pose.theta - truth.theta)
+            .abs()
+            .to_degrees();
+        if e < 0.01 && de < 0.5 {
+            ok += 1;
+        }
+        errs.push(e);
+        rots.push(de);
+    }
+    errs.sort_by(f64::total_cmp);
+    rots.sort_by(f64::total_cmp);
+    Trials {
+        ok,
+        n,
+        median_err: errs[n / 2],
+        p99_err: errs[(n * 99) / 100],
+        median_rot_deg: rots[n / 2],
+    }
+}
+
+#[test]
+fn office_matching_from_large_offsets() {
+    for (res, n) in [(0.05, 1000), (0.025, 1000)] {
+        let t = office_trials(res, n, 2024);
+        println!(
+            "office, {res} m grid: {}/{} within 1 cm and 0.5°; translation error median {:.4} m, \
+             p99 {:.4} m; rotation error median {:.3}°",
+            t.ok, t.n, t.median_err, t.p99_err, t.median_rot_deg
+        );
+    }
+}
+
+/// Reads a perturbed copy of a corrected log (odometry replaced, ground truth written by
+/// `perturb-odometry`) into a temporary directory.
+fn perturbed(site: &str, seed: u64) -> Option<(slam::models::ScanDataset, Vec<TimedPose>)> {
+    let log = common::dataset(&format!("radish-corrected/{site}-corrected.log.gz"))?;
+    let tool = common::datasets_dir().join("../tools/perturb-odometry");
+    if !tool.exists() {
+        eprintln!("SKIPPED: {} not found", tool.display());
+        return None;
+    }
+    let dir =
+        std::env::temp_dir().join(format!("slam-grid-perturbed-{}-{site}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let prefix = dir.join(site);
+    let status = std::process::Command::new("python3")
+        .arg(&tool)
+        .arg(&log)
+        .arg(&prefix)
+        .arg("--seed")
+        .arg(seed.to_string())
+        .status()
+        .expect("run perturb-odometry");
+    assert!(status.success(), "perturb-odometry failed");
+    let data = slam::io::carmen::read_carmen(&prefix.with_extension("log"))
+        .expect("read perturbed log")
+        .dataset;
+    let gt = slam::io::tum::read_tum(&dir.join(format!("{site}.gt.tum"))).expect("read truth");
+    let _ = std::fs::remove_dir_all(&dir);
+    Some((data, gt))
+}
+
+/// ATE and RPE after anchoring an estimate (which starts at the identity) at the first
+/// ground-truth pose.
+fn anchored(est: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
+    let first = gt[0].pose;
+    let e0 = est[0].pose;
+    est.iter()
+        .map(|p| TimedPose {
+            t: p.t,
+            pose: first.compose(&e0.between(&p.pose)),
+        })
+        .collect()
+}
+
+#[test]
+fn scanmatch_beats_odometry_on_perturbed_intel() {
+    let Some((data, gt)) = perturbed("intel", 7) else {
+        return;
+    };
+    let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).expect("config");
+    for rec in &data.records {
+        f.process(rec).expect("process");
+    }
+    let est = anchored(&f.trajectory(), &gt);
+    assert_eq!(est.len(), data.records.len());
+    let odo = anchored(&slam::io::odometry_trajectory(&data), &gt);
+    let ate_sm = slam::io::eval::ate(&est, &gt).expect("ate");
+    let rpe_sm = slam::io::eval::rpe(&est, &gt).expect("rpe");
+    let ate_od = slam::io::eval::ate(&odo, &gt).expect("ate");
+    let rpe_od = slam::io::eval::rpe(&odo, &gt).expect("rpe");
+    println!(
+        "intel (perturbed, seed 7), {} records, {} match failures:\n  scanmatch: ATE {:.3} m \
+         (aligned {:.3} m), RPE {:.4} m / {:.3}°\n  odometry:  ATE {:.3} m (aligned {:.3} m), \
+         RPE {:.4} m / {:.3}°",
+        data.records.len(),
+        f.match_failures(),
+        ate_sm.rmse,
+        ate_sm.rmse_aligned,
+        rpe_sm.trans_mean,
+        rpe_sm.rot_mean_deg,
+        ate_od.rmse,
+        ate_od.rmse_aligned,
+        rpe_od.trans_mean,
+        rpe_od.rot_mean_deg
+    );
+}
+
+#[test]
+fn csail_known_poses_give_a_clean_map() {
+    let Some(path) = common::dataset("freiburg-robot-mapping/csail.log") else {
+        return;
+    };
+    let data = slam::io::carmen::read_carmen(&path)
+        .expect("read csail.log")
+        .dataset;
+    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
+    let mut scans = 0;
+    for rec in &data.records {
+        if let Some(scan) = &rec.scan {
+            grid.integrate_scan(&rec.odometry, scan);
+            scans += 1;
+        }
+    }
+    let map = grid.to_grid_map();
+    let out = std::env::temp_dir().join("slam-grid-csail-map.png");
+    slam::io::picture::Picture::new()
+        .map(&map)
+        .save_png(&out)
+        .expect("write png");
+    println!(
+        "csail: {scans} scans, map {}x{} cells, picture {}",
+        map.width,
+        map.height,
+        out.display()
+    );
+}
