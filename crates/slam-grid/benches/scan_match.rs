@@ -62,7 +62,7 @@ fn matching(c: &mut Criterion) {
     let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
     for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
         for k in 0..4 {
-            let p = Pose2::new(x, y, k as f64 * 1.5708);
+            let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
             grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
         }
     }
