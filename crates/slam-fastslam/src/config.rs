@@ -80,6 +80,14 @@ pub struct FastSlamConfig {
     /// A landmark is removed when its existence counter drops below this. Default 0 (a
     /// landmark seen once is gone after two steps in view without being seen).
     pub existence_threshold: i32,
+    /// A landmark started by maximum-likelihood association is provisional until it has
+    /// been observed `confirm_observations` times (its first sighting included); a
+    /// provisional landmark not confirmed within `provisional_steps` updates is removed.
+    /// This catches false alarms that leave the field of view before negative evidence
+    /// could remove them. `provisional_steps` = 0 disables it. Defaults 2 and 5.
+    pub confirm_observations: u32,
+    /// See `confirm_observations`. Default 5.
+    pub provisional_steps: u32,
     /// Maximum-likelihood association considers landmarks within this distance (metres) of
     /// the observation's inverse-mapped position. Default 3 m.
     pub association_radius: f64,
@@ -104,6 +112,8 @@ impl Default for FastSlamConfig {
             existence_initial: 1,
             existence_max: 20,
             existence_threshold: 0,
+            confirm_observations: 2,
+            provisional_steps: 5,
             association_radius: 3.0,
             index_cell_size: 5.0,
         }

@@ -44,6 +44,8 @@ pub struct FastSlam {
     seed: u64,
     /// Counts predict/update calls; keys the random streams.
     tick: u64,
+    /// Number of `update` calls so far.
+    updates: u64,
     /// FastSLAM 2.0: the control received by `predict`, applied in `update`.
     pending: Option<Control>,
     /// Index of the particle with the largest weight.
@@ -73,15 +75,62 @@ impl FastSlam {
             pose: initial_pose,
             log_weight: -(m as f64).ln(),
             map: LandmarkMap::new(config.index_cell_size),
+            provisional: Vec::new(),
         };
         Ok(Self {
             particles: vec![proto; m],
             config,
             seed,
             tick: 0,
+            updates: 0,
             pending: None,
             best: 0,
         })
+    }
+
+    /// Replaces every particle's map with one map holding `landmarks` (a prior map, e.g.
+    /// surveyed landmarks or a previous run's result; each keeps its id as key, with
+    /// existence `existence_max`). All particles share that one tree: O(N log N) to build
+    /// once, O(1) per particle. Errors on a non-finite mean or a covariance that is not
+    /// symmetric positive definite.
+    pub fn set_prior_map(&mut self, landmarks: &[LandmarkEstimate]) -> Result<(), FastSlamError> {
+        let mut map = LandmarkMap::new(self.config.index_cell_size);
+        for l in landmarks {
+            let finite = l.mean.x.is_finite() && l.mean.y.is_finite();
+            if !finite {
+                return Err(FastSlamError::NonFiniteInput {
+                    what: "prior landmark mean",
+                    value: if l.mean.x.is_finite() {
+                        l.mean.y
+                    } else {
+                        l.mean.x
+                    },
+                });
+            }
+            let c = l.covariance;
+            if (c[(0, 1)] - c[(1, 0)]).abs() > 1e-9 * c.norm() || c.cholesky().is_none() {
+                return Err(slam_models::ModelError::NotPositiveDefinite {
+                    what: "prior landmark covariance",
+                }
+                .into());
+            }
+            map.insert(
+                l.id.0,
+                crate::landmark::Landmark {
+                    id: l.id,
+                    mean: l.mean,
+                    cov: c,
+                    existence: self.config.existence_max,
+                    observations: self.config.confirm_observations.max(1),
+                    cell: 0,
+                },
+            );
+        }
+        for p in &mut self.particles {
+            p.map = map.clone();
+            p.provisional.clear();
+        }
+        Ok(())
     }
 
     /// The configuration.
@@ -216,7 +265,9 @@ impl LandmarkSlam for FastSlam {
         let ctx = StepContext {
             config: &self.config,
             ln_p0: self.config.p0.ln(),
+            update_index: self.updates,
         };
+        self.updates += 1;
         let (seed, tick) = (self.seed, self.tick);
         let pending = self.pending.take();
         let stats: Vec<ParticleStats> = match self.config.variant {
@@ -288,5 +339,285 @@ impl LandmarkSlam for FastSlam {
                 })
                 .collect(),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Association;
+    use rand::{Rng, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+    use slam_models::{LandmarkId, OdometryControl, Point2};
+
+    /// A small synthetic world: landmarks scattered around a circle of radius 8 m, the
+    /// robot driving the circle with noisy odometry, a 6 m / 180° range-bearing sensor,
+    /// optional hidden ids and one false alarm per scan on average.
+    fn world(
+        seed: u64,
+        steps: usize,
+        hide_ids: bool,
+    ) -> (Vec<(Control, Vec<RangeBearing>)>, Vec<Point2>) {
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+        let lms: Vec<Point2> = (0..40)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::TAU / 40.0;
+                let r = 8.0 + rng.random_range(-3.0..3.0);
+                Point2::new(r * a.cos(), r * a.sin() + 8.0)
+            })
+            .collect();
+        let (nr, nb) = (
+            Normal::new(0.0, 0.1).unwrap(),
+            Normal::new(0.0, 0.02).unwrap(),
+        );
+        let mut pose = Pose2::IDENTITY;
+        let mut out = Vec::new();
+        for _ in 0..steps {
+            let u = OdometryControl {
+                rot1: 0.0125,
+                trans: 0.2,
+                rot2: 0.0125,
+            };
+            pose = pose.compose(&Pose2::new(
+                0.2 * 0.0125f64.cos(),
+                0.2 * 0.0125f64.sin(),
+                0.025,
+            ));
+            let noisy = OdometryControl {
+                rot1: u.rot1 + nb.sample(&mut rng) * 0.1,
+                trans: u.trans + nr.sample(&mut rng) * 0.05,
+                rot2: u.rot2 + nb.sample(&mut rng) * 0.1,
+            };
+            let mut obs = Vec::new();
+            for (k, m) in lms.iter().enumerate() {
+                let d = pose.inverse_transform_point(m);
+                let (r, b) = (d.coords.norm(), d.y.atan2(d.x));
+                if r < 6.0 && b.abs() < std::f64::consts::FRAC_PI_2 {
+                    let id = (!hide_ids).then_some(LandmarkId(k as u32));
+                    obs.push(RangeBearing {
+                        range: r + nr.sample(&mut rng),
+                        bearing: b + nb.sample(&mut rng),
+                        id,
+                    });
+                }
+            }
+            if hide_ids && rng.random_bool(0.7) {
+                obs.push(RangeBearing {
+                    range: rng.random_range(1.0..6.0),
+                    bearing: rng.random_range(-1.5..1.5),
+                    id: None,
+                });
+            }
+            out.push((Control::Odometry(noisy), obs));
+        }
+        (out, lms)
+    }
+
+    fn config(variant: Variant, particles: usize) -> FastSlamConfig {
+        FastSlamConfig {
+            variant,
+            particles,
+            sensor: slam_models::measurement::RangeBearingModel::new(0.1, 0.02),
+            max_range: Some(6.0),
+            fov: Some(std::f64::consts::PI),
+            ..Default::default()
+        }
+    }
+
+    fn snapshot(f: &FastSlam) -> Vec<Vec<(u32, Point2, slam_models::Matrix2, i32)>> {
+        f.particles
+            .iter()
+            .map(|p| {
+                p.map
+                    .iter()
+                    .map(|(k, l)| (k, l.mean, l.cov, l.existence))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// After resampling the particles share map nodes; writing to one particle's landmark
+    /// (directly, and through a full filter update of only that particle) never changes
+    /// any other particle's landmarks.
+    #[test]
+    fn particles_never_alias_after_resampling() {
+        let (data, _) = world(1, 40, false);
+        let mut f = FastSlam::new(config(Variant::FastSlam1, 8), Pose2::IDENTITY, 2).unwrap();
+        for (u, z) in &data {
+            f.predict(u).unwrap();
+            f.update(z).unwrap();
+        }
+        // Make particle 3 dominate so that every new particle is a copy of it.
+        for (i, p) in f.particles.iter_mut().enumerate() {
+            p.log_weight = if i == 3 { 0.0 } else { -1e3 };
+        }
+        f.best = 3;
+        f.resample().unwrap();
+        assert!(f
+            .particles
+            .windows(2)
+            .all(|w| w[0].map.tree().ptr_eq(w[1].map.tree())));
+        let before = snapshot(&f);
+        let key = before[0][0].0;
+        f.particles[0].map.update(key, |l| {
+            l.mean.x += 1.0;
+            l.cov *= 2.0;
+            l.existence += 5;
+        });
+        let after = snapshot(&f);
+        assert_ne!(after[0], before[0]);
+        assert_eq!(&after[1..], &before[1..]);
+        // A whole measurement update of particle 5 alone (new and existing landmarks).
+        let ctx = StepContext {
+            config: &f.config,
+            ln_p0: f.config.p0.ln(),
+            update_index: 99,
+        };
+        let z: Vec<Obs> = data[0]
+            .1
+            .iter()
+            .map(|z| Obs {
+                z: z.to_vector(),
+                raw: *z,
+            })
+            .collect();
+        let mut p5 = f.particles[5].clone();
+        p5.update_fastslam1(&ctx, &z);
+        f.particles[5] = p5;
+        let after2 = snapshot(&f);
+        assert_ne!(after2[5], after[5]);
+        for i in (0..8).filter(|&i| i != 5) {
+            assert_eq!(after2[i], after[i], "particle {i} changed");
+        }
+    }
+
+    /// Bit-identical results on a rayon pool of 1 thread and one of 2 threads, for both
+    /// variants, under hidden ids, clutter, negative evidence and resampling.
+    #[test]
+    fn identical_output_for_one_and_two_threads() {
+        let (data, _) = world(4, 120, true);
+        for variant in [Variant::FastSlam1, Variant::FastSlam2] {
+            let go = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut f = FastSlam::new(config(variant, 48), Pose2::IDENTITY, 3).unwrap();
+                    let mut resampled = 0;
+                    let mut removed = 0;
+                    let mut poses = Vec::new();
+                    for (u, z) in &data {
+                        f.predict(u).unwrap();
+                        let info = f.update(z).unwrap();
+                        resampled += info.resampled as usize;
+                        removed += info.removed;
+                        poses.push(f.pose());
+                    }
+                    let cloud: Vec<(Pose2, u64)> = f
+                        .particles
+                        .iter()
+                        .map(|p| (p.pose, p.log_weight.to_bits()))
+                        .collect();
+                    (
+                        poses,
+                        f.landmarks(),
+                        cloud,
+                        snapshot(&f),
+                        resampled,
+                        removed,
+                    )
+                })
+            };
+            let (a, b) = (go(1), go(2));
+            assert!(a.4 > 0, "{variant:?}: resampling not exercised");
+            assert!(a.5 > 0, "{variant:?}: landmark removal not exercised");
+            assert_eq!(a, b, "{variant:?}");
+        }
+    }
+
+    /// The weighted mean and covariance of the cloud match a direct computation.
+    #[test]
+    fn mean_pose_and_covariance() {
+        let mut f = FastSlam::new(config(Variant::FastSlam1, 3), Pose2::IDENTITY, 1).unwrap();
+        let poses = [
+            Pose2::new(1.0, 0.0, 3.1),
+            Pose2::new(2.0, 1.0, -3.1),
+            Pose2::new(3.0, 2.0, 3.1),
+        ];
+        let w = [0.5f64, 0.25, 0.25];
+        for ((p, q), wi) in f.particles.iter_mut().zip(poses).zip(w) {
+            p.pose = q;
+            p.log_weight = wi.ln();
+        }
+        let (m, c) = f.mean_pose();
+        assert!((m.x - 1.75).abs() < 1e-12 && (m.y - 0.75).abs() < 1e-12);
+        // Headings ±3.1 average across ±π, not to 0.
+        assert!((m.theta.abs() - 3.1).abs() < 0.06);
+        let var_x = 0.5 * 0.75f64.powi(2) + 0.25 * 0.25f64.powi(2) + 0.25 * 1.25f64.powi(2);
+        assert!((c[(0, 0)] - var_x).abs() < 1e-12);
+        assert!(c[(2, 2)] < 0.01);
+    }
+
+    #[test]
+    fn rejects_non_finite_input_and_bad_config() {
+        let mut f = FastSlam::new(config(Variant::FastSlam2, 2), Pose2::IDENTITY, 1).unwrap();
+        let bad = RangeBearing {
+            range: f64::NAN,
+            bearing: 0.0,
+            id: None,
+        };
+        assert!(f.update(&[bad]).is_err());
+        let u = Control::Odometry(OdometryControl {
+            rot1: f64::INFINITY,
+            trans: 0.0,
+            rot2: 0.0,
+        });
+        assert!(f.predict(&u).is_err());
+        assert!(FastSlam::new(config(Variant::FastSlam2, 0), Pose2::IDENTITY, 1).is_err());
+        let p = Pose2 {
+            x: f64::NAN,
+            y: 0.0,
+            theta: 0.0,
+        };
+        assert!(FastSlam::new(config(Variant::FastSlam2, 2), p, 1).is_err());
+        // A negative range (as in the Freiburg data) is skipped, not an error.
+        let neg = RangeBearing {
+            range: -0.03,
+            bearing: 0.9,
+            id: Some(LandmarkId(7)),
+        };
+        let info = f.update(&[neg]).unwrap();
+        assert_eq!((info.rejected, info.new_landmarks), (1, 0));
+        let _ = Association::Auto;
+    }
+
+    /// FastSLAM 2.0 with one particle on the synthetic circle ends close to the truth and
+    /// maps every landmark once (known ids).
+    #[test]
+    fn single_particle_fastslam2_tracks_the_circle() {
+        let (data, lms) = world(7, 252, false);
+        let mut f = FastSlam::new(config(Variant::FastSlam2, 1), Pose2::IDENTITY, 5).unwrap();
+        let mut dr = Pose2::IDENTITY;
+        let mut truth = Pose2::IDENTITY;
+        for (u, z) in &data {
+            f.predict(u).unwrap();
+            f.update(z).unwrap();
+            dr = f.config.motion.predict(&dr, u);
+            truth = truth.compose(&Pose2::new(
+                0.2 * 0.0125f64.cos(),
+                0.2 * 0.0125f64.sin(),
+                0.025,
+            ));
+        }
+        let err = f.pose().distance(&truth);
+        assert!(
+            err < 0.3,
+            "final error {err} (dead reckoning {})",
+            dr.distance(&truth)
+        );
+        for e in f.landmarks() {
+            assert!((e.mean - lms[e.id.0 as usize]).norm() < 0.6);
+        }
     }
 }

@@ -21,6 +21,8 @@ pub struct Landmark {
     /// expected in view but not seen; the landmark is removed when it falls below the
     /// configured threshold (Montemerlo et al. 2002, §4 "negative evidence").
     pub existence: i32,
+    /// Number of observations used on this landmark, its initialisation included.
+    pub observations: u32,
     /// Key of the spatial-index cell the landmark is filed under.
     pub(crate) cell: u32,
 }
@@ -56,6 +58,7 @@ impl Landmark {
             mean: inv.landmark,
             cov,
             existence,
+            observations: 1,
             cell: 0,
         }
     }
@@ -167,6 +170,7 @@ mod tests {
             mean: Point2::new(5.0, 0.0),
             cov: Matrix2::identity() * 0.25,
             existence: 1,
+            observations: 1,
             cell: 0,
         };
         let z = Vector2::new(5.3, 0.05);

@@ -209,6 +209,7 @@ mod tests {
             mean: Point2::new(x, y),
             cov: Matrix2::identity(),
             existence: 1,
+            observations: 1,
             cell: 0,
         }
     }

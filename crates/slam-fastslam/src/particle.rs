@@ -22,6 +22,9 @@ pub struct Particle {
     pub log_weight: f64,
     /// This particle's landmarks; clones share every node (O(1) copy).
     pub map: LandmarkMap,
+    /// Provisional landmarks (started by maximum-likelihood association, not yet
+    /// confirmed): (key, index of the update that created it).
+    pub(crate) provisional: Vec<(u32, u64)>,
 }
 
 /// What one update did to one particle.
@@ -87,6 +90,8 @@ enum Target {
 pub(crate) struct StepContext<'a> {
     pub config: &'a FastSlamConfig,
     pub ln_p0: f64,
+    /// How many updates the filter ran before this one.
+    pub update_index: u64,
 }
 
 impl Particle {
@@ -158,8 +163,13 @@ impl Particle {
     }
 
     /// Inserts a landmark initialised from `obs` at the particle's pose.
-    fn add_landmark(&mut self, cfg: &FastSlamConfig, key: Option<u32>, obs: &Obs) -> u32 {
+    fn add_landmark(&mut self, ctx: &StepContext<'_>, key: Option<u32>, obs: &Obs) -> u32 {
+        let cfg = ctx.config;
+        let provisional = key.is_none() && cfg.provisional_steps > 0;
         let key = key.unwrap_or_else(|| self.map.fresh_key());
+        if provisional {
+            self.provisional.push((key, ctx.update_index));
+        }
         let lm = Landmark::from_observation(
             &cfg.sensor,
             &self.pose,
@@ -186,6 +196,7 @@ impl Particle {
                     return None;
                 }
                 lm.existence = (lm.existence + 1).min(max);
+                lm.observations = lm.observations.saturating_add(1);
                 Some((ll, d2))
             })
             .flatten()
@@ -212,7 +223,7 @@ impl Particle {
                     None => st.rejected += 1,
                 },
                 Target::New(k) => {
-                    let k = self.add_landmark(cfg, k, o);
+                    let k = self.add_landmark(ctx, k, o);
                     self.log_weight += ctx.ln_p0;
                     st.new_landmarks += 1;
                     used.push(k);
@@ -220,7 +231,7 @@ impl Particle {
                 Target::Reject => st.rejected += 1,
             }
         }
-        st.removed = self.negative_evidence(cfg, &used);
+        st.removed = self.negative_evidence(cfg, &used) + self.expire_provisional(ctx);
         st
     }
 
@@ -320,15 +331,41 @@ impl Particle {
                     seen.push(k);
                 }
                 Target::New(k) => {
-                    let k = self.add_landmark(cfg, k, o);
+                    let k = self.add_landmark(ctx, k, o);
                     st.new_landmarks += 1;
                     seen.push(k);
                 }
                 Target::Reject => st.rejected += 1,
             }
         }
-        st.removed = self.negative_evidence(cfg, &seen);
+        st.removed = self.negative_evidence(cfg, &seen) + self.expire_provisional(ctx);
         st
+    }
+
+    /// Drops confirmed landmarks from the provisional list and removes the provisional
+    /// landmarks older than `provisional_steps` updates. Returns the number removed.
+    fn expire_provisional(&mut self, ctx: &StepContext<'_>) -> usize {
+        if self.provisional.is_empty() {
+            return 0;
+        }
+        let cfg = ctx.config;
+        let mut removed = 0;
+        let map = &mut self.map;
+        self.provisional.retain(|&(k, born)| {
+            let Some(lm) = map.get(k) else {
+                return false; // already removed by negative evidence
+            };
+            if lm.observations >= cfg.confirm_observations {
+                return false;
+            }
+            if ctx.update_index.saturating_sub(born) >= cfg.provisional_steps as u64 {
+                map.remove(k);
+                removed += 1;
+                return false;
+            }
+            true
+        });
+        removed
     }
 
     /// Negative evidence (Montemerlo et al. 2002 §4): every landmark predicted inside the
