@@ -73,6 +73,9 @@ pub enum IoError {
         /// Why, in words.
         reason: String,
     },
+    /// A picture could not be drawn (nothing finite to draw).
+    #[error("picture: {0}")]
+    Picture(String),
     /// An evaluation could not be computed (no matching timestamps, too few points, …).
     #[error("evaluation: {0}")]
     Eval(String),

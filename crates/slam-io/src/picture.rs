@@ -2,7 +2,9 @@
 //! error ellipses, true landmarks and the particle cloud; and a simple series plot (for
 //! NEES curves with their chi-square band).
 //!
-//! The view fits every layer automatically (5 % margin), keeps the aspect ratio (one
+//! The view fits every layer automatically (5 % margin; landmark estimates by their means,
+//! so the huge ellipses of freshly initialised landmarks are clipped rather than shrinking
+//! the map), keeps the aspect ratio (one
 //! scale for x and y) and puts **y up** (world y grows towards the top of the image). No
 //! text is drawn; layers have fixed, distinct colours:
 //!
