@@ -213,8 +213,8 @@ impl Picture {
     /// Renders the picture to an image.
     pub fn render(&self) -> Result<RgbImage, IoError> {
         let Some((x0, y0, x1, y1)) = self.bounds() else {
-            return Err(IoError::Eval(
-                "picture: nothing to draw (all layers empty or non-finite)".into(),
+            return Err(IoError::Picture(
+                "nothing to draw (all layers empty or non-finite)".into(),
             ));
         };
         let span = (x1 - x0).max(y1 - y0).max(1.0);
