@@ -22,7 +22,7 @@ use slam_models::{normalize_angle, Pose2, RangeBearing};
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RangeBearingSensor {
-    /// Noise standard deviations (σr [m], σφ [rad]); the same struct the filters use.
+    /// Noise standard deviations (σr in metres, σφ in radians); the same struct the filters use.
     pub noise: RangeBearingModel,
     /// Largest range at which landmarks are seen, metres.
     pub max_range: f64,
