@@ -89,4 +89,9 @@ pub struct LaserSimRun {
     pub dataset: ScanDataset,
     /// The world the scans were cast in.
     pub world: World,
+    /// The odometry noise model the motion was drawn from (PR table 5.6; the data's
+    /// odometry increments are the reported controls).
+    pub odometry: slam_models::motion::OdometryModel,
+    /// The scanner that produced the scans (beams, range, noise, short-reading rate).
+    pub scanner: laser::LaserScanner,
 }

@@ -119,5 +119,7 @@ pub fn simulate_laser(
             ground_truth: Some(gt),
         },
         world: world.clone(),
+        odometry: cfg.odometry,
+        scanner: cfg.scanner.clone(),
     })
 }

@@ -551,6 +551,48 @@ mod tests {
     }
 
     #[test]
+    fn odometry_noise_matches_the_reported_model() {
+        // The increment between consecutive odometry readings is the reported control ū;
+        // the true pose is drawn from p(x_k | ū, x_{k−1}), so the normalised squared error
+        // against the linearised model is chi-square with 3 dof (mean 3, s.e. √(6/n)).
+        use slam_models::motion::MotionModel;
+        let r = run(
+            "office",
+            &ScenarioOptions {
+                seed: 6,
+                steps: Some(700),
+                ..Default::default()
+            },
+        );
+        let gt = r.dataset.ground_truth.as_ref().unwrap();
+        let (mut sum, mut n) = (0.0, 0.0);
+        for k in 1..gt.len() {
+            let recs = &r.dataset.records;
+            let u = r
+                .odometry
+                .control_from_poses(&recs[k - 1].odometry, &recs[k].odometry);
+            let prev = gt[k - 1].pose;
+            let pred = r.odometry.predict(&prev, &u);
+            let cov = r.odometry.noise_covariance(&prev, &u);
+            let t = gt[k].pose;
+            let e = slam_models::Vector3::new(
+                t.x - pred.x,
+                t.y - pred.y,
+                slam_models::normalize_angle(t.theta - pred.theta),
+            );
+            if cov.determinant() > 1e-30 {
+                sum += (e.transpose() * cov.try_inverse().unwrap() * e)[0];
+                n += 1.0;
+            }
+        }
+        let mean = sum / n;
+        assert!(
+            (mean - 3.0).abs() < 5.0 * (6.0 / n).sqrt() + 0.06,
+            "mean NEES {mean} over {n}"
+        );
+    }
+
+    #[test]
     fn replay_from_a_grid_map() {
         // Rasterise the office into a 0.1 m map, and replay it.
         let w = office_world();

@@ -45,7 +45,7 @@ pub fn list() -> Vec<ScenarioInfo> {
         ScenarioInfo {
             name: "figure8",
             kind: ScenarioKind::Landmark,
-            description: "figure-eight (two lobes crossing at the origin, ~64 m) with 40 landmarks; 1.1 laps, ids known",
+            description: "figure-eight (two lobes crossing at the origin, ~61 m) with 40 landmarks; 1.1 laps, ids known",
         },
         ScenarioInfo {
             name: "city",
