@@ -57,7 +57,9 @@ pub struct EkfConfig {
     /// which joins the state after this many consistent sightings (1 = at once).
     /// Landmarks with known ids always join at their first sighting.
     pub min_sightings: usize,
-    /// A provisional landmark not seen for this many updates is dropped.
+    /// A provisional landmark not seen for more than this many updates is dropped, so its
+    /// k sightings must come with gaps of at most this many updates: a real landmark in
+    /// view is seen nearly every scan, clutter at one place only by chance.
     pub provisional_max_age: usize,
     /// Gate (χ²₂ probability) for matching a sighting to a provisional landmark.
     pub provisional_gate_probability: f64,
@@ -69,7 +71,7 @@ pub struct EkfConfig {
 impl Default for EkfConfig {
     /// slam-models' default motion and sensor models, no extra motion noise, a zero
     /// initial pose covariance, `Auto` association, gates at 99.9 % (individual), 99 %
-    /// (joint) and 99.99 % (known-id outliers), k = 3 sightings within 20 updates
+    /// (joint) and 99.99 % (known-id outliers), k = 3 sightings with gaps of at most 3 updates
     /// (provisional gate 99.9 %), 100 000 JCBB nodes.
     fn default() -> Self {
         Self {
@@ -82,7 +84,7 @@ impl Default for EkfConfig {
             joint_probability: 0.99,
             known_id_gate_probability: Some(0.9999),
             min_sightings: 3,
-            provisional_max_age: 20,
+            provisional_max_age: 3,
             provisional_gate_probability: 0.999,
             jcbb_max_nodes: 100_000,
         }

@@ -291,7 +291,9 @@ impl State {
             [l, l + 1]
         })) {
             let v = self.cov[(i, i)];
-            if !(v > 0.0 && v.is_finite()) && !(i < 3 && v == 0.0) {
+            // The pose block may be exactly zero (a filter updated before it ever moved).
+            let ok = v.is_finite() && (v > 0.0 || (i < 3 && v == 0.0));
+            if !ok {
                 return Err(EkfError::CovarianceNotPositive { index: i, value: v });
             }
         }
