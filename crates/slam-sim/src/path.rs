@@ -244,7 +244,7 @@ impl<'a> Follower<'a> {
 
     /// True when an open path's end has been reached by the carrot.
     pub fn finished(&self) -> bool {
-        !self.path.is_closed() && self.s >= self.path.length()
+        !self.path.is_closed() && self.s >= self.path.length() - 1e-9
     }
 
     /// The velocity command for the next step from the robot's true pose.

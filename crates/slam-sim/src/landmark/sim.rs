@@ -72,7 +72,8 @@ fn validate_motion(m: &MotionModels) -> Result<(), SimError> {
     Ok(())
 }
 
-/// Drives the robot along `path` for `cfg.steps` steps (fewer if an open path ends first)
+/// Drives the robot along `path` for `cfg.steps` steps (fewer if the follower's carrot
+/// reaches the end of an open path first)
 /// and records the dataset, with all randomness from `seed`.
 ///
 /// Each step k: the follower commands u = (v, ω, Δt) from the true pose x_{k−1}; with
@@ -113,13 +114,8 @@ pub fn simulate_landmarks(
     let mut gt = Vec::with_capacity(cfg.steps);
     let (mut scratch, mut obs) = (Vec::new(), Vec::new());
     for k in 1..=cfg.steps {
-        if follower.finished()
-            && pose
-                .translation()
-                .coords
-                .metric_distance(&path.point_at(path.length()).coords)
-                < 0.05
-        {
+        // An open path is done when the carrot has reached its end.
+        if follower.finished() {
             break;
         }
         let cmd = follower.command(&pose);
@@ -172,4 +168,28 @@ pub fn simulate_landmarks(
         true_sensor: gen_sensor.noise,
         sensor_config: cfg.sensor.clone(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_models::{LandmarkId, Point2};
+
+    #[test]
+    fn open_path_ends_the_run_and_bad_models_are_rejected() {
+        let path = Path::new(vec![Point2::new(0.0, 0.0), Point2::new(10.0, 0.0)], false).unwrap();
+        let world = LandmarkWorld::new(vec![(LandmarkId(0), Point2::new(5.0, 2.0))], 6.0).unwrap();
+        let cfg = LandmarkSimConfig {
+            steps: 1000,
+            ..Default::default()
+        };
+        let run = simulate_landmarks(&world, &path, &cfg, 1).unwrap();
+        // 10 m at 0.2 m per step: the carrot reaches the end after 50 steps.
+        assert_eq!(run.dataset.steps.len(), 50);
+        assert_eq!(run.dataset.ground_truth.as_ref().unwrap().len(), 50);
+        assert!(run.true_poses.last().unwrap().x > 8.0);
+        let mut bad = LandmarkSimConfig::default();
+        bad.motion.odometry.alpha[0] = f64::NAN;
+        assert!(simulate_landmarks(&world, &path, &bad, 1).is_err());
+    }
 }
