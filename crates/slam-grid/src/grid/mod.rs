@@ -14,6 +14,9 @@ use slam_models::{GridMap, LaserScan, Point2, Pose2};
 use std::sync::{Arc, OnceLock};
 use tiles::{split, Tile, TileLayout, HIT_CAP, TILE_CELLS, TILE_SIZE};
 
+/// Continuous cell coordinates (u, v) (see [`crate::cell`]).
+type CellPoint = (f64, f64);
+
 /// Counters of the copy-on-write machinery (since creation or the last
 /// [`OccupancyGrid::reset_copy_stats`]); clones start from the source's counters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -324,7 +327,8 @@ impl OccupancyGrid {
         let inv_res = 1.0 / self.frame.resolution;
         let m = self.model;
         // Segment ends in continuous cell coordinates, and whether the end cell is a hit.
-        let mut segs: Vec<((f64, f64), bool)> = Vec::with_capacity(scan.beams.len());
+        // (end of the free stretch, end point, hit?) in continuous cell coordinates.
+        let mut segs: Vec<(CellPoint, CellPoint, bool)> = Vec::with_capacity(scan.beams.len());
         let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (start.0, start.1, start.0, start.1);
         for b in &scan.beams {
             if b.range < m.min_range {
@@ -345,11 +349,20 @@ impl OccupancyGrid {
             // Beam direction in the world: R(θ_sensor)·dir.
             let (dx, dy) = (c * b.dir.0 - s * b.dir.1, s * b.dir.0 + c * b.dir.1);
             let end = (start.0 + len * dx * inv_res, start.1 + len * dy * inv_res);
+            let free_len = if hit {
+                (len - m.hit_margin).max(0.0)
+            } else {
+                len
+            };
+            let free_end = (
+                start.0 + free_len * dx * inv_res,
+                start.1 + free_len * dy * inv_res,
+            );
             lo_x = lo_x.min(end.0);
             lo_y = lo_y.min(end.1);
             hi_x = hi_x.max(end.0);
             hi_y = hi_y.max(end.1);
-            segs.push((end, hit));
+            segs.push((free_end, end, hit));
         }
         if !(lo_x.is_finite() && lo_y.is_finite() && hi_x.is_finite() && hi_y.is_finite()) {
             return Err(GridError::NonFinite {
@@ -380,9 +393,10 @@ impl OccupancyGrid {
                 v.push((slot as u32, local as u16));
             }
         };
-        for &(end, hit) in &segs {
-            let end_cell = trace_segment(start, end, |cell| push(&mut free, cell));
+        for &(free_end, end, hit) in &segs {
+            let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
             if hit {
+                let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
                 let ((tx, ty), local) = split(end_cell);
                 if let Some(slot) = layout.slot(tx, ty) {
                     // End point relative to its cell centre, in 1/256 cell.
@@ -392,7 +406,7 @@ impl OccupancyGrid {
                     hits.push((slot as u32, local as u16, ox, oy));
                 }
             } else {
-                push(&mut free, end_cell);
+                push(&mut free, last);
             }
         }
         let mut changed: Vec<usize> = Vec::new();
@@ -537,16 +551,16 @@ impl OccupancyGrid {
     }
 
     /// Row-major obstacle flags of the `w × h` cells starting at `min`, and the mean hit
-    /// offsets (1/256 cell from the centre) of those cells.
+    /// offsets (1/256 cell from the centre) and hit counts of those cells.
     pub(crate) fn obstacle_mask(
         &self,
         min: CellIndex,
         w: usize,
         h: usize,
-    ) -> (Vec<bool>, Vec<(i8, i8)>) {
+    ) -> (Vec<bool>, Vec<(i8, i8, u8)>) {
         let thr = self.params.occupied_threshold;
         let mut out = vec![false; w * h];
-        let mut offsets = vec![(0i8, 0i8); w * h];
+        let mut offsets = vec![(0i8, 0i8, 0u8); w * h];
         let t = TILE_SIZE as i32;
         // Walk tile by tile so each cell costs one array read.
         let (tx_lo, ty_lo) = (min.x >> tiles::TILE_BITS, min.y >> tiles::TILE_BITS);
@@ -572,7 +586,7 @@ impl OccupancyGrid {
                         let k = ly * TILE_SIZE + (x - tx * t) as usize;
                         let o = oy + (x - min.x) as usize;
                         out[o] = tile.cells[k] > thr;
-                        offsets[o] = (tile.hit_x[k], tile.hit_y[k]);
+                        offsets[o] = (tile.hit_x[k], tile.hit_y[k], tile.hits[k]);
                     }
                 }
             }

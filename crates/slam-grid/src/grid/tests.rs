@@ -250,14 +250,17 @@ fn subcell_field_measures_to_mean_hit_positions() {
         .collect();
     let s = scan(ranges, -0.2, 0.01);
     g.integrate_scan(&Pose2::IDENTITY, &s);
-    // Cell column 20 covers [1.00, 1.05): its centre (1.025) is 1.2 cm from the wall; the
-    // mean of the end points that fell in the cell is where the field is measured from.
+    // Cell column 20 covers [1.00, 1.05): its centre (1.025) is 1.2 cm from the wall. The
+    // field is measured from the mean of the end points in the cell's 3×3 neighbourhood.
     let c = g.world_to_cell(&Point2::new(1.013, 0.0));
     assert_eq!(c.x, 20);
     let inside: Vec<Point2> = s
         .hit_points()
         .into_iter()
-        .filter(|p| g.world_to_cell(p) == c)
+        .filter(|p| {
+            let q = g.world_to_cell(p);
+            (q.x - c.x).abs() <= 1 && (q.y - c.y).abs() <= 1
+        })
         .collect();
     let mean = inside
         .iter()
@@ -273,7 +276,8 @@ fn subcell_field_measures_to_mean_hit_positions() {
     let f = CellIndex::new(c.x - 2, c.y);
     let want = params.field_value((mean - g.cell_center(f)).norm());
     assert!((g.likelihood(f) - want).abs() < 2e-3);
-    // The bicubic interpolant along x peaks within 1 mm of the wall.
+    // The bicubic interpolant along x peaks within 2 mm of the wall (a cell-centred
+    // interpolant would peak at 1.025).
     let best = (0..200)
         .map(|i| 0.95 + i as f64 * 0.0005)
         .max_by(|a, b| {
@@ -282,5 +286,5 @@ fn subcell_field_measures_to_mean_hit_positions() {
             fa.total_cmp(&fb)
         })
         .unwrap();
-    assert!((best - 1.013).abs() < 0.001, "peak at {best}");
+    assert!((best - 1.013).abs() < 0.002, "peak at {best}");
 }

@@ -65,12 +65,9 @@ pub(crate) fn compute_region(
             let d = if !d2[k].is_finite() {
                 f64::INFINITY
             } else if params.subcell {
-                // Distance to the nearest obstacle cell's mean hit position (the nearest
-                // cell chosen by centre distance, the exact EDT's feature transform).
-                let s = site[k] as usize;
-                let (o_x, o_y) = offsets[s];
-                let sx = (s % gw) as f64 + o_x as f64 / 256.0;
-                let sy = (s / gw) as f64 + o_y as f64 / 256.0;
+                // Distance to the surface point of the nearest obstacle cell (chosen by
+                // centre distance: the exact EDT's feature transform).
+                let (sx, sy) = surface_point(site[k] as usize, &obstacles, &offsets, gw, gh);
                 ((x + m) as f64 - sx).hypot((y + m) as f64 - sy) * res
             } else {
                 d2[k].sqrt() * res
@@ -80,6 +77,36 @@ pub(crate) fn compute_region(
         }
     }
     Some((out, dist2))
+}
+
+/// The surface point of obstacle cell `s` in region cell coordinates (cell (i, j) centred
+/// at (i, j)): the hit-count-weighted mean of the mean hit positions of the obstacle cells
+/// in its 3×3 neighbourhood. Averaging over neighbours matters where a wall runs along a
+/// cell boundary: range noise then splits its hits between two cells whose own means sit
+/// on either side of the wall (truncated distributions), while their joint mean is on it.
+fn surface_point(
+    s: usize,
+    obstacles: &[bool],
+    offsets: &[(i8, i8, u8)],
+    gw: usize,
+    gh: usize,
+) -> (f64, f64) {
+    let (cx, cy) = ((s % gw) as i64, (s / gw) as i64);
+    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+    for ny in (cy - 1).max(0)..=(cy + 1).min(gh as i64 - 1) {
+        for nx in (cx - 1).max(0)..=(cx + 1).min(gw as i64 - 1) {
+            let n = ny as usize * gw + nx as usize;
+            if !obstacles[n] {
+                continue;
+            }
+            let (ox, oy, c) = offsets[n];
+            let wgt = c.max(1) as f64;
+            sx += wgt * (nx as f64 + ox as f64 / 256.0);
+            sy += wgt * (ny as f64 + oy as f64 / 256.0);
+            sw += wgt;
+        }
+    }
+    (sx / sw, sy / sw)
 }
 
 /// A dense likelihood field over a rectangle of cells of a grid: s = exp(−d²/(2σ²)) with d
