@@ -12,8 +12,8 @@ use slam_models::gaussian::{log_likelihood, mahalanobis_squared};
 use slam_models::Vector3;
 use slam_models::{normalize_angle, Control, LandmarkId, Matrix3, Pose2, RangeBearing, Vector2};
 
-/// A particle: a pose sample x_t^[k], its log importance weight and its landmark map
-/// (PR eq. 13.12: Y_t^[k] = ⟨x_t^[k], μ_1^[k], Σ_1^[k], …, μ_N^[k], Σ_N^[k]⟩).
+/// A particle: a pose sample x_t⁽ᵏ⁾, its log importance weight and its landmark map
+/// (PR eq. 13.12: Y_t⁽ᵏ⁾ = ⟨x_t⁽ᵏ⁾, μ₁⁽ᵏ⁾, Σ₁⁽ᵏ⁾, …, μ_N⁽ᵏ⁾, Σ_N⁽ᵏ⁾⟩).
 #[derive(Debug, Clone)]
 pub struct Particle {
     /// The current pose sample.
