@@ -60,3 +60,20 @@ pub(crate) fn check_range(
         })
     }
 }
+
+/// The largest number of steps (or odometry records) a simulation accepts: far beyond any
+/// useful run, small enough that the output vectors can always be allocated.
+pub(crate) const MAX_STEPS: usize = 50_000_000;
+
+/// Checks a step count against [`MAX_STEPS`].
+pub(crate) fn check_steps(name: &'static str, n: usize) -> Result<usize, SimError> {
+    if n <= MAX_STEPS {
+        Ok(n)
+    } else {
+        Err(SimError::InvalidParameter {
+            name,
+            value: n.to_string(),
+            expected: "at most 50 000 000",
+        })
+    }
+}

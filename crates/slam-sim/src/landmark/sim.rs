@@ -1,7 +1,7 @@
 //! The landmark simulation loop.
 
 use super::{LandmarkWorld, RangeBearingSensor};
-use crate::error::{check_range, SimError};
+use crate::error::{check_range, check_steps, SimError};
 use crate::path::{Follower, FollowerConfig, Path};
 use crate::rng::{stream, tag};
 use crate::LandmarkSimRun;
@@ -93,6 +93,7 @@ pub fn simulate_landmarks(
     seed: u64,
 ) -> Result<LandmarkSimRun, SimError> {
     cfg.sensor.validate()?;
+    check_steps("steps", cfg.steps)?;
     validate_motion(&cfg.motion)?;
     let gen_motion = cfg.true_motion.unwrap_or(cfg.motion);
     validate_motion(&gen_motion)?;

@@ -1,7 +1,7 @@
 //! The laser simulation loop.
 
 use super::{LaserScanner, World};
-use crate::error::{check_range, SimError};
+use crate::error::{check_range, check_steps, SimError};
 use crate::path::{Follower, FollowerConfig, Path};
 use crate::rng::{stream, tag};
 use crate::LaserSimRun;
@@ -83,7 +83,10 @@ pub fn simulate_laser(
     let vel = VelocityModel::default();
     let start = path.start_pose();
     let (mut pose, mut odom) = (start, start);
-    let n = cfg.scans * cfg.odometry_per_scan;
+    let n = check_steps(
+        "scans x odometry_per_scan",
+        cfg.scans.saturating_mul(cfg.odometry_per_scan),
+    )?;
     let mut records = Vec::with_capacity(n);
     let mut gt = Vec::with_capacity(n);
     // Record 0: the start, with a scan.

@@ -1,7 +1,7 @@
 //! The landmark scenarios: `loop`, `figure8`, `clutter` and `city`.
 
 use super::ScenarioOptions;
-use crate::error::{check_range, SimError};
+use crate::error::{check_range, check_steps, SimError};
 use crate::landmark::{
     simulate_landmarks, ControlKind, LandmarkSimConfig, LandmarkWorld, RangeBearingSensor,
 };
@@ -45,6 +45,13 @@ fn scatter_along<R: Rng>(
     min_sep: f64,
     rng: &mut R,
 ) -> Result<Vec<(LandmarkId, Point2)>, SimError> {
+    if n > 100_000 {
+        return Err(SimError::InvalidParameter {
+            name: "landmarks",
+            value: n.to_string(),
+            expected: "at most 100 000 landmarks beside a path (use `city` for large worlds)",
+        });
+    }
     let mut out: Vec<(LandmarkId, Point2)> = Vec::with_capacity(n);
     let mut tries = 0usize;
     while out.len() < n {
@@ -319,7 +326,7 @@ pub fn city(opts: &ScenarioOptions) -> Result<LandmarkSimRun, SimError> {
         .map(|(k, &i)| (LandmarkId(k as u32), cand[i as usize]))
         .collect();
 
-    let steps = opts.steps.unwrap_or(1500);
+    let steps = check_steps("steps", opts.steps.unwrap_or(1500))?;
     let f = FollowerConfig::default();
     let need = steps as f64 * f.speed * f.dt + 3.0 * b;
     // Random walk over intersections, starting near the centre heading east.
@@ -619,6 +626,18 @@ mod scenario_tests {
             generate("nope", &ScenarioOptions::default()),
             Err(SimError::UnknownScenario { .. })
         ));
+        let huge = ScenarioOptions {
+            landmarks: Some(usize::MAX),
+            ..Default::default()
+        };
+        assert!(generate("loop", &huge).is_err());
+        let huge = ScenarioOptions {
+            steps: Some(usize::MAX),
+            ..Default::default()
+        };
+        for name in ["loop", "city", "office"] {
+            assert!(generate(name, &huge).is_err(), "{name}");
+        }
         let bad = ScenarioOptions {
             detection_probability: Some(f64::NAN),
             ..Default::default()

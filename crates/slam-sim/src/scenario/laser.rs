@@ -1,7 +1,7 @@
 //! The laser scenarios: `office` and `replay`.
 
 use super::ScenarioOptions;
-use crate::error::{check_range, SimError};
+use crate::error::{check_range, check_steps, SimError};
 use crate::laser::{simulate_laser, LaserScanner, LaserSimConfig, Segment, World};
 use crate::path::Path;
 use crate::rng::{stream, tag};
@@ -19,6 +19,8 @@ fn laser_config(
     max_range: f64,
     scans: usize,
 ) -> Result<LaserSimConfig, SimError> {
+    let defaults = LaserSimConfig::default();
+    check_steps("steps", scans.saturating_mul(defaults.odometry_per_scan))?;
     let mut cfg = LaserSimConfig {
         name: name.to_string(),
         scans,
