@@ -19,6 +19,23 @@ use slam_models::{normalize_angle, Pose2, RangeBearing};
 /// of false alarms per scan is drawn uniformly over the footprint (the annular sector
 /// min_range ≤ r ≤ max_range, |φ| ≤ fov/2, uniform in *area*: r = √(u·(R² − r₀²) + r₀²)).
 /// With `hide_ids` every observation has `id: None`.
+///
+/// # Example
+///
+/// ```
+/// use rand::SeedableRng;
+/// use slam_models::{LandmarkId, Point2, Pose2};
+/// use slam_sim::landmark::{LandmarkWorld, RangeBearingSensor};
+/// let world = LandmarkWorld::new(vec![(LandmarkId(7), Point2::new(3.0, 0.0))], 6.0).unwrap();
+/// let sensor = RangeBearingSensor::default(); // σr 0.1 m, σφ 1.5°, 0.5–6 m, 180°
+/// let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(1);
+/// let mut clutter_rng = rand_pcg::Pcg64Mcg::seed_from_u64(2);
+/// let (mut scratch, mut obs) = (Vec::new(), Vec::new());
+/// sensor.observe(&Pose2::new(0.0, 0.0, 0.0), &world, &mut rng, &mut clutter_rng, &mut scratch, &mut obs);
+/// assert_eq!(obs.len(), 1);
+/// let (z, is_clutter) = obs[0];
+/// assert!(!is_clutter && z.id == Some(LandmarkId(7)) && (z.range - 3.0).abs() < 0.6);
+/// ```
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RangeBearingSensor {

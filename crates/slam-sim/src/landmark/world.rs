@@ -5,6 +5,21 @@ use slam_models::{LandmarkId, Point2};
 
 /// Point landmarks (world frame, metres) with a uniform-grid index, so that "which landmarks
 /// are within r of p" costs O(landmarks near p), independent of the world's size.
+///
+/// # Example
+///
+/// ```
+/// use slam_models::{LandmarkId, Point2};
+/// use slam_sim::landmark::LandmarkWorld;
+/// let w = LandmarkWorld::new(
+///     vec![(LandmarkId(0), Point2::new(1.0, 0.0)), (LandmarkId(1), Point2::new(50.0, 0.0))],
+///     6.0,
+/// )
+/// .unwrap();
+/// let mut near = Vec::new();
+/// w.within(&Point2::new(0.0, 0.0), 6.0, &mut near);
+/// assert_eq!(near, vec![0]);
+/// ```
 #[derive(Debug, Clone)]
 pub struct LandmarkWorld {
     landmarks: Vec<(LandmarkId, Point2)>,

@@ -43,6 +43,18 @@ struct Wall {
 }
 
 /// A 2-D world of line segments (walls), indexed by a uniform grid.
+///
+/// # Example
+///
+/// ```
+/// use slam_models::Point2;
+/// use slam_sim::laser::{Segment, World};
+/// // A wall along x = 3; a ray from the origin at 45° meets it after 3·√2 m.
+/// let w = World::new(vec![Segment::new(3.0, -10.0, 3.0, 10.0)]).unwrap();
+/// let d = w.cast(&Point2::new(0.0, 0.0), std::f64::consts::FRAC_PI_4, 20.0).unwrap();
+/// assert!((d - 3.0 * 2f64.sqrt()).abs() < 1e-12);
+/// assert!(w.cast(&Point2::new(0.0, 0.0), std::f64::consts::PI, 20.0).is_none()); // no return
+/// ```
 #[derive(Debug, Clone)]
 pub struct World {
     segments: Vec<Segment>,
