@@ -16,8 +16,12 @@
 //! data take the same code paths.
 //!
 //! **Determinism.** Everything flows from one `u64` seed through `rand_pcg` streams, one per
-//! independent part (world, motion, sensor, clutter), and no output depends on hash-map
-//! iteration order: the same seed gives the same data on every machine.
+//! independent part (world, motion, sensor, clutter, path), single-threaded, and no output
+//! depends on hash-map iteration order; Poisson counts use an exact product-of-uniforms
+//! sampler. The same seed therefore gives bit-identical data wherever the platform's
+//! `sin`/`cos`/`atan2`/`exp` agree (Rust's std defers to the system math library; IEEE-754
+//! arithmetic and `sqrt` are exact everywhere, but libm implementations may differ in the
+//! last bit of a transcendental function).
 //!
 //! ```
 //! use slam_sim::{scenario::{generate, ScenarioOptions}, SimOutput};
