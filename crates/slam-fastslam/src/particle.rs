@@ -441,6 +441,197 @@ mod tests {
         assert!(others.iter().all(|&o| o != a));
     }
 
+    /// The FastSLAM 2.0 proposal against its information form (Montemerlo et al. 2003,
+    /// eqs. 11–12; PR table 13.3 lines 13–15): Σ = (Hₓᵀ S⁻¹ Hₓ + R⁻¹)⁻¹,
+    /// μ = Σ Hₓᵀ S⁻¹ (z − ẑ) + x̂, with S = H_m Σ_n H_mᵀ + Q. The sample mean and covariance
+    /// of many draws must match; the importance weight must equal ln N(z − ẑ; 0, L) with
+    /// L = Hₓ R Hₓᵀ + S (eq. 17), computed here independently.
+    #[test]
+    fn fastslam2_proposal_matches_the_information_form() {
+        use crate::config::Variant;
+        use slam_models::{Matrix2, OdometryControl, Point2};
+        let cfg = FastSlamConfig {
+            variant: Variant::FastSlam2,
+            sensor: slam_models::measurement::RangeBearingModel::new(0.05, 0.01),
+            motion: slam_models::motion::MotionModels {
+                odometry: slam_models::motion::OdometryModel::new([0.05, 0.01, 0.05, 0.01]),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let ctx = StepContext {
+            config: &cfg,
+            ln_p0: cfg.p0.ln(),
+            update_index: 0,
+        };
+        let mut map = LandmarkMap::new(5.0);
+        let lm = Landmark {
+            id: LandmarkId(3),
+            mean: Point2::new(4.0, 2.0),
+            cov: Matrix2::new(0.02, 0.005, 0.005, 0.03),
+            existence: 1,
+            observations: 5,
+            cell: 0,
+        };
+        map.insert(3, lm);
+        let start = Particle {
+            pose: Pose2::new(0.1, -0.2, 0.3),
+            log_weight: 0.0,
+            map,
+            provisional: vec![],
+        };
+        let u = Control::Odometry(OdometryControl {
+            rot1: 0.1,
+            trans: 1.0,
+            rot2: -0.05,
+        });
+        let z = RangeBearing {
+            range: 3.2,
+            bearing: 0.05,
+            id: Some(LandmarkId(3)),
+        };
+        let obs = [Obs {
+            z: z.to_vector(),
+            raw: z,
+        }];
+        // Independent computation of the proposal.
+        let x_hat = cfg.motion.predict(&start.pose, &u);
+        let r = cfg.motion.noise_covariance(&start.pose, &u);
+        let pred = cfg.sensor.predict(&x_hat, &lm.mean).unwrap();
+        let q = cfg.sensor.noise_covariance();
+        let s = pred.h_landmark * lm.cov * pred.h_landmark.transpose() + q;
+        let nu = slam_models::measurement::RangeBearingModel::innovation(&z.to_vector(), &pred.z);
+        let hx = pred.h_pose;
+        let sigma = (hx.transpose() * s.try_inverse().unwrap() * hx + r.try_inverse().unwrap())
+            .try_inverse()
+            .unwrap();
+        let mu = sigma * hx.transpose() * s.try_inverse().unwrap() * nu + x_hat.to_vector();
+        let l = hx * r * hx.transpose() + s;
+        let w = log_likelihood(&nu, &l).unwrap();
+        let n = 40_000;
+        let mut xs = Vec::with_capacity(n);
+        for k in 0..n {
+            let mut p = start.clone();
+            let mut rng = stream(1, 0, k as u64);
+            p.update_fastslam2(&ctx, Some(&u), &obs, &mut rng);
+            assert!(
+                (p.log_weight - w).abs() < 1e-9,
+                "weight {} vs {w}",
+                p.log_weight
+            );
+            xs.push(p.pose.to_vector());
+        }
+        let m = xs.iter().fold(Vector3::zeros(), |a, x| a + x) / n as f64;
+        let mut c = Matrix3::zeros();
+        for x in &xs {
+            c += (x - m) * (x - m).transpose();
+        }
+        c /= (n - 1) as f64;
+        for i in 0..3 {
+            let se = (sigma[(i, i)] / n as f64).sqrt();
+            assert!((m[i] - mu[i]).abs() < 5.0 * se, "mean {m} vs {mu}");
+        }
+        assert!(
+            (c - sigma).abs().max() < 0.05 * sigma.abs().max(),
+            "cov {c} vs {sigma}"
+        );
+        // The proposal is much tighter than the motion model.
+        assert!(sigma.determinant() < 0.1 * r.determinant());
+    }
+
+    fn one_landmark_particle(at: slam_models::Point2) -> Particle {
+        let mut map = LandmarkMap::new(5.0);
+        map.insert(
+            0,
+            Landmark {
+                id: LandmarkId(0),
+                mean: at,
+                cov: slam_models::Matrix2::identity() * 0.04,
+                existence: 1,
+                observations: 1,
+                cell: 0,
+            },
+        );
+        Particle {
+            pose: Pose2::IDENTITY,
+            log_weight: 0.0,
+            map,
+            provisional: vec![],
+        }
+    }
+
+    /// FastSLAM 1.0: the weight is ln N(ν; 0, H Σ Hᵀ + Q) at the particle's pose (PR table
+    /// 13.1 line 17) for a known landmark, and ln p0 for a new one.
+    #[test]
+    fn fastslam1_weight_is_the_innovation_likelihood() {
+        use slam_models::Point2;
+        let cfg = FastSlamConfig::default();
+        let ctx = StepContext {
+            config: &cfg,
+            ln_p0: cfg.p0.ln(),
+            update_index: 0,
+        };
+        let mut p = one_landmark_particle(Point2::new(3.0, 1.0));
+        let z0 = RangeBearing {
+            range: 3.3,
+            bearing: 0.28,
+            id: Some(LandmarkId(0)),
+        };
+        let z1 = RangeBearing {
+            range: 2.0,
+            bearing: -1.0,
+            id: Some(LandmarkId(9)),
+        };
+        let pred = cfg
+            .sensor
+            .predict(&Pose2::IDENTITY, &Point2::new(3.0, 1.0))
+            .unwrap();
+        let s =
+            pred.h_landmark * 0.04 * pred.h_landmark.transpose() + cfg.sensor.noise_covariance();
+        let nu = slam_models::measurement::RangeBearingModel::innovation(&z0.to_vector(), &pred.z);
+        let expect = log_likelihood(&nu, &s).unwrap() + cfg.p0.ln();
+        let obs: Vec<Obs> = [z0, z1]
+            .iter()
+            .map(|z| Obs {
+                z: z.to_vector(),
+                raw: *z,
+            })
+            .collect();
+        let st = p.update_fastslam1(&ctx, &obs);
+        assert!((p.log_weight - expect).abs() < 1e-12);
+        assert_eq!((st.associated, st.new_landmarks), (1, 1));
+        assert_eq!(p.map.len(), 2);
+    }
+
+    /// Negative evidence: a landmark inside the shrunk footprint that is not seen loses
+    /// one existence per update and goes once below the threshold; one behind the robot
+    /// (outside the field of view) is untouched.
+    #[test]
+    fn unseen_landmarks_in_view_are_removed() {
+        use slam_models::Point2;
+        let cfg = FastSlamConfig {
+            max_range: Some(6.0),
+            fov: Some(std::f64::consts::PI),
+            ..Default::default()
+        };
+        let ctx = StepContext {
+            config: &cfg,
+            ln_p0: cfg.p0.ln(),
+            update_index: 0,
+        };
+        let mut ahead = one_landmark_particle(Point2::new(3.0, 0.5));
+        let mut behind = one_landmark_particle(Point2::new(-3.0, 0.5));
+        let mut far = one_landmark_particle(Point2::new(5.9, 0.0)); // beyond 0.9·6 m
+        for (p, survives) in [(&mut ahead, false), (&mut behind, true), (&mut far, true)] {
+            // existence 1 → 0 (kept, threshold 0) → −1 (removed).
+            let st = p.update_fastslam1(&ctx, &[]);
+            assert_eq!((st.removed, p.map.len()), (0, 1));
+            let st = p.update_fastslam1(&ctx, &[]);
+            assert_eq!(p.map.len() == 1, survives);
+            assert_eq!(st.removed, usize::from(!survives));
+        }
+    }
+
     #[test]
     fn gaussian_sampler_matches_covariance_even_when_singular() {
         let mut rng = stream(1, 2, 3);
