@@ -85,16 +85,25 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
     }
 }
 
+/// The issue's target is ≥ 99 % of 1,000 trials within 1 cm and 0.5° (correlative +
+/// refinement). Measured (seed 2024): 5 cm map 77.9 %, median 6.0 mm; 2.5 cm map 96.8 %,
+/// median 3.0 mm: the target is NOT met; the bounds below guard the measured level. The
+/// remaining error is the map's representation (GN started at the true pose settles a
+/// median 9 mm away on the 5 cm map, at a lower cost than the truth's).
 #[test]
 fn office_matching_from_large_offsets() {
-    for (res, n) in [(0.05, 1000), (0.025, 1000)] {
-        let t = office_trials(res, n, 2024);
+    let t = office_trials(0.05, 1000, 2024);
+    let t2 = office_trials(0.025, 500, 2025);
+    for (res, t) in [(0.05, &t), (0.025, &t2)] {
         println!(
             "office, {res} m grid: {}/{} within 1 cm and 0.5°; translation error median {:.4} m, \
              p99 {:.4} m; rotation error median {:.3}°",
             t.ok, t.n, t.median_err, t.p99_err, t.median_rot_deg
         );
     }
+    assert!(t.ok * 100 >= 70 * t.n, "5 cm: {}/{}", t.ok, t.n);
+    assert!(t.median_err < 0.01 && t.p99_err < 0.05);
+    assert!(t2.ok * 100 >= 94 * t2.n, "2.5 cm: {}/{}", t2.ok, t2.n);
 }
 
 /// Reads a perturbed copy of a corrected log (odometry replaced, ground truth written by
@@ -149,9 +158,19 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
     for rec in &data.records {
         f.process(rec).expect("process");
     }
-    let est = anchored(&f.trajectory(), &gt);
-    assert_eq!(est.len(), data.records.len());
-    let odo = anchored(&slam::io::odometry_trajectory(&data), &gt);
+    let all = f.trajectory();
+    assert_eq!(all.len(), data.records.len());
+    // The ground truth has one pose per scan; each scan shares its time with the ODOM record
+    // before it, whose pose is the uncorrected prediction. Score the scan records.
+    let at_scans = |traj: &[TimedPose]| -> Vec<TimedPose> {
+        traj.iter()
+            .zip(&data.records)
+            .filter(|(_, r)| r.scan.is_some())
+            .map(|(p, _)| *p)
+            .collect()
+    };
+    let est = anchored(&at_scans(&all), &gt);
+    let odo = anchored(&at_scans(&slam::io::odometry_trajectory(&data)), &gt);
     let ate_sm = slam::io::eval::ate(&est, &gt).expect("ate");
     let rpe_sm = slam::io::eval::rpe(&est, &gt).expect("rpe");
     let ate_od = slam::io::eval::ate(&odo, &gt).expect("ate");
@@ -171,6 +190,13 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
         rpe_od.trans_mean,
         rpe_od.rot_mean_deg
     );
+    // Loose bounds that plain odometry fails by far.
+    assert!(ate_sm.rmse < 1.0, "scanmatch ATE {}", ate_sm.rmse);
+    assert!(ate_od.rmse > 1.0, "odometry ATE {}", ate_od.rmse);
+    assert!(
+        rpe_sm.trans_mean < rpe_od.trans_mean,
+        "scanmatch RPE not below odometry's"
+    );
 }
 
 #[test]
@@ -189,6 +215,31 @@ fn csail_known_poses_give_a_clean_map() {
             scans += 1;
         }
     }
+    // Consistency: the end points of every 10th scan fall on (or next to) occupied cells.
+    let (mut on, mut total) = (0usize, 0usize);
+    for rec in data.records.iter().filter(|r| r.scan.is_some()).step_by(10) {
+        let Some(scan) = &rec.scan else { continue };
+        for p in scan
+            .hit_points()
+            .into_iter()
+            .filter(|p| p.coords.norm() < 15.0)
+        {
+            let c = grid.world_to_cell(&rec.odometry.transform_point(&p));
+            total += 1;
+            let near = (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    grid.probability(slam::grid::CellIndex::new(c.x + dx, c.y + dy)) > 0.5
+                })
+            });
+            on += usize::from(near);
+        }
+    }
+    let ratio = on as f64 / total as f64;
+    println!(
+        "csail: {:.1} % of {total} end points (< 15 m) on occupied cells",
+        100.0 * ratio
+    );
+    assert!(ratio > 0.9, "map inconsistent with its own scans: {ratio}");
     let map = grid.to_grid_map();
     let out = std::env::temp_dir().join("slam-grid-csail-map.png");
     slam::io::picture::Picture::new()
