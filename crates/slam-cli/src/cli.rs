@@ -1,0 +1,128 @@
+//! The command line, as clap types. This module only describes the arguments; the
+//! subcommands live in [`crate::run`], [`crate::sim`], [`crate::eval`] and [`crate::list`].
+
+use clap::{ArgGroup, Args, Parser, Subcommand};
+use std::path::PathBuf;
+
+/// `slam`: run 2-D SLAM filters on simulated worlds and real logs, and score the results.
+#[derive(Debug, Parser)]
+#[command(
+    name = "slam",
+    version,
+    about = "2-D SLAM (EKF-SLAM, FastSLAM 1.0/2.0, grid FastSLAM, scan matching) on simulated worlds and real logs",
+    long_about = None,
+    propagate_version = true
+)]
+pub struct Cli {
+    /// The subcommand.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The four subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run one filter on a simulated scenario or a dataset; write trajectory, map, picture and metrics.
+    Run(RunArgs),
+    /// Write a simulated dataset (Freiburg files or a CARMEN log) with its ground truth.
+    Sim(SimArgs),
+    /// Score a TUM trajectory against ground truth (ATE, RPE) or Kümmerle relations.
+    Eval(EvalArgs),
+    /// List the filters and scenarios, and whether each is available in this build.
+    List,
+}
+
+/// `slam run`.
+#[derive(Debug, Clone, Args)]
+#[command(group(ArgGroup::new("input").required(true).args(["sim", "dataset"])))]
+pub struct RunArgs {
+    /// Filter to run (see `slam list`): ekf, fastslam1, fastslam2, scanmatch, gridfast.
+    #[arg(long, value_name = "NAME")]
+    pub filter: String,
+
+    /// Simulated scenario to run on (see `slam list`); `replay:<map.yaml>` replays a ROS map.
+    #[arg(long, value_name = "SCENARIO")]
+    pub sim: Option<String>,
+
+    /// Seed of the simulator and of the filter's random numbers (same seed, same output).
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u64,
+
+    /// Number of simulated steps (the scenario's own length when not given).
+    #[arg(long, value_name = "N", requires = "sim", value_parser = clap::value_parser!(u64).range(1..))]
+    pub steps: Option<u64>,
+
+    /// Dataset: a Freiburg folder (world.dat + sensor_data.dat), a CARMEN log (.log, .clf,
+    /// .gz) or an MRCLAM folder (with --robot).
+    #[arg(long, value_name = "PATH")]
+    pub dataset: Option<PathBuf>,
+
+    /// Robot number 1–5 for MRCLAM datasets.
+    #[arg(long, value_name = "N", requires = "dataset")]
+    pub robot: Option<u32>,
+
+    /// Number of particles (particle filters only); overrides the config file.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub particles: Option<u64>,
+
+    /// Filter configuration, a TOML file (see configs/<filter>.toml); unknown keys are an error.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+
+    /// Ground-truth trajectory (TUM) to score against, instead of the dataset's own.
+    #[arg(long, value_name = "FILE")]
+    pub ground_truth: Option<PathBuf>,
+
+    /// Kümmerle et al. relations file to score the trajectory with.
+    #[arg(long, value_name = "FILE")]
+    pub relations: Option<PathBuf>,
+
+    /// Output folder (default ./slam-out/<filter>-<dataset>).
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+
+    /// Worker threads for the parallel parts of a filter (results do not depend on it).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
+    pub threads: Option<u64>,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `slam sim`.
+#[derive(Debug, Clone, Args)]
+pub struct SimArgs {
+    /// Scenario (see `slam list`); `replay:<map.yaml>` replays a ROS map_server map.
+    #[arg(value_name = "SCENARIO")]
+    pub scenario: String,
+
+    /// Seed of the simulator.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u64,
+
+    /// Number of steps (the scenario's own length when not given).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub steps: Option<u64>,
+
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+}
+
+/// `slam eval`.
+#[derive(Debug, Clone, Args)]
+#[command(group(ArgGroup::new("reference").required(true).multiple(true).args(["ground_truth", "relations"])))]
+pub struct EvalArgs {
+    /// The estimated trajectory, TUM format.
+    #[arg(long, value_name = "FILE")]
+    pub estimate: PathBuf,
+
+    /// Ground-truth trajectory, TUM format: gives ATE (as is and aligned) and RPE.
+    #[arg(long, value_name = "FILE")]
+    pub ground_truth: Option<PathBuf>,
+
+    /// Kümmerle et al. relations file: gives the relations metric.
+    #[arg(long, value_name = "FILE")]
+    pub relations: Option<PathBuf>,
+}

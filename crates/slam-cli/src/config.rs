@@ -1,0 +1,105 @@
+//! Filter configuration files: TOML deserialised straight into a filter's config struct.
+//!
+//! Every config struct of slam-rs is `#[serde(deny_unknown_fields, default)]`, so a file may
+//! set any subset of the keys (the rest keep their documented defaults) and a misspelt key
+//! is an error naming it, with the line it is on.
+
+use crate::error::CliError;
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use std::path::Path;
+
+/// A loaded configuration and the top-level keys the file set explicitly.
+pub(crate) struct Loaded<C> {
+    /// The configuration: the file's values over the defaults.
+    pub config: C,
+    /// Top-level keys present in the file (empty without a file).
+    pub keys: Vec<String>,
+}
+
+/// Reads `path` into `C`, or returns `C::default()` when no file is given.
+pub(crate) fn load<C: DeserializeOwned + Default>(
+    path: Option<&Path>,
+) -> Result<Loaded<C>, CliError> {
+    let Some(path) = path else {
+        return Ok(Loaded {
+            config: C::default(),
+            keys: Vec::new(),
+        });
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| CliError::Read {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    parse(&text, path)
+}
+
+/// Parses TOML `text` (read from `path`, for messages) into `C`.
+pub(crate) fn parse<C: DeserializeOwned>(text: &str, path: &Path) -> Result<Loaded<C>, CliError> {
+    let config = toml::from_str::<C>(text).map_err(|e| config_error(text, path, &e))?;
+    // The file parsed as C, so it parses as a table too.
+    let keys = toml::from_str::<toml::Table>(text)
+        .map(|t| t.keys().cloned().collect())
+        .unwrap_or_default();
+    Ok(Loaded { config, keys })
+}
+
+/// Serialises a config back to TOML (for the `config.toml` a run writes beside its output).
+pub(crate) fn to_toml<C: Serialize>(config: &C) -> String {
+    toml::to_string_pretty(config).unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
+}
+
+/// One-line message for a TOML error: file, line, and toml's own message (which names an
+/// unknown key and lists the expected ones).
+fn config_error(text: &str, path: &Path, e: &toml::de::Error) -> CliError {
+    let line = e
+        .span()
+        .map(|span| text[..span.start.min(text.len())].matches('\n').count() + 1);
+    CliError::Config {
+        path: path.to_path_buf(),
+        line,
+        message: e.message().trim().replace('\n', " "),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde::Deserialize;
+
+    #[derive(Debug, Default, Deserialize, PartialEq)]
+    #[serde(deny_unknown_fields, default)]
+    struct Demo {
+        particles: usize,
+        sigma: f64,
+    }
+
+    #[test]
+    fn partial_file_keeps_defaults() {
+        let l: Loaded<Demo> = parse("particles = 7\n", Path::new("x.toml")).unwrap();
+        assert_eq!(
+            l.config,
+            Demo {
+                particles: 7,
+                sigma: 0.0
+            }
+        );
+        assert_eq!(l.keys, vec!["particles".to_string()]);
+    }
+
+    #[test]
+    fn unknown_key_is_named_with_its_line() {
+        let err = parse::<Demo>("particles = 7\n\nsigmaa = 1.0\n", Path::new("x.toml"))
+            .err()
+            .unwrap();
+        let msg = err.to_string();
+        assert!(msg.contains("sigmaa"), "{msg}");
+        assert!(msg.contains("line 3"), "{msg}");
+        assert!(!msg.contains('\n'), "{msg}");
+    }
+
+    #[test]
+    fn wrong_type_is_an_error() {
+        assert!(parse::<Demo>("particles = \"many\"\n", Path::new("x.toml")).is_err());
+    }
+}

@@ -1,0 +1,120 @@
+//! The one error type of the `slam` program. Every variant prints as one line that says
+//! what was wrong and, where it helps, what to do instead.
+
+use slam_models::FilterError;
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Why a `slam` command failed.
+#[derive(Debug, Error)]
+pub enum CliError {
+    /// The command line could not be parsed (clap's first error line).
+    #[error("{0}")]
+    Usage(String),
+    /// An argument is well-formed but cannot be used as given.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// No filter has this name.
+    #[error("unknown filter `{name}` (known filters: {known}; see `slam list`)")]
+    UnknownFilter {
+        /// The name given.
+        name: String,
+        /// The known names, comma-separated.
+        known: String,
+    },
+    /// The filter exists but is not built into this program yet.
+    #[error("filter `{name}` is not available in this build: {reason}")]
+    FilterUnavailable {
+        /// The filter's name.
+        name: String,
+        /// Why, in words.
+        reason: String,
+    },
+    /// The filter works on the other kind of data (landmark vs laser).
+    #[error("filter `{filter}` needs {needs} data, but {input} is {found} data (filters for it: {suggest})")]
+    WrongDataKind {
+        /// The filter's name.
+        filter: String,
+        /// The kind the filter needs.
+        needs: &'static str,
+        /// What the input is (dataset path or scenario).
+        input: String,
+        /// The kind the input has.
+        found: &'static str,
+        /// Filters that take that kind of data.
+        suggest: String,
+    },
+    /// A configuration file could not be parsed, or has a key the filter does not know.
+    #[error("config file {}{}: {message}", path.display(), line.map(|l| format!(" line {l}")).unwrap_or_default())]
+    Config {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the problem, when known.
+        line: Option<usize>,
+        /// What was wrong (toml's message, which names the key).
+        message: String,
+    },
+    /// The filter's constructor rejected its configuration.
+    #[error("filter `{filter}`: invalid configuration: {message}")]
+    FilterConfig {
+        /// The filter's name.
+        filter: String,
+        /// The constructor's error message.
+        message: String,
+    },
+    /// A file could not be read.
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An output file or folder could not be written.
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        /// The file or folder.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Reading a dataset, writing an output or computing a metric failed in slam-io.
+    #[error(transparent)]
+    Io(#[from] slam_io::IoError),
+    /// The simulator rejected the scenario or its options.
+    #[error(transparent)]
+    Sim(#[from] slam_sim::SimError),
+    /// The filter failed while processing the data.
+    #[error("filter `{filter}` failed at step {step} (t = {t} s): {source}")]
+    FilterStep {
+        /// The filter's name.
+        filter: String,
+        /// 0-based step (or record) index.
+        step: usize,
+        /// The step's time.
+        t: f64,
+        /// The filter's error.
+        #[source]
+        source: FilterError,
+    },
+    /// The worker thread pool could not be created.
+    #[error("cannot start {threads} worker threads: {message}")]
+    Threads {
+        /// Threads asked for.
+        threads: usize,
+        /// rayon's message.
+        message: String,
+    },
+}
+
+impl CliError {
+    /// The process exit code: 2 for command-line mistakes, 1 for everything else.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            CliError::Usage(_) => 2,
+            _ => 1,
+        }
+    }
+}

@@ -1,0 +1,249 @@
+//! The filters the program knows, and building one by name behind `Box<dyn LandmarkSlam>` or
+//! `Box<dyn ScanSlam>`.
+//!
+//! Each filter's configuration comes from its crate's config struct: the `Default` (documented
+//! there), then the `--config` TOML file over it, then `--particles` over that. For simulated
+//! runs the filter's motion and sensor noise default to the models the data was generated
+//! with, unless the file sets `motion` or `sensor` itself.
+
+use crate::config::{self, Loaded};
+use crate::error::CliError;
+use slam_models::measurement::RangeBearingModel;
+use slam_models::motion::MotionModels;
+use slam_models::{LandmarkSlam, Pose2, ScanSlam};
+use std::path::Path;
+
+/// The two kinds of data (and of filters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataKind {
+    /// Range-bearing observations of point landmarks.
+    Landmark,
+    /// Odometry and laser scans.
+    Laser,
+}
+
+impl DataKind {
+    /// `"landmark"` or `"laser"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DataKind::Landmark => "landmark",
+            DataKind::Laser => "laser",
+        }
+    }
+}
+
+/// A filter the program knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FilterInfo {
+    /// The `--filter` name.
+    pub name: &'static str,
+    /// The data it runs on.
+    pub kind: DataKind,
+    /// One line: what it is.
+    pub description: &'static str,
+    /// True for particle filters (`--particles` applies).
+    pub particle_filter: bool,
+    /// `None` when built into this program; otherwise why not.
+    pub unavailable: Option<&'static str>,
+}
+
+/// Every filter, in a fixed order.
+pub fn filters() -> Vec<FilterInfo> {
+    vec![
+        FilterInfo {
+            name: "ekf",
+            kind: DataKind::Landmark,
+            description:
+                "EKF-SLAM (PR ch. 10), dense covariance, known or unknown data association",
+            particle_filter: false,
+            unavailable: Some("the slam-ekf crate has not landed yet"),
+        },
+        FilterInfo {
+            name: "fastslam1",
+            kind: DataKind::Landmark,
+            description:
+                "FastSLAM 1.0 (Montemerlo et al. 2002, PR ch. 13), a landmark EKF per particle",
+            particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "fastslam2",
+            kind: DataKind::Landmark,
+            description:
+                "FastSLAM 2.0 (Montemerlo et al. 2003), proposal using the current observations",
+            particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "scanmatch",
+            kind: DataKind::Laser,
+            description: "scan-matching odometry against an occupancy grid (no loop closure)",
+            particle_filter: false,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "gridfast",
+            kind: DataKind::Laser,
+            description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
+            particle_filter: true,
+            unavailable: Some("the slam-gridfast crate has not landed yet"),
+        },
+    ]
+}
+
+/// The filter called `name`, whether or not it is available.
+pub fn find(name: &str) -> Result<FilterInfo, CliError> {
+    let all = filters();
+    all.iter()
+        .find(|f| f.name == name)
+        .copied()
+        .ok_or_else(|| CliError::UnknownFilter {
+            name: name.to_string(),
+            known: all.iter().map(|f| f.name).collect::<Vec<_>>().join(", "),
+        })
+}
+
+/// Names of the filters of one kind, comma separated.
+pub(crate) fn names_of(kind: DataKind) -> String {
+    filters()
+        .iter()
+        .filter(|f| f.kind == kind)
+        .map(|f| f.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Everything a filter needs besides its name.
+pub(crate) struct Setup<'a> {
+    /// `--config`.
+    pub config_path: Option<&'a Path>,
+    /// `--particles`.
+    pub particles: Option<usize>,
+    /// Seed of the filter's random numbers.
+    pub seed: u64,
+    /// The robot's initial pose (landmark data).
+    pub initial_pose: Pose2,
+    /// The noise models simulated data was generated with.
+    pub sim_models: Option<(MotionModels, RangeBearingModel)>,
+}
+
+/// A built filter and the configuration it runs with (as TOML, written beside the output).
+pub(crate) struct Built<F: ?Sized> {
+    /// The filter.
+    pub filter: Box<F>,
+    /// The effective configuration, TOML.
+    pub config_toml: String,
+}
+
+fn unavailable(info: &FilterInfo) -> CliError {
+    CliError::FilterUnavailable {
+        name: info.name.to_string(),
+        reason: info.unavailable.unwrap_or("not built in").to_string(),
+    }
+}
+
+fn check_particles(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
+    if setup.particles.is_some() && !info.particle_filter {
+        return Err(CliError::InvalidArgument(format!(
+            "--particles applies to particle filters (fastslam1, fastslam2, gridfast); `{}` has none",
+            info.name
+        )));
+    }
+    Ok(())
+}
+
+/// The simulator's noise models, each `None` when the config file sets it (`motion`,
+/// `sensor`) or the data is not simulated.
+fn sim_noise<C>(
+    loaded: &Loaded<C>,
+    setup: &Setup<'_>,
+) -> (Option<MotionModels>, Option<RangeBearingModel>) {
+    let has = |k: &str| loaded.keys.iter().any(|x| x == k);
+    match setup.sim_models {
+        Some((motion, sensor)) => (
+            (!has("motion")).then_some(motion),
+            (!has("sensor")).then_some(sensor),
+        ),
+        None => (None, None),
+    }
+}
+
+/// Builds a landmark filter.
+pub(crate) fn build_landmark(
+    info: &FilterInfo,
+    setup: &Setup<'_>,
+) -> Result<Built<dyn LandmarkSlam>, CliError> {
+    check_particles(info, setup)?;
+    if info.unavailable.is_some() {
+        return Err(unavailable(info));
+    }
+    let invalid = |e: &dyn std::fmt::Display| CliError::FilterConfig {
+        filter: info.name.to_string(),
+        message: e.to_string(),
+    };
+    match info.name {
+        "fastslam1" | "fastslam2" => {
+            use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
+            let mut loaded = config::load::<FastSlamConfig>(setup.config_path)?;
+            let variant = if info.name == "fastslam1" {
+                Variant::FastSlam1
+            } else {
+                Variant::FastSlam2
+            };
+            if loaded.keys.iter().any(|k| k == "variant") && loaded.config.variant != variant {
+                return Err(CliError::InvalidArgument(format!(
+                    "the config file sets variant = {:?} but --filter is {}; remove `variant` or pick the other filter",
+                    loaded.config.variant, info.name
+                )));
+            }
+            let (motion, sensor) = sim_noise(&loaded, setup);
+            let c = &mut loaded.config;
+            c.variant = variant;
+            if let Some(m) = motion {
+                c.motion = m;
+            }
+            if let Some(s) = sensor {
+                c.sensor = s;
+            }
+            if let Some(n) = setup.particles {
+                c.particles = n;
+            }
+            let config_toml = config::to_toml(&loaded.config);
+            let f = FastSlam::new(loaded.config, setup.initial_pose, setup.seed)
+                .map_err(|e| invalid(&e))?;
+            Ok(Built {
+                filter: Box::new(f),
+                config_toml,
+            })
+        }
+        _ => Err(unavailable(info)),
+    }
+}
+
+/// Builds a laser (scan) filter.
+pub(crate) fn build_scan(
+    info: &FilterInfo,
+    setup: &Setup<'_>,
+) -> Result<Built<dyn ScanSlam>, CliError> {
+    check_particles(info, setup)?;
+    if info.unavailable.is_some() {
+        return Err(unavailable(info));
+    }
+    let invalid = |e: &dyn std::fmt::Display| CliError::FilterConfig {
+        filter: info.name.to_string(),
+        message: e.to_string(),
+    };
+    match info.name {
+        "scanmatch" => {
+            use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
+            let loaded = config::load::<ScanMatchConfig>(setup.config_path)?;
+            let config_toml = config::to_toml(&loaded.config);
+            let f = ScanMatchOdometry::new(loaded.config).map_err(|e| invalid(&e))?;
+            Ok(Built {
+                filter: Box::new(f),
+                config_toml,
+            })
+        }
+        _ => Err(unavailable(info)),
+    }
+}

@@ -1,0 +1,106 @@
+//! # slam-cli: the `slam` program
+//!
+//! ```text
+//! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N])
+//!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
+//!           [--out <dir>] [--threads N] [--quiet]
+//! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
+//! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
+//! slam list
+//! ```
+//!
+//! The program is this library plus a thin `main`: [`main_with_args`] parses a command line,
+//! runs it, writes the human summary to the given writer and returns what it did
+//! ([`Outcome`]), so tests drive the program without a subprocess. Errors are a
+//! [`CliError`], printed by `main` as one line `slam: error: …` with a non-zero exit code.
+//!
+//! Output of `slam run` (in `--out`, default `./slam-out/<filter>-<dataset>`):
+//! `trajectory.tum`, `map.png`, `landmarks.csv` (landmark filters) or `map.pgm` + `map.yaml`
+//! (laser filters), `config.toml` (the configuration actually used) and `metrics.json`
+//! ([`Metrics`], a fixed set of keys, `null` where a figure cannot be computed).
+
+#![warn(missing_docs)]
+
+pub mod cli;
+mod config;
+pub mod error;
+pub mod eval;
+pub mod filters;
+mod list;
+pub mod metrics;
+mod progress;
+pub mod run;
+pub mod sim;
+
+pub use error::CliError;
+pub use eval::EvalReport;
+pub use metrics::Metrics;
+pub use run::RunReport;
+pub use sim::SimReport;
+
+use clap::error::ErrorKind;
+use clap::Parser;
+use std::ffi::OsString;
+use std::io::Write;
+
+/// What a successful command did.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Help or version text was printed.
+    Help,
+    /// `slam list` printed the filters and scenarios.
+    Listed,
+    /// `slam run` finished.
+    Ran(Box<RunReport>),
+    /// `slam sim` wrote a dataset.
+    Simulated(SimReport),
+    /// `slam eval` computed metrics.
+    Evaluated(EvalReport),
+}
+
+/// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
+/// the command and writes its human-readable output to `out`.
+pub fn main_with_args<I, T>(args: I, out: &mut dyn Write) -> Result<Outcome, CliError>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let parsed = match cli::Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            return match e.kind() {
+                ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => {
+                    let _ = write!(out, "{}", e.render());
+                    Ok(Outcome::Help)
+                }
+                _ => Err(CliError::Usage(usage_message(&e))),
+            }
+        }
+    };
+    match parsed.command {
+        cli::Command::Run(a) => run::run(&a, out).map(|r| Outcome::Ran(Box::new(r))),
+        cli::Command::Sim(a) => sim::sim(&a, out).map(Outcome::Simulated),
+        cli::Command::Eval(a) => eval::eval(&a, out).map(Outcome::Evaluated),
+        cli::Command::List => {
+            list::list(out);
+            Ok(Outcome::Listed)
+        }
+    }
+}
+
+/// Clap's error as one line: its first paragraph, whitespace collapsed, without the
+/// `error:` prefix, plus a pointer to `--help`.
+fn usage_message(e: &clap::Error) -> String {
+    if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+        return "missing subcommand: run, sim, eval or list (see `slam --help`)".into();
+    }
+    let text = e.render().to_string();
+    let first: Vec<&str> = text
+        .lines()
+        .take_while(|l| !l.trim().is_empty())
+        .map(str::trim)
+        .collect();
+    let line = first.join(" ");
+    let line = line.strip_prefix("error:").unwrap_or(&line).trim();
+    format!("{line} (see `slam --help`)")
+}

@@ -1,0 +1,40 @@
+//! `slam list`: the filters (with availability) and the scenarios.
+
+use crate::filters::filters;
+use slam_sim::scenario::{self, ScenarioKind};
+use std::io::Write;
+
+/// Prints the filters and scenarios to `out`.
+pub(crate) fn list(out: &mut dyn Write) {
+    let _ = writeln!(out, "Filters (slam run --filter NAME):");
+    for f in filters() {
+        let (status, why) = match f.unavailable {
+            None => ("available", String::new()),
+            Some(why) => ("NOT AVAILABLE", format!(" [{why}]")),
+        };
+        let _ = writeln!(
+            out,
+            "  {:<10} {:<8} {status:<13} {}{why}",
+            f.name,
+            f.kind.as_str(),
+            f.description
+        );
+    }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "Scenarios (slam run --sim NAME, slam sim NAME; all available):"
+    );
+    for s in scenario::list() {
+        let kind = match s.kind {
+            ScenarioKind::Landmark => "landmark",
+            ScenarioKind::Laser => "laser",
+        };
+        let name = if s.name == "replay" {
+            "replay:<map.yaml>".to_string()
+        } else {
+            s.name.to_string()
+        };
+        let _ = writeln!(out, "  {name:<18} {kind:<8} {}", s.description);
+    }
+}

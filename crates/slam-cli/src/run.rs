@@ -1,0 +1,625 @@
+//! `slam run`: one filter over one input (a simulated scenario or a dataset), then the
+//! outputs and the metrics.
+//!
+//! * Landmark filters: `predict` with each step's control, `update` with its observations,
+//!   and the pose after the update is the trajectory entry at the step's time. Outputs:
+//!   `trajectory.tum`, `landmarks.csv`, `map.png`, `config.toml`, `metrics.json`.
+//! * Laser filters: `process` on every record in file order; the trajectory is the filter's
+//!   own, one pose per record. Outputs: `trajectory.tum`, `map.pgm` + `map.yaml`, `map.png`,
+//!   `config.toml`, `metrics.json`.
+//!
+//! Only the filter loop is timed (`wall_s`); reading the data and writing the outputs are not.
+
+use crate::cli::RunArgs;
+use crate::error::CliError;
+use crate::filters::{self, DataKind, FilterInfo, Setup};
+use crate::metrics::{self, Metrics};
+use crate::progress::Progress;
+use crate::sim::scenario_options;
+use slam_io::eval;
+use slam_io::picture::{Picture, Rgb};
+use slam_io::Dataset;
+use slam_models::measurement::RangeBearingModel;
+use slam_models::motion::MotionModels;
+use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What `slam run` did.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    /// The output folder.
+    pub out_dir: PathBuf,
+    /// The metrics written to `metrics.json`.
+    pub metrics: Metrics,
+    /// The one-line description of the input.
+    pub input: String,
+    /// The files written, in order.
+    pub files: Vec<PathBuf>,
+}
+
+/// The data a run works on.
+enum Data {
+    Landmark {
+        dataset: LandmarkDataset,
+        /// The simulator's noise models (simulated runs only).
+        sim_models: Option<(MotionModels, RangeBearingModel)>,
+    },
+    Laser(ScanDataset),
+}
+
+/// The input of a run, loaded.
+struct Input {
+    /// Name for `metrics.json` and the default output folder.
+    name: String,
+    /// What the user gave (`--sim loop`, a path), for messages.
+    label: String,
+    /// One line: what was found.
+    description: String,
+    /// False when the data's times are step indices, not a clock (Freiburg course data).
+    has_clock: bool,
+    data: Data,
+}
+
+impl Input {
+    fn kind(&self) -> DataKind {
+        match self.data {
+            Data::Landmark { .. } => DataKind::Landmark,
+            Data::Laser(_) => DataKind::Laser,
+        }
+    }
+}
+
+/// Runs `slam run` with `args`, printing a short summary to `out`.
+pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
+    let info = filters::find(&args.filter)?;
+    if let Some(why) = info.unavailable {
+        return Err(CliError::FilterUnavailable {
+            name: info.name.to_string(),
+            reason: why.to_string(),
+        });
+    }
+    let mut input = load_input(args)?;
+    let _ = writeln!(out, "input: {}", input.description);
+    if input.kind() != info.kind {
+        return Err(CliError::WrongDataKind {
+            filter: info.name.to_string(),
+            needs: info.kind.as_str(),
+            input: input.label.clone(),
+            found: input.kind().as_str(),
+            suggest: filters::names_of(input.kind()),
+        });
+    }
+    let ground_truth = match &args.ground_truth {
+        Some(p) => Some(slam_io::tum::read_tum(p)?),
+        None => None,
+    };
+    let relations = match &args.relations {
+        Some(p) => Some(slam_io::relations::read_relations(p)?),
+        None => None,
+    };
+    let out_dir = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("slam-out").join(format!("{}-{}", info.name, file_safe(&input.name)))
+    });
+    std::fs::create_dir_all(&out_dir).map_err(|e| CliError::Write {
+        path: out_dir.clone(),
+        source: e,
+    })?;
+    let ctx = RunContext {
+        info,
+        args,
+        out_dir: &out_dir,
+        ground_truth,
+        relations,
+    };
+    let threads = args.threads.map(|t| t as usize);
+    let run = |input: &mut Input| -> Result<(Metrics, Vec<PathBuf>), CliError> {
+        match &mut input.data {
+            Data::Landmark {
+                dataset,
+                sim_models,
+            } => run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_models),
+            Data::Laser(dataset) => run_scan(&ctx, &input.name, input.has_clock, dataset),
+        }
+    };
+    let (metrics, files) = match threads {
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| CliError::Threads {
+                    threads: n,
+                    message: e.to_string(),
+                })?;
+            pool.install(|| run(&mut input))?
+        }
+        None => run(&mut input)?,
+    };
+    print_summary(out, &metrics, &out_dir, &files);
+    Ok(RunReport {
+        out_dir,
+        metrics,
+        input: input.description,
+        files,
+    })
+}
+
+/// Everything the two run loops share.
+struct RunContext<'a> {
+    info: FilterInfo,
+    args: &'a RunArgs,
+    out_dir: &'a Path,
+    /// `--ground-truth`, read.
+    ground_truth: Option<Vec<TimedPose>>,
+    /// `--relations`, read.
+    relations: Option<Vec<slam_io::relations::Relation>>,
+}
+
+/// Reads the dataset or generates the scenario.
+fn load_input(args: &RunArgs) -> Result<Input, CliError> {
+    if let Some(spec) = &args.sim {
+        let (name, opts) = scenario_options(spec, args.seed, args.steps)?;
+        let output = slam_sim::scenario::generate(&name, &opts)?;
+        return Ok(match output {
+            slam_sim::SimOutput::Landmark(run) => {
+                let d = &run.dataset;
+                let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
+                Input {
+                    description: format!(
+                        "simulated scenario {name} (seed {}): {} steps, {obs} observations, {} true landmarks, ground truth",
+                        args.seed,
+                        d.steps.len(),
+                        d.landmarks.as_ref().map_or(0, Vec::len),
+                    ),
+                    name: base_name(&name),
+                    label: format!("scenario {spec}"),
+                    has_clock: true,
+                    data: Data::Landmark {
+                        dataset: run.dataset,
+                        sim_models: Some((run.motion, run.sensor)),
+                    },
+                }
+            }
+            slam_sim::SimOutput::Laser(run) => {
+                let d = &run.dataset;
+                let scans = d.records.iter().filter(|r| r.scan.is_some()).count();
+                Input {
+                    description: format!(
+                        "simulated scenario {name} (seed {}): {} records, {scans} scans, ground truth",
+                        args.seed,
+                        d.records.len(),
+                    ),
+                    name: base_name(&name),
+                    label: format!("scenario {spec}"),
+                    has_clock: true,
+                    data: Data::Laser(run.dataset),
+                }
+            }
+        });
+    }
+    let Some(path) = &args.dataset else {
+        return Err(CliError::InvalidArgument(
+            "give either --sim <scenario> or --dataset <path>".into(),
+        ));
+    };
+    let (dataset, description) = slam_io::open_dataset(path, args.robot)?;
+    let stem = path
+        .file_name()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "dataset".into());
+    let stem = stem
+        .trim_end_matches(".gz")
+        .trim_end_matches(".log")
+        .trim_end_matches(".clf")
+        .to_string();
+    let name_of = |n: &str| {
+        if n.is_empty() {
+            stem.clone()
+        } else {
+            n.to_string()
+        }
+    };
+    // Freiburg course data has no clock: its step times are indices, unless the folder
+    // carries the `times.dat` sidecar that simulated data is written with.
+    let freiburg_without_clock =
+        path.join("sensor_data.dat").is_file() && !path.join("times.dat").is_file();
+    Ok(match dataset {
+        Dataset::Landmark(d) => Input {
+            name: name_of(&d.name),
+            label: path.display().to_string(),
+            description,
+            has_clock: !freiburg_without_clock,
+            data: Data::Landmark {
+                dataset: d,
+                sim_models: None,
+            },
+        },
+        Dataset::Scan(d) => Input {
+            name: name_of(&d.name),
+            label: path.display().to_string(),
+            description,
+            has_clock: true,
+            data: Data::Laser(d),
+        },
+    })
+}
+
+/// `replay:maps/x.yaml` → `replay`.
+fn base_name(spec: &str) -> String {
+    spec.split_once(':').map_or(spec, |(b, _)| b).to_string()
+}
+
+/// A name usable as part of a folder name.
+fn file_safe(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn duration(first: Option<f64>, last: Option<f64>, has_clock: bool) -> Option<f64> {
+    match (first, last, has_clock) {
+        (Some(a), Some(b), true) => Some(b - a),
+        _ => None,
+    }
+}
+
+fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
+    move |e| CliError::Write {
+        path: path.to_path_buf(),
+        source: e,
+    }
+}
+
+/// Orange for the estimated trajectory.
+const ESTIMATE: Rgb = Rgb([230, 110, 0]);
+
+fn run_landmark(
+    ctx: &RunContext<'_>,
+    name: &str,
+    has_clock: bool,
+    dataset: &LandmarkDataset,
+    sim_models: Option<(MotionModels, RangeBearingModel)>,
+) -> Result<(Metrics, Vec<PathBuf>), CliError> {
+    let info = &ctx.info;
+    let built = filters::build_landmark(
+        info,
+        &Setup {
+            config_path: ctx.args.config.as_deref(),
+            particles: ctx.args.particles.map(|p| p as usize),
+            seed: ctx.args.seed,
+            initial_pose: dataset.initial_pose,
+            sim_models,
+        },
+    )?;
+    let mut filter = built.filter;
+    let steps = &dataset.steps;
+    let ground_truth = ctx.ground_truth.as_ref().or(dataset.ground_truth.as_ref());
+    // NEES needs the true pose at every step: a ground truth with exactly the steps' times.
+    let truth_per_step = ground_truth.filter(|g| {
+        g.len() == steps.len() && g.iter().zip(steps).all(|(p, s)| (p.t - s.t).abs() < 1e-9)
+    });
+
+    let mut trajectory = Vec::with_capacity(steps.len());
+    let mut nees = Vec::new();
+    let mut progress = Progress::new(steps.len(), ctx.args.quiet);
+    let start = Instant::now();
+    for (k, step) in steps.iter().enumerate() {
+        let fail = |source| CliError::FilterStep {
+            filter: info.name.to_string(),
+            step: k,
+            t: step.t,
+            source,
+        };
+        filter.predict(&step.control).map_err(fail)?;
+        filter.update(&step.observations).map_err(fail)?;
+        let pose = filter.pose();
+        trajectory.push(TimedPose { t: step.t, pose });
+        if let Some(truth) = truth_per_step {
+            nees.push(eval::nees_pose(
+                &pose,
+                &filter.pose_covariance(),
+                &truth[k].pose,
+            ));
+        }
+        progress.set(k + 1);
+    }
+    let wall = start.elapsed().as_secs_f64();
+    progress.finish();
+
+    let landmarks = filter.landmarks();
+    let particles = filter.particles();
+    let mut m = Metrics::new(info.name, name, steps.len());
+    m.set_timing(
+        wall,
+        duration(
+            steps.first().map(|s| s.t),
+            steps.last().map(|s| s.t),
+            has_clock,
+        ),
+    );
+    if let Some(gt) = ground_truth {
+        trajectory_metrics(&mut m, &trajectory, gt);
+    }
+    if let Some(rel) = &ctx.relations {
+        relations_metrics(&mut m, &trajectory, rel);
+    }
+    if let Some(truth) = &dataset.landmarks {
+        let by_id = steps
+            .iter()
+            .flat_map(|s| &s.observations)
+            .any(|o| o.id.is_some());
+        if !landmarks.is_empty() && !truth.is_empty() {
+            let e = eval::landmark_error(&landmarks, truth, by_id);
+            m.landmark_rmse_m = metrics::finite(Some(e.rmse));
+            m.landmark_rmse_aligned_m = metrics::finite(Some(e.rmse_aligned));
+        }
+    }
+    if !nees.is_empty() {
+        let finite: Vec<f64> = nees.iter().copied().filter(|v| v.is_finite()).collect();
+        if !finite.is_empty() {
+            m.nees_pose_mean = Some(finite.iter().sum::<f64>() / finite.len() as f64);
+        }
+    }
+    m.peak_rss_mb = metrics::peak_rss_mb();
+
+    let dir = ctx.out_dir;
+    let mut files = Vec::new();
+    let p = dir.join("trajectory.tum");
+    slam_io::tum::write_tum(&p, &trajectory)?;
+    files.push(p);
+    let p = dir.join("landmarks.csv");
+    slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
+    files.push(p);
+    let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
+    let mut pic = Picture::new();
+    if let Some(gt) = ground_truth {
+        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
+        pic = pic.ground_truth(&gt);
+    }
+    if let Some(truth) = &dataset.landmarks {
+        pic = pic.true_landmarks(truth);
+    }
+    pic = pic.trajectory(&poses, ESTIMATE).landmarks(&landmarks);
+    if let Some(cloud) = &particles {
+        pic = pic.particles(cloud);
+    }
+    let p = dir.join("map.png");
+    pic.save_png(&p)?;
+    files.push(p);
+    let p = dir.join("config.toml");
+    std::fs::write(&p, &built.config_toml).map_err(write_err(&p))?;
+    files.push(p);
+    let p = dir.join("metrics.json");
+    m.write(&p).map_err(write_err(&p))?;
+    files.push(p);
+    Ok((m, files))
+}
+
+fn run_scan(
+    ctx: &RunContext<'_>,
+    name: &str,
+    has_clock: bool,
+    dataset: &ScanDataset,
+) -> Result<(Metrics, Vec<PathBuf>), CliError> {
+    let info = &ctx.info;
+    let built = filters::build_scan(
+        info,
+        &Setup {
+            config_path: ctx.args.config.as_deref(),
+            particles: ctx.args.particles.map(|p| p as usize),
+            seed: ctx.args.seed,
+            initial_pose: slam_models::Pose2::default(),
+            sim_models: None,
+        },
+    )?;
+    let mut filter = built.filter;
+    let records = &dataset.records;
+    let mut progress = Progress::new(records.len(), ctx.args.quiet);
+    let start = Instant::now();
+    for (k, record) in records.iter().enumerate() {
+        filter
+            .process(record)
+            .map_err(|source| CliError::FilterStep {
+                filter: info.name.to_string(),
+                step: k,
+                t: record.t,
+                source,
+            })?;
+        progress.set(k + 1);
+    }
+    let trajectory = filter.trajectory();
+    let map = filter.map();
+    let wall = start.elapsed().as_secs_f64();
+    progress.finish();
+    let particles = filter.particles();
+    if trajectory.len() != records.len() {
+        eprintln!(
+            "slam: warning: filter `{}` returned {} poses for {} records (the ScanSlam contract is one per record)",
+            info.name,
+            trajectory.len(),
+            records.len()
+        );
+    }
+
+    let mut m = Metrics::new(info.name, name, records.len());
+    m.set_timing(
+        wall,
+        duration(
+            records.first().map(|r| r.t),
+            records.last().map(|r| r.t),
+            has_clock,
+        ),
+    );
+    // Laser filters start at the identity pose (ScanSlam takes no initial pose), so the
+    // ground truth is re-expressed in the estimate's frame, anchored at their first common
+    // pose: "as is" then means "sharing the start frame", as for landmark runs.
+    let ground_truth = ctx
+        .ground_truth
+        .as_ref()
+        .or(dataset.ground_truth.as_ref())
+        .map(|gt| anchor_ground_truth(&trajectory, gt));
+    if let Some(gt) = &ground_truth {
+        trajectory_metrics(&mut m, &trajectory, gt);
+    }
+    if let Some(rel) = &ctx.relations {
+        relations_metrics(&mut m, &trajectory, rel);
+    }
+    m.peak_rss_mb = metrics::peak_rss_mb();
+
+    let dir = ctx.out_dir;
+    let mut files = Vec::new();
+    let p = dir.join("trajectory.tum");
+    slam_io::tum::write_tum(&p, &trajectory)?;
+    files.push(p);
+    slam_io::ros_map::write_ros_map(dir, "map", &map)?;
+    files.push(dir.join("map.pgm"));
+    files.push(dir.join("map.yaml"));
+    let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
+    let mut pic = Picture::new().map(&map);
+    if let Some(gt) = ground_truth {
+        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
+        pic = pic.ground_truth(&gt);
+    }
+    pic = pic.trajectory(&poses, ESTIMATE);
+    if let Some(cloud) = &particles {
+        pic = pic.particles(cloud);
+    }
+    let p = dir.join("map.png");
+    pic.save_png(&p)?;
+    files.push(p);
+    let p = dir.join("config.toml");
+    std::fs::write(&p, &built.config_toml).map_err(write_err(&p))?;
+    files.push(p);
+    let p = dir.join("metrics.json");
+    m.write(&p).map_err(write_err(&p))?;
+    files.push(p);
+    Ok((m, files))
+}
+
+/// The ground truth moved rigidly so that its first pose with an estimate at the same time
+/// (within [`eval::DEFAULT_MAX_DT`]) coincides with that estimate: T = e ⊕ g⁻¹ applied to
+/// every ground-truth pose. Unchanged when no pose matches in time (ATE then says so).
+fn anchor_ground_truth(trajectory: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
+    let est = eval::sorted_by_time(trajectory);
+    let anchor = eval::sorted_by_time(gt).into_iter().find_map(|g| {
+        eval::lookup(&est, g.t, eval::DEFAULT_MAX_DT)
+            .map(|i| est[i].pose.compose(&g.pose.inverse()))
+    });
+    match anchor {
+        Some(t) => gt
+            .iter()
+            .map(|g| TimedPose {
+                t: g.t,
+                pose: t.compose(&g.pose),
+            })
+            .collect(),
+        None => gt.to_vec(),
+    }
+}
+
+/// ATE (as is, aligned) and RPE against a ground-truth trajectory. A metric that cannot be
+/// computed (no pose matched in time, …) stays null, with a warning on stderr: the run's
+/// outputs are still written.
+fn trajectory_metrics(m: &mut Metrics, trajectory: &[TimedPose], gt: &[TimedPose]) {
+    match eval::ate(trajectory, gt) {
+        Ok(ate) => {
+            m.ate_rmse_m = Some(ate.rmse);
+            m.ate_rmse_aligned_m = Some(ate.rmse_aligned);
+        }
+        Err(e) => eprintln!("slam: warning: no ATE: {e}"),
+    }
+    match eval::rpe(trajectory, gt) {
+        Ok(rpe) => {
+            m.rpe_trans_mean_m = Some(rpe.trans_mean);
+            m.rpe_rot_mean_deg = Some(rpe.rot_mean_deg);
+        }
+        Err(e) => eprintln!("slam: warning: no RPE: {e}"),
+    }
+}
+
+/// The Kümmerle et al. relations metric.
+fn relations_metrics(
+    m: &mut Metrics,
+    trajectory: &[TimedPose],
+    relations: &[slam_io::relations::Relation],
+) {
+    let r = eval::relations_error(trajectory, relations);
+    if r.used > 0 {
+        m.relations_trans_mean_m = Some(r.trans_mean);
+        m.relations_rot_mean_deg = Some(r.rot_mean_deg);
+    } else {
+        eprintln!(
+            "slam: warning: none of the {} relations has both ends in the trajectory (within 6 ms); is it on the same clock?",
+            relations.len()
+        );
+    }
+}
+
+fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+    match v {
+        Some(x) => format!("{x:.3}{unit}"),
+        None => "n/a".into(),
+    }
+}
+
+fn print_summary(out: &mut dyn Write, m: &Metrics, dir: &Path, files: &[PathBuf]) {
+    let rtf = m
+        .real_time_factor
+        .map(|r| format!(", {r:.1}x real time"))
+        .unwrap_or_default();
+    let _ = writeln!(
+        out,
+        "{} on {}: {} steps in {:.2} s ({:.0} steps/s{rtf}), peak memory {}",
+        m.filter,
+        m.dataset,
+        m.steps,
+        m.wall_s,
+        m.steps_per_s.unwrap_or(0.0),
+        fmt_opt(m.peak_rss_mb, " MB"),
+    );
+    if m.ate_rmse_m.is_some() {
+        let _ = writeln!(
+            out,
+            "  ATE {} (aligned {}), RPE {} / {}",
+            fmt_opt(m.ate_rmse_m, " m"),
+            fmt_opt(m.ate_rmse_aligned_m, " m"),
+            fmt_opt(m.rpe_trans_mean_m, " m"),
+            fmt_opt(m.rpe_rot_mean_deg, " deg"),
+        );
+    }
+    if m.landmark_rmse_m.is_some() {
+        let _ = writeln!(
+            out,
+            "  landmarks RMSE {} (aligned {})",
+            fmt_opt(m.landmark_rmse_m, " m"),
+            fmt_opt(m.landmark_rmse_aligned_m, " m"),
+        );
+    }
+    if m.nees_pose_mean.is_some() {
+        let _ = writeln!(
+            out,
+            "  mean pose NEES {} (3 for a consistent filter)",
+            fmt_opt(m.nees_pose_mean, ""),
+        );
+    }
+    if m.relations_trans_mean_m.is_some() {
+        let _ = writeln!(
+            out,
+            "  relations error {} / {}",
+            fmt_opt(m.relations_trans_mean_m, " m"),
+            fmt_opt(m.relations_rot_mean_deg, " deg"),
+        );
+    }
+    let names: Vec<String> = files
+        .iter()
+        .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().to_string()))
+        .collect();
+    let _ = writeln!(out, "  wrote {}/{{{}}}", dir.display(), names.join(", "));
+}

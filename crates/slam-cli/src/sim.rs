@@ -1,0 +1,134 @@
+//! `slam sim`: writes a simulated dataset in the formats the readers take, with its ground
+//! truth, so that `slam run --dataset` can replay it.
+//!
+//! * Landmark scenarios → a Freiburg course folder: `world.dat` (the true landmarks),
+//!   `sensor_data.dat`, and the sidecars `initial_pose.dat`, `times.dat` and
+//!   `ground_truth.tum` (written by `slam_io::freiburg::write_freiburg`).
+//! * Laser scenarios → a CARMEN log `<scenario>.log` and `ground_truth.tum`.
+//!
+//! `replay:<map.yaml>` reads a ROS map_server map and drives through its free space.
+
+use crate::cli::SimArgs;
+use crate::error::CliError;
+use slam_sim::scenario::ScenarioOptions;
+use slam_sim::SimOutput;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// What `slam sim` wrote.
+#[derive(Debug, Clone)]
+pub struct SimReport {
+    /// The output folder.
+    pub out_dir: PathBuf,
+    /// The path to pass to `slam run --dataset`.
+    pub dataset_path: PathBuf,
+    /// The ground-truth trajectory file.
+    pub ground_truth: PathBuf,
+    /// `"landmark"` or `"laser"`.
+    pub kind: &'static str,
+    /// Steps (landmark) or records (laser) written.
+    pub steps: usize,
+}
+
+/// Scenario name and options for a `--sim`/`slam sim` argument: `replay:<map.yaml>` loads the
+/// map into the options.
+pub(crate) fn scenario_options(
+    spec: &str,
+    seed: u64,
+    steps: Option<u64>,
+) -> Result<(String, ScenarioOptions), CliError> {
+    let mut opts = ScenarioOptions {
+        seed,
+        steps: steps.map(|s| s as usize),
+        ..Default::default()
+    };
+    let name = match spec.split_once(':') {
+        Some(("replay", map)) => {
+            if map.is_empty() {
+                return Err(CliError::InvalidArgument(
+                    "scenario replay needs a map: replay:<map.yaml> (a ROS map_server YAML)".into(),
+                ));
+            }
+            opts.replay_map = Some(slam_io::ros_map::read_ros_map(Path::new(map))?);
+            "replay".to_string()
+        }
+        Some((other, _)) => {
+            return Err(CliError::InvalidArgument(format!(
+                "scenario `{spec}`: only `replay` takes an argument (`replay:<map.yaml>`), not `{other}`"
+            )))
+        }
+        None if spec == "replay" => {
+            return Err(CliError::InvalidArgument(
+                "scenario replay needs a map: replay:<map.yaml> (a ROS map_server YAML)".into(),
+            ))
+        }
+        None => spec.to_string(),
+    };
+    Ok((name, opts))
+}
+
+/// Runs `slam sim` with `args`, printing what was written to `out`.
+pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
+    let (name, opts) = scenario_options(&args.scenario, args.seed, args.steps)?;
+    let output = slam_sim::scenario::generate(&name, &opts)?;
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+        path: dir.clone(),
+        source: e,
+    })?;
+    let gt_path = dir.join("ground_truth.tum");
+    let report = match output {
+        SimOutput::Landmark(run) => {
+            slam_io::freiburg::write_freiburg(dir, &run.dataset)?;
+            let d = &run.dataset;
+            let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
+            let _ = writeln!(
+                out,
+                "wrote {name} (seed {}): {} steps, {obs} observations, {} landmarks as Freiburg course data in {}",
+                args.seed,
+                d.steps.len(),
+                d.landmarks.as_ref().map_or(0, Vec::len),
+                dir.display()
+            );
+            SimReport {
+                out_dir: dir.clone(),
+                dataset_path: dir.clone(),
+                ground_truth: gt_path,
+                kind: "landmark",
+                steps: d.steps.len(),
+            }
+        }
+        SimOutput::Laser(run) => {
+            let log = dir.join(format!("{name}.log"));
+            slam_io::carmen::write_carmen(&log, &run.dataset)?;
+            let d = &run.dataset;
+            let gt = d.ground_truth.as_deref().unwrap_or_default();
+            slam_io::tum::write_tum(&gt_path, gt)?;
+            let scans = d.records.iter().filter(|r| r.scan.is_some()).count();
+            let _ = writeln!(
+                out,
+                "wrote {name} (seed {}): {} records, {scans} scans as a CARMEN log {}",
+                args.seed,
+                d.records.len(),
+                log.display()
+            );
+            SimReport {
+                out_dir: dir.clone(),
+                dataset_path: log,
+                ground_truth: gt_path,
+                kind: "laser",
+                steps: d.records.len(),
+            }
+        }
+    };
+    let _ =
+        writeln!(
+        out,
+        "ground truth: {}\nrun a filter on it: slam run --filter {} --dataset {} --ground-truth {}",
+        report.ground_truth.display(),
+        if report.kind == "landmark" { "fastslam2" } else { "gridfast" },
+        report.dataset_path.display(),
+        report.ground_truth.display()
+    );
+    Ok(report)
+}

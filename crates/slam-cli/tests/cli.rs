@@ -1,0 +1,533 @@
+//! End-to-end tests of the `slam` program: the library entry point `main_with_args` for the
+//! figures, and the built binary for exit codes and error lines.
+//!
+//! (These live in the slam-cli crate rather than the workspace's root `tests/` because the
+//! root package does not depend on slam-cli, and `CARGO_BIN_EXE_slam` only exists here.)
+
+use slam_cli::{filters, main_with_args, CliError, Outcome};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A fresh, empty folder under the system temp dir, unique to this test.
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("slam-cli-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the program in-process; returns the outcome and what it printed.
+fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
+    let mut out = Vec::new();
+    let all = std::iter::once("slam").chain(args.iter().copied());
+    let r = main_with_args(all, &mut out);
+    (r, String::from_utf8(out).unwrap())
+}
+
+/// Runs the built binary; returns exit code, stdout, stderr.
+fn slam_bin(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_slam"))
+        .args(args)
+        .output()
+        .expect("the slam binary runs");
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn available(kind: filters::DataKind) -> Vec<&'static str> {
+    filters::filters()
+        .into_iter()
+        .filter(|f| f.kind == kind && f.unavailable.is_none())
+        .map(|f| f.name)
+        .collect()
+}
+
+/// `../shared/datasets` beside the checkout (or `$SLAM_DATASETS`); `None` with a SKIPPED
+/// line when missing, a failure under `CI=true`.
+fn dataset(rel: &str) -> Option<PathBuf> {
+    let base = std::env::var_os("SLAM_DATASETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
+    let p = base.join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("CI")
+        .map(|v| v == "true" || v == "1")
+        .unwrap_or(false)
+    {
+        panic!("dataset {} is missing and CI=true", p.display());
+    }
+    eprintln!("SKIPPED: dataset {} not found", p.display());
+    None
+}
+
+const METRIC_KEYS: [&str; 17] = [
+    "filter",
+    "dataset",
+    "steps",
+    "wall_s",
+    "steps_per_s",
+    "data_duration_s",
+    "real_time_factor",
+    "ate_rmse_m",
+    "ate_rmse_aligned_m",
+    "rpe_trans_mean_m",
+    "rpe_rot_mean_deg",
+    "landmark_rmse_m",
+    "landmark_rmse_aligned_m",
+    "relations_trans_mean_m",
+    "relations_rot_mean_deg",
+    "nees_pose_mean",
+    "peak_rss_mb",
+];
+
+/// Reads `metrics.json` and checks it has exactly the contract's keys.
+fn read_metrics(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("metrics.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+    keys.sort_unstable();
+    let mut want = METRIC_KEYS.to_vec();
+    want.sort_unstable();
+    assert_eq!(keys, want, "metrics.json keys");
+    v
+}
+
+fn num(v: &serde_json::Value, key: &str) -> f64 {
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{key} is {:?}, expected a number", v[key]))
+}
+
+#[test]
+fn list_names_every_filter_and_scenario() {
+    let (r, out) = slam(&["list"]);
+    assert!(matches!(r, Ok(Outcome::Listed)));
+    for f in ["ekf", "fastslam1", "fastslam2", "scanmatch", "gridfast"] {
+        assert!(out.contains(f), "{f} missing from:\n{out}");
+    }
+    for s in ["loop", "figure8", "city", "clutter", "office", "replay"] {
+        assert!(out.contains(s), "{s} missing from:\n{out}");
+    }
+    for f in filters::filters() {
+        let line = out
+            .lines()
+            .find(|l| l.trim_start().starts_with(f.name))
+            .unwrap();
+        assert_eq!(
+            line.contains("NOT AVAILABLE"),
+            f.unavailable.is_some(),
+            "{line}"
+        );
+    }
+}
+
+#[test]
+fn every_landmark_filter_runs_on_a_simulated_loop() {
+    for name in available(filters::DataKind::Landmark) {
+        let dir = scratch(&format!("loop-{name}"));
+        let (r, out) = slam(&[
+            "run",
+            "--filter",
+            name,
+            "--sim",
+            "loop",
+            "--seed",
+            "3",
+            "--steps",
+            "150",
+            "--quiet",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let Ok(Outcome::Ran(report)) = r else {
+            panic!("{name}: {r:?}\n{out}")
+        };
+        let m = read_metrics(&dir);
+        assert_eq!(m["filter"], name);
+        assert_eq!(m["dataset"], "loop");
+        assert_eq!(m["steps"], 150);
+        let ate = num(&m, "ate_rmse_m");
+        assert!(ate.is_finite() && ate < 5.0, "{name}: ATE {ate}");
+        assert!(num(&m, "ate_rmse_aligned_m") <= ate + 1e-9);
+        assert!(num(&m, "landmark_rmse_m").is_finite());
+        assert!(num(&m, "nees_pose_mean") > 0.0);
+        assert!(num(&m, "data_duration_s") > 0.0);
+        assert!(m["relations_trans_mean_m"].is_null());
+        assert_eq!(report.metrics.steps, 150);
+        let tum = std::fs::read_to_string(dir.join("trajectory.tum")).unwrap();
+        assert_eq!(tum.lines().filter(|l| !l.starts_with('#')).count(), 150);
+        for f in ["landmarks.csv", "map.png", "config.toml"] {
+            assert!(dir.join(f).is_file(), "{name}: {f} not written");
+        }
+        assert!(out.contains("ATE"), "{out}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn every_laser_filter_runs_on_the_simulated_office() {
+    for name in available(filters::DataKind::Laser) {
+        let dir = scratch(&format!("office-{name}"));
+        let (r, out) = slam(&[
+            "run",
+            "--filter",
+            name,
+            "--sim",
+            "office",
+            "--steps",
+            "60",
+            "--particles",
+            "5",
+            "--quiet",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let r = if name == "scanmatch" {
+            // scanmatch is no particle filter: --particles must be refused...
+            assert!(matches!(r, Err(CliError::InvalidArgument(_))), "{r:?}");
+            // ...and it runs without.
+            slam(&[
+                "run",
+                "--filter",
+                name,
+                "--sim",
+                "office",
+                "--steps",
+                "60",
+                "--quiet",
+                "--out",
+                dir.to_str().unwrap(),
+            ])
+            .0
+        } else {
+            r
+        };
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{name}: {r:?}\n{out}");
+        let m = read_metrics(&dir);
+        let ate = num(&m, "ate_rmse_m");
+        assert!(ate.is_finite() && ate < 5.0, "{name}: ATE {ate}");
+        assert!(m["landmark_rmse_m"].is_null() && m["nees_pose_mean"].is_null());
+        for f in ["map.pgm", "map.yaml", "map.png", "trajectory.tum"] {
+            assert!(dir.join(f).is_file(), "{name}: {f} not written");
+        }
+        let tum = std::fs::read_to_string(dir.join("trajectory.tum")).unwrap();
+        let poses = tum.lines().filter(|l| !l.starts_with('#')).count();
+        assert_eq!(poses as f64, num(&m, "steps"), "one pose per record");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn unknown_config_key_is_an_error_naming_it() {
+    let Some(name) = filters::filters()
+        .into_iter()
+        .find(|f| f.unavailable.is_none())
+        .map(|f| f.name)
+    else {
+        eprintln!("SKIPPED: no filter available yet");
+        return;
+    };
+    let dir = scratch("badconfig");
+    let cfg = dir.join("bad.toml");
+    std::fs::write(&cfg, "# a typo on line 2\nno_such_parameter = 3\n").unwrap();
+    let sim = if available(filters::DataKind::Landmark).contains(&name) {
+        "loop"
+    } else {
+        "office"
+    };
+    let (r, _) = slam(&[
+        "run",
+        "--filter",
+        name,
+        "--sim",
+        sim,
+        "--steps",
+        "5",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    let e = r.expect_err("an unknown key must be an error");
+    let msg = e.to_string();
+    assert!(matches!(e, CliError::Config { .. }), "{msg}");
+    assert!(
+        msg.contains("no_such_parameter") && msg.contains("line 2"),
+        "{msg}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_dataset_path_is_one_clear_line_and_nonzero() {
+    let (code, stdout, stderr) = slam_bin(&[
+        "run",
+        "--filter",
+        "ekf",
+        "--dataset",
+        "/nonexistent/slam/data",
+        "--quiet",
+    ]);
+    assert_ne!(code, 0);
+    assert!(stdout.is_empty(), "{stdout}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(lines[0].starts_with("slam: error: "), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    if filters::find("ekf").unwrap().unavailable.is_none() {
+        assert!(stderr.contains("/nonexistent/slam/data"), "{stderr}");
+    }
+}
+
+#[test]
+fn usage_mistakes_exit_2_with_one_line() {
+    for args in [
+        vec!["run", "--filter", "ekf"],
+        vec!["run", "--filter", "ekf", "--sim", "loop", "--dataset", "x"],
+        vec!["frobnicate"],
+        vec![],
+        vec!["eval", "--estimate", "x.tum"],
+    ] {
+        let (code, _, stderr) = slam_bin(&args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.starts_with("slam: error: "), "{stderr}");
+    }
+    let (code, stdout, _) = slam_bin(&["--help"]);
+    assert_eq!(code, 0);
+    assert!(stdout.contains("run") && stdout.contains("eval"));
+}
+
+#[test]
+fn unknown_filter_and_scenario_are_clear_errors() {
+    let (r, _) = slam(&["run", "--filter", "ukf", "--sim", "loop"]);
+    let msg = r.err().unwrap().to_string();
+    assert!(msg.contains("ukf") && msg.contains("fastslam2"), "{msg}");
+    let Some(name) = available(filters::DataKind::Landmark).first().copied() else {
+        return;
+    };
+    let (r, _) = slam(&["run", "--filter", name, "--sim", "moon"]);
+    let msg = r.err().unwrap().to_string();
+    assert!(msg.contains("moon") && msg.contains("loop"), "{msg}");
+    let (r, _) = slam(&["run", "--filter", name, "--sim", "office", "--steps", "3"]);
+    let msg = r.err().unwrap().to_string();
+    assert!(msg.contains("laser") && msg.contains("landmark"), "{msg}");
+}
+
+#[test]
+fn unavailable_filters_say_so() {
+    for f in filters::filters()
+        .iter()
+        .filter(|f| f.unavailable.is_some())
+    {
+        let (r, _) = slam(&["run", "--filter", f.name, "--sim", "loop"]);
+        let e = r.err().unwrap();
+        assert!(matches!(e, CliError::FilterUnavailable { .. }), "{e}");
+        assert!(e.to_string().contains("not available"), "{e}");
+    }
+}
+
+/// `slam sim` writes Freiburg files with ground truth; `slam run --dataset` on them gives the
+/// same result as running on the scenario directly (same data up to print precision, same
+/// filter configuration).
+#[test]
+fn sim_then_run_dataset_round_trip() {
+    let dir = scratch("roundtrip");
+    let data = dir.join("data");
+    let (r, out) = slam(&[
+        "sim",
+        "loop",
+        "--seed",
+        "5",
+        "--steps",
+        "120",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    let Ok(Outcome::Simulated(rep)) = r else {
+        panic!("{r:?}")
+    };
+    assert_eq!(rep.steps, 120);
+    assert!(out.contains("slam run"), "{out}");
+    for f in ["world.dat", "sensor_data.dat", "ground_truth.tum"] {
+        assert!(data.join(f).is_file(), "{f} not written");
+    }
+    let Some(name) = available(filters::DataKind::Landmark).first().copied() else {
+        eprintln!("SKIPPED: no landmark filter available yet");
+        return;
+    };
+    // The same explicit noise models for both runs (a simulated run would otherwise take
+    // the simulator's models, a dataset run the filter's defaults).
+    let cfg = dir.join("noise.toml");
+    std::fs::write(
+        &cfg,
+        "[motion.odometry]\nalpha = [0.005, 0.0002, 0.005, 0.0002]\nmin_translation = 0.001\n\
+         [sensor]\nsigma_range = 0.1\nsigma_bearing = 0.0262\n",
+    )
+    .unwrap();
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "run",
+            "--filter",
+            name,
+            "--quiet",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let (r, text) = slam(&args);
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+        read_metrics(out)
+    };
+    let direct = run(
+        &["--sim", "loop", "--seed", "5", "--steps", "120"],
+        &dir.join("a"),
+    );
+    let replay = run(
+        &["--dataset", data.to_str().unwrap(), "--seed", "5"],
+        &dir.join("b"),
+    );
+    assert_eq!(replay["steps"], 120);
+    for key in ["ate_rmse_m", "landmark_rmse_m", "data_duration_s"] {
+        let (a, b) = (num(&direct, key), num(&replay, key));
+        assert!(
+            (a - b).abs() < 1e-3 * (1.0 + a.abs()),
+            "{key}: direct {a}, replayed {b}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A hand-made pair: the estimate is the ground truth shifted by (0.3, 0.4) m, so the ATE as
+/// is is 0.5 m, the aligned ATE and the RPE are 0; then one pose off by 0.4 m in y of four,
+/// so the ATE as is is √(0.4²/4) = 0.2 m.
+#[test]
+fn eval_on_a_hand_made_tum_pair() {
+    let dir = scratch("eval");
+    let gt = dir.join("gt.tum");
+    let est = dir.join("est.tum");
+    let est2 = dir.join("est2.tum");
+    let line = |t: f64, x: f64, y: f64| format!("{t} {x} {y} 0 0 0 0 1\n");
+    let pts = [(0.0, 0.0), (1.0, 0.0), (2.0, 0.0), (3.0, 0.0)];
+    let text = |dx: f64, dy: f64, bump: usize| {
+        pts.iter()
+            .enumerate()
+            .map(|(i, &(x, y))| {
+                let extra = if i == bump { 0.4 } else { 0.0 };
+                line(i as f64, x + dx, y + dy + extra)
+            })
+            .collect::<String>()
+    };
+    std::fs::write(&gt, text(0.0, 0.0, 99)).unwrap();
+    std::fs::write(&est, text(0.3, 0.4, 99)).unwrap();
+    std::fs::write(&est2, text(0.0, 0.0, 2)).unwrap();
+    let (r, out) = slam(&[
+        "eval",
+        "--estimate",
+        est.to_str().unwrap(),
+        "--ground-truth",
+        gt.to_str().unwrap(),
+    ]);
+    let Ok(Outcome::Evaluated(rep)) = r else {
+        panic!("{r:?}")
+    };
+    assert!((rep.ate_rmse_m.unwrap() - 0.5).abs() < 1e-9, "{rep:?}");
+    assert!(rep.ate_rmse_aligned_m.unwrap().abs() < 1e-9, "{rep:?}");
+    assert!(rep.rpe_trans_mean_m.unwrap().abs() < 1e-9, "{rep:?}");
+    assert_eq!(rep.ate_matched, Some(4));
+    assert!(out.contains("0.5000"), "{out}");
+    let (r, _) = slam(&[
+        "eval",
+        "--estimate",
+        est2.to_str().unwrap(),
+        "--ground-truth",
+        gt.to_str().unwrap(),
+    ]);
+    let Ok(Outcome::Evaluated(rep)) = r else {
+        panic!("{r:?}")
+    };
+    assert!((rep.ate_rmse_m.unwrap() - 0.2).abs() < 1e-9, "{rep:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `--threads` changes how the work is spread, never the result.
+#[test]
+fn results_do_not_depend_on_threads() {
+    let Some(name) = available(filters::DataKind::Landmark)
+        .into_iter()
+        .find(|n| n.starts_with("fastslam"))
+    else {
+        eprintln!("SKIPPED: no particle filter available yet");
+        return;
+    };
+    let dir = scratch("threads");
+    let mut trajectories = Vec::new();
+    for t in ["1", "2", "3"] {
+        let out = dir.join(t);
+        let (r, text) = slam(&[
+            "run",
+            "--filter",
+            name,
+            "--sim",
+            "loop",
+            "--steps",
+            "80",
+            "--particles",
+            "30",
+            "--threads",
+            t,
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+        trajectories.push(std::fs::read(out.join("trajectory.tum")).unwrap());
+    }
+    assert_eq!(trajectories[0], trajectories[1]);
+    assert_eq!(trajectories[0], trajectories[2]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The Freiburg course data: no clock (data duration null), true landmarks known.
+#[test]
+fn freiburg_course_data_runs_with_landmark_error() {
+    let Some(path) = dataset("freiburg-robot-mapping") else {
+        return;
+    };
+    let Some(name) = available(filters::DataKind::Landmark).first().copied() else {
+        eprintln!("SKIPPED: no landmark filter available yet");
+        return;
+    };
+    let dir = scratch("freiburg");
+    let (r, out) = slam(&[
+        "run",
+        "--filter",
+        name,
+        "--dataset",
+        path.to_str().unwrap(),
+        "--quiet",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{out}");
+    assert!(
+        out.contains("331"),
+        "the description names the 331 steps: {out}"
+    );
+    let m = read_metrics(&dir);
+    assert_eq!(m["steps"], 331);
+    assert!(m["data_duration_s"].is_null() && m["real_time_factor"].is_null());
+    assert!(
+        m["ate_rmse_m"].is_null(),
+        "no ground-truth trajectory in this dataset"
+    );
+    assert!(num(&m, "landmark_rmse_aligned_m").is_finite());
+    let _ = std::fs::remove_dir_all(&dir);
+}
