@@ -193,9 +193,13 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
     // Loose bounds that plain odometry fails by far.
     assert!(ate_sm.rmse < 1.0, "scanmatch ATE {}", ate_sm.rmse);
     assert!(ate_od.rmse > 1.0, "odometry ATE {}", ate_od.rmse);
+    // Per-scan translation error is at the level of the reference itself (GMapping's poses,
+    // a few cm); the rotational drift is what odometry gets wrong.
     assert!(
-        rpe_sm.trans_mean < rpe_od.trans_mean,
-        "scanmatch RPE not below odometry's"
+        rpe_sm.rot_mean_deg < 0.5 * rpe_od.rot_mean_deg,
+        "scanmatch rotational RPE {} vs odometry {}",
+        rpe_sm.rot_mean_deg,
+        rpe_od.rot_mean_deg
     );
 }
 
