@@ -120,7 +120,7 @@ fn summary() {
             c.as_secs_f64() * 1e3,
             u.as_secs_f64() / c.as_secs_f64()
         );
-        upd.push((n, u.as_secs_f64()));
+        upd.push((n, u.as_secs_f64(), c.as_secs_f64()));
         if n == 2000 {
             let u = Control::Odometry(OdometryControl {
                 rot1: 0.01,

@@ -44,9 +44,13 @@ pub struct EkfConfig {
     pub association: AssociationMode,
     /// Individual-compatibility gate: an observation may match a landmark when its
     /// Mahalanobis distance d² = νᵀS⁻¹ν is below the chi-square quantile with 2 dof at this
-    /// probability. Also the gate inside which an unmatched observation is deemed
-    /// ambiguous and discarded rather than starting a new landmark.
+    /// probability.
     pub gate_probability: f64,
+    /// An id-less observation left unpaired is discarded as ambiguous, rather than
+    /// starting a new landmark, when some landmark lies inside this wider χ²₂ gate (at least
+    /// `gate_probability`): a duplicate of a mapped landmark costs more than a lost
+    /// observation.
+    pub new_landmark_gate_probability: f64,
     /// Joint-compatibility gate of JCBB: a hypothesis with k pairings is accepted when its
     /// joint d² is below χ²_{2k} at this probability.
     pub joint_probability: f64,
@@ -71,8 +75,8 @@ pub struct EkfConfig {
 impl Default for EkfConfig {
     /// slam-models' default motion and sensor models, no extra motion noise, a zero
     /// initial pose covariance, `Auto` association, gates at 99.9 % (individual), 99 %
-    /// (joint) and 99.99 % (known-id outliers), k = 3 sightings with gaps of at most 3 updates
-    /// (provisional gate 99.9 %), 100 000 JCBB nodes.
+    /// (joint), 99.999 % (no new landmark inside) and 99.99 % (known-id outliers), k = 4 sightings with gaps of at most 2 updates
+    /// (provisional gate 99 %), 100 000 JCBB nodes.
     fn default() -> Self {
         Self {
             motion: MotionModels::default(),
@@ -81,11 +85,12 @@ impl Default for EkfConfig {
             initial_pose_variance: [0.0; 3],
             association: AssociationMode::Auto,
             gate_probability: 0.999,
+            new_landmark_gate_probability: 0.99999,
             joint_probability: 0.99,
             known_id_gate_probability: Some(0.9999),
-            min_sightings: 3,
-            provisional_max_age: 3,
-            provisional_gate_probability: 0.999,
+            min_sightings: 4,
+            provisional_max_age: 2,
+            provisional_gate_probability: 0.99,
             jcbb_max_nodes: 100_000,
         }
     }
@@ -148,6 +153,13 @@ impl EkfConfig {
         )?;
         probability("gate_probability", self.gate_probability)?;
         probability("joint_probability", self.joint_probability)?;
+        let p = self.new_landmark_gate_probability;
+        check(
+            "new_landmark_gate_probability",
+            p,
+            p >= self.gate_probability && p < 1.0,
+            "a probability in [gate_probability, 1)",
+        )?;
         probability(
             "provisional_gate_probability",
             self.provisional_gate_probability,

@@ -28,8 +28,8 @@ pub enum Association {
     New(LandmarkId),
     /// Recorded as a sighting of a provisional landmark (not yet in the map).
     Provisional,
-    /// Not used: outside the known-id outlier gate, ambiguous (inside an individual gate
-    /// but not paired by the association), a negative range, or degenerate geometry.
+    /// Not used: outside the known-id outlier gate, ambiguous (unpaired but inside some
+    /// landmark's new-landmark gate), a negative range, or degenerate geometry.
     Rejected,
 }
 
@@ -41,8 +41,8 @@ pub struct EkfUpdateInfo {
     pub common: UpdateInfo,
     /// Observations recorded as provisional sightings.
     pub provisional: usize,
-    /// Id-less observations discarded because they fell inside some landmark's individual
-    /// gate without being paired (neither safe to use nor to map).
+    /// Id-less observations discarded because they fell inside some landmark's
+    /// new-landmark gate without being paired (neither safe to use nor to map).
     pub ambiguous: usize,
     /// Nodes visited by JCBB (0 when it did not run).
     pub jcbb_nodes: usize,
@@ -75,6 +75,7 @@ pub struct EkfSlam {
     associations: Vec<Association>,
     info: EkfUpdateInfo,
     gate: f64,
+    new_landmark_gate: f64,
     known_gate: Option<f64>,
     provisional_gate: f64,
     joint: GateTable,
@@ -97,6 +98,7 @@ impl EkfSlam {
         );
         Ok(Self {
             gate: quantile_even(2, config.gate_probability),
+            new_landmark_gate: quantile_even(2, config.new_landmark_gate_probability),
             known_gate: config
                 .known_id_gate_probability
                 .map(|p| quantile_even(2, p)),
@@ -255,10 +257,23 @@ impl EkfSlam {
             lins.push(lin);
             assoc[i] = Association::Landmark(id);
         }
-        // Id-less observations: gate, then associate.
+        // Id-less observations: gate, then associate. `near` records whether any landmark
+        // lies inside the wider new-landmark gate.
+        let mut near = vec![false; unknown.len()];
         let cands: Vec<Vec<Candidate>> = unknown
             .iter()
-            .map(|&i| candidates(&self.state, &sensor, &observations[i], self.gate))
+            .enumerate()
+            .map(|(u, &i)| {
+                let mut c = candidates(
+                    &self.state,
+                    &sensor,
+                    &observations[i],
+                    self.new_landmark_gate,
+                );
+                near[u] = !c.is_empty();
+                c.retain(|c| c.d2 < self.gate);
+                c
+            })
             .collect();
         let chosen: Vec<Option<usize>> = if cands.iter().all(|c| c.is_empty()) {
             vec![None; cands.len()]
@@ -308,7 +323,7 @@ impl EkfSlam {
             if chosen[u].is_some() {
                 continue;
             }
-            if !cands[u].is_empty() {
+            if near[u] {
                 info.ambiguous += 1;
                 continue;
             }
@@ -382,5 +397,83 @@ impl LandmarkSlam for EkfSlam {
                 covariance: self.state.landmark_cov(j),
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_models::OdometryControl;
+
+    fn z(range: f64, bearing: f64, id: Option<u32>) -> RangeBearing {
+        RangeBearing {
+            range,
+            bearing,
+            id: id.map(LandmarkId),
+        }
+    }
+
+    #[test]
+    fn input_errors_and_rejections() {
+        let cfg = EkfConfig {
+            association: AssociationMode::KnownIds,
+            ..EkfConfig::default()
+        };
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        assert!(matches!(
+            ekf.update_observations(&[z(1.0, 0.0, None)]),
+            Err(EkfError::MissingId { index: 0 })
+        ));
+        assert!(ekf
+            .update_observations(&[z(f64::NAN, 0.0, Some(1))])
+            .is_err());
+        let bad = Control::Odometry(OdometryControl {
+            rot1: f64::INFINITY,
+            trans: 0.0,
+            rot2: 0.0,
+        });
+        assert!(ekf.predict_control(&bad).is_err());
+        let info = ekf
+            .update_observations(&[z(-0.5, 0.3, Some(1)), z(2.0, 0.3, Some(2))])
+            .unwrap();
+        assert_eq!(info.common.new_landmarks, 1);
+        assert_eq!(info.common.rejected, 1);
+        assert_eq!(
+            ekf.last_associations(),
+            &[Association::Rejected, Association::New(LandmarkId(2))]
+        );
+        assert!(EkfSlam::new(EkfConfig::default(), Pose2::new(f64::NAN, 0.0, 0.0)).is_err());
+    }
+
+    /// Id-less observations of one landmark: provisional for k − 1 sightings, then mapped,
+    /// then associated; a lone far-away observation stays provisional and expires.
+    #[test]
+    fn provisional_landmarks_join_after_k_sightings() {
+        let cfg = EkfConfig {
+            association: AssociationMode::Jcbb,
+            min_sightings: 3,
+            ..EkfConfig::default()
+        };
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        let still = Control::Odometry(OdometryControl {
+            rot1: 0.0,
+            trans: 0.0,
+            rot2: 0.0,
+        });
+        let mut seen = Vec::new();
+        for k in 0..5 {
+            ekf.predict_control(&still).unwrap();
+            let mut obs = vec![z(3.0 + 0.01 * k as f64, 0.5, None)];
+            if k == 0 {
+                obs.push(z(4.0, -1.0, None));
+            }
+            ekf.update_observations(&obs).unwrap();
+            seen.push(ekf.last_associations()[0]);
+        }
+        assert_eq!(&seen[..2], &[Association::Provisional; 2]);
+        assert_eq!(seen[2], Association::New(LandmarkId(0)));
+        assert_eq!(&seen[3..], &[Association::Landmark(LandmarkId(0)); 2]);
+        assert_eq!(ekf.landmark_count(), 1);
+        assert_eq!(ekf.provisional_count(), 0);
     }
 }

@@ -21,7 +21,8 @@
 //! (outliers beyond `known_id_gate_probability` rejected); (2) id-less observations are
 //! gated against every landmark and associated (NN or JCBB); (3) one batched EKF update
 //! with every pairing; (4) new known ids join the map from the updated pose; (5) unpaired
-//! id-less observations inside some gate are dropped as ambiguous, the others are provisional
+//! id-less observations inside some landmark's (wider) new-landmark gate are dropped as
+//! ambiguous, the others are provisional
 //! sightings (or join at once when k = 1).
 #![warn(missing_docs)]
 
