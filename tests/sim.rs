@@ -169,23 +169,35 @@ fn office_replayed_from_a_ros_map_sees_the_same_walls() {
         on_wall as f64 > 0.99 * both as f64,
         "{on_wall} of {both} replayed hits lie on a wall"
     );
-    // And the replay scenario drives through the loaded map.
+    // And the replay scenario drives through the loaded map for its full default length
+    // (500 scans, 3 odometry records each), staying in free cells.
     let run = laser(
         "replay",
         &ScenarioOptions {
             seed: 5,
-            steps: Some(50),
-            replay_map: Some(loaded),
+            replay_map: Some(loaded.clone()),
             ..Default::default()
         },
     );
+    assert_eq!(run.dataset.records.len(), 1500);
     assert_eq!(
         run.dataset
             .records
             .iter()
             .filter(|r| r.scan.is_some())
             .count(),
-        50
+        500
     );
+    for g in run.dataset.ground_truth.as_ref().unwrap() {
+        let (ix, iy) = loaded
+            .cell_of(&g.pose.translation())
+            .expect("inside the map");
+        assert_eq!(
+            loaded.cells[iy * loaded.width + ix],
+            0,
+            "true pose {:?} not in a free cell",
+            g.pose
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

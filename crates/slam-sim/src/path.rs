@@ -228,13 +228,20 @@ pub struct Follower<'a> {
     cfg: FollowerConfig,
     /// Arc length of the carrot.
     s: f64,
+    /// True while turning on the spot.
+    spinning: bool,
 }
 
 impl<'a> Follower<'a> {
     /// A follower whose carrot starts at the beginning of `path`.
     pub fn new(path: &'a Path, cfg: FollowerConfig) -> Result<Self, SimError> {
         cfg.validate()?;
-        Ok(Self { path, cfg, s: 0.0 })
+        Ok(Self {
+            path,
+            cfg,
+            s: 0.0,
+            spinning: false,
+        })
     }
 
     /// Arc length the carrot has travelled, metres.
@@ -254,6 +261,10 @@ impl<'a> Follower<'a> {
     /// ω = v·κ, clamped to ±`max_turn_rate`. The speed is scaled by the carrot distance
     /// (between 0.5 and 1.5 times nominal) so that the robot neither falls behind nor
     /// overtakes the carrot, and slowed in sharp turns so that the clamp rarely binds.
+    /// When the target is far to the side or behind (|α| > 60°, e.g. at a U-turn of the
+    /// path), pure pursuit would swing wide or drive straight on; the robot turns on the
+    /// spot instead (v = 0) until the target is within 10° of its heading. The
+    /// carrot waits while the robot is more than two look-ahead distances behind it.
     pub fn command(&mut self, pose: &Pose2) -> VelocityControl {
         let cfg = &self.cfg;
         let target = self.path.point_at(self.s + cfg.lookahead);
@@ -262,21 +273,33 @@ impl<'a> Follower<'a> {
         let alpha = local.y.atan2(local.x);
         let carrot = self.path.point_at(self.s);
         let lag = (carrot - pose.translation()).norm();
-        // Positive when the carrot is ahead of the robot.
-        let ahead = pose.inverse_transform_point(&carrot).x;
-        let factor = if ahead >= 0.0 {
-            (1.0 + lag / cfg.lookahead).min(1.5)
-        } else {
-            (1.0 - lag / cfg.lookahead).max(0.5)
-        };
-        let kappa = 2.0 * alpha.sin() / d;
-        let mut v = cfg.speed * factor;
-        // Slow down so that v·κ stays within the turn-rate limit.
-        if v * kappa.abs() > cfg.max_turn_rate {
-            v = (cfg.max_turn_rate / kappa.abs()).max(0.2 * cfg.speed);
+        if alpha.abs() > std::f64::consts::FRAC_PI_3 {
+            self.spinning = true;
+        } else if alpha.abs() < 10f64.to_radians() {
+            self.spinning = false;
         }
-        let omega = (v * kappa).clamp(-cfg.max_turn_rate, cfg.max_turn_rate);
-        self.s += cfg.speed * cfg.dt;
+        let (v, omega) = if self.spinning {
+            let w = (alpha.abs() / cfg.dt).min(cfg.max_turn_rate);
+            (0.0, w.copysign(alpha))
+        } else {
+            // Positive when the carrot is ahead of the robot.
+            let ahead = pose.inverse_transform_point(&carrot).x;
+            let factor = if ahead >= 0.0 {
+                (1.0 + lag / cfg.lookahead).min(1.5)
+            } else {
+                (1.0 - lag / cfg.lookahead).max(0.5)
+            };
+            let kappa = 2.0 * alpha.sin() / d;
+            let mut v = cfg.speed * factor;
+            // Slow down so that v·κ stays within the turn-rate limit.
+            if v * kappa.abs() > cfg.max_turn_rate {
+                v = (cfg.max_turn_rate / kappa.abs()).max(0.1 * cfg.speed);
+            }
+            (v, (v * kappa).clamp(-cfg.max_turn_rate, cfg.max_turn_rate))
+        };
+        if lag < 2.0 * cfg.lookahead {
+            self.s += cfg.speed * cfg.dt;
+        }
         if !self.path.is_closed() {
             self.s = self.s.min(self.path.length());
         }
@@ -331,6 +354,38 @@ mod tests {
             "{} vs {expect}",
             p.length()
         );
+    }
+
+    #[test]
+    fn u_turn_is_taken_on_the_spot() {
+        // Out and back along the x axis: the robot must not overshoot the turning point
+        // by more than the look-ahead, nor leave the line by more than a few centimetres.
+        let path = Path::new(
+            vec![
+                Point2::new(0.0, 0.0),
+                Point2::new(5.0, 0.0),
+                Point2::new(0.0, 0.0),
+            ],
+            false,
+        )
+        .unwrap();
+        let cfg = FollowerConfig {
+            lookahead: 0.5,
+            ..Default::default()
+        };
+        let mut f = Follower::new(&path, cfg).unwrap();
+        let m = VelocityModel::default();
+        let mut pose = path.start_pose();
+        let (mut max_x, mut max_y): (f64, f64) = (0.0, 0.0);
+        for _ in 0..200 {
+            let u = f.command(&pose);
+            pose = m.predict(&pose, &u);
+            max_x = max_x.max(pose.x);
+            max_y = max_y.max(pose.y.abs());
+        }
+        assert!(max_x < 5.5, "overshot to x = {max_x}");
+        assert!(max_y < 0.3, "left the line by {max_y}");
+        assert!(pose.x < 1.0, "did not come back: {pose:?}");
     }
 
     #[test]

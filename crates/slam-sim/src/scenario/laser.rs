@@ -217,21 +217,25 @@ pub fn office(opts: &ScenarioOptions) -> Result<LaserSimRun, SimError> {
 
 /// Clearance (metres) the generated `replay` path keeps from walls and unknown space.
 pub const REPLAY_CLEARANCE: f64 = 0.4;
+/// Clearance (metres) a straight shortcut of the generated `replay` path must keep.
+pub const REPLAY_SHORTCUT_CLEARANCE: f64 = 0.8;
 
 /// `replay`: the world of `opts.replay_map` ([`World::from_grid_map`]) driven along
 /// `opts.replay_path`, or, by default, along a generated path: random goals among the free
 /// cells (value 0–19, ROS `free_thresh` 0.196) at least [`REPLAY_CLEARANCE`] from any other
 /// cell, in the largest connected such region, joined by shortest paths that prefer
-/// clearance (Dijkstra, step cost × (1 + 1 m / clearance)), shortcut where the line of sight
-/// stays clear, corners rounded. Defaults: 500 scans, laser range 30 m, otherwise as
-/// [`office`].
+/// clearance (Dijkstra, step cost × (1 + 1 m / clearance)), shortcut where a straight line
+/// keeps [`REPLAY_SHORTCUT_CLEARANCE`], corners rounded to 0.3 m. Defaults: 500 scans,
+/// laser range 30 m, pure-pursuit look-ahead 0.3 m, otherwise as [`office`].
 pub fn replay(opts: &ScenarioOptions) -> Result<LaserSimRun, SimError> {
     let map = opts.replay_map.as_ref().ok_or(SimError::MissingInput {
         scenario: "replay",
         what: "an occupancy map (replay_map)",
     })?;
     let world = World::from_grid_map(map)?;
-    let cfg = laser_config("replay", opts, 30.0, opts.steps.unwrap_or(500))?;
+    let mut cfg = laser_config("replay", opts, 30.0, opts.steps.unwrap_or(500))?;
+    // Tighter tracking than in the office corridor: the path threads through doors.
+    cfg.follower.lookahead = 0.3;
     let path = match &opts.replay_path {
         Some(pts) => Path::new(pts.clone(), false)?,
         None => {
@@ -358,13 +362,17 @@ fn free_space_path(map: &GridMap, need: f64, seed: u64) -> Result<Path, SimError
     let region: Vec<usize> = (0..n).filter(|&k| label[k] == best).collect();
     let mut rng = stream(seed, tag::PATH);
     let center = |k: usize| map.cell_center(k % w, k / w);
-    // Straight line between two cell centres stays within safe cells (sampled every ¼ cell).
+    // Shortcuts must keep the wider [`REPLAY_SHORTCUT_CLEARANCE`]: through narrow passages
+    // (doors) the path keeps the Dijkstra cells, which follow the middle of the passage.
+    let wide_cells = REPLAY_SHORTCUT_CLEARANCE / res;
+    // Straight line between two cell centres stays within wide cells (sampled every ¼ cell).
     let clear = |a: usize, b: usize| -> bool {
         let (pa, pb) = (center(a), center(b));
         let steps = ((pb - pa).norm() / (0.25 * res)).ceil() as usize;
         (0..=steps).all(|i| {
             let p = pa + (pb - pa) * (i as f64 / steps.max(1) as f64);
-            map.cell_of(&p).is_some_and(|(x, y)| safe[y * w + x])
+            map.cell_of(&p)
+                .is_some_and(|(x, y)| dist[y * w + x] >= wide_cells)
         })
     };
     let mut cur = region[rng.random_range(0..region.len())];
@@ -374,7 +382,8 @@ fn free_space_path(map: &GridMap, need: f64, seed: u64) -> Result<Path, SimError
     let mut prev = vec![usize::MAX; n];
     let mut touched: Vec<usize> = Vec::new();
     let mut attempts = 0;
-    while len < need {
+    // Rounding the corners shortens the path a little: plan 10 % + 5 m more than needed.
+    while len < 1.1 * need + 5.0 {
         attempts += 1;
         if attempts > 200 {
             return Err(SimError::InvalidPath(format!(
@@ -459,7 +468,7 @@ fn free_space_path(map: &GridMap, need: f64, seed: u64) -> Result<Path, SimError
         cur = goal;
     }
     let pts: Vec<Point2> = cells.iter().map(|&k| center(k)).collect();
-    Path::rounded(&pts, false, 0.5, 0.05)
+    Path::rounded(&pts, false, 0.3, 0.05)
 }
 
 #[cfg(test)]
@@ -635,6 +644,7 @@ mod tests {
                 .count(),
             80
         );
+        assert_eq!(r.dataset.records.len(), 240);
         // True poses stay in free space with clearance.
         for g in r.dataset.ground_truth.as_ref().unwrap() {
             let (ix, iy) = m.cell_of(&g.pose.translation()).unwrap();
