@@ -95,6 +95,16 @@ pub struct GridFastConfig {
     /// Hill-climbing matcher: how many times the steps are halved. Default 6 (final steps
     /// 1.6 mm / 1.6 mrad).
     pub match_refinements: usize,
+    /// Coarse search before hill climbing: ±this in x and y around the best particle's
+    /// prediction, metres (0 with `search_range_theta` 0 switches the search off).
+    /// Default 0.3.
+    pub search_range_xy: f64,
+    /// Coarse search translation step, metres. Default 0.05.
+    pub search_step_xy: f64,
+    /// Coarse search: ±this in θ, radians. Default 0.3.
+    pub search_range_theta: f64,
+    /// Coarse search rotation step, radians. Default 0.025.
+    pub search_step_theta: f64,
     /// A match counts as failed when fewer than this fraction of the used beams end within
     /// `field_radius` of an occupied cell at the matched pose. Default 0.25.
     pub match_min_inlier_fraction: f64,
@@ -133,6 +143,10 @@ impl Default for GridFastConfig {
             match_angular_step: 0.1,
             match_refinements: 6,
             match_min_inlier_fraction: 0.25,
+            search_range_xy: 0.3,
+            search_step_xy: 0.05,
+            search_range_theta: 0.3,
+            search_step_theta: 0.025,
             samples_per_axis: 3,
             sample_range_xy: 0.01,
             sample_range_theta: 0.005,
@@ -285,6 +299,37 @@ impl GridFastConfig {
             "match_min_inlier_fraction",
             self.match_min_inlier_fraction,
             "in [0, 1]",
+        )?;
+        check(
+            self.search_range_xy >= 0.0,
+            "search_range_xy",
+            self.search_range_xy,
+            ">= 0",
+        )?;
+        check(
+            self.search_step_xy > 0.0,
+            "search_step_xy",
+            self.search_step_xy,
+            "> 0",
+        )?;
+        check(
+            self.search_range_theta >= 0.0,
+            "search_range_theta",
+            self.search_range_theta,
+            ">= 0",
+        )?;
+        check(
+            self.search_step_theta > 0.0,
+            "search_step_theta",
+            self.search_step_theta,
+            "> 0",
+        )?;
+        check(
+            self.search_range_xy / self.search_step_xy <= 50.0
+                && self.search_range_theta / self.search_step_theta <= 50.0,
+            "search_range_xy",
+            self.search_range_xy,
+            "at most 50 steps per side in each search dimension",
         )?;
         check(
             (1..=9).contains(&self.samples_per_axis),

@@ -3,7 +3,7 @@
 use crate::config::{GridFastConfig, Proposal};
 use crate::error::GridFastError;
 use crate::map::{MapParams, Scratch, TileMap};
-use crate::matcher::{hill_climb, HillClimb, Likelihood, PreparedScan};
+use crate::matcher::{grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow};
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
 use crate::trajectory::Node;
 use rand::SeedableRng;
@@ -39,7 +39,8 @@ struct Particle {
 /// draws every particle's pose from the configured [`Proposal`], updates the weights,
 /// resamples when N_eff < `resample_threshold`·M, and integrates the scan into every
 /// surviving particle's map. Between updates a pose is the last corrected pose ⊕ the
-/// odometry increment since.
+/// odometry increment since (a record with the same time stamp as the next processed
+/// scan takes that scan's corrected pose).
 ///
 /// The world frame is the odometry frame of the first record. Particles run in parallel
 /// (rayon); each particle draws from its own random stream derived from `(seed, processed
@@ -203,15 +204,26 @@ impl GridFastSlam {
         }
     }
 
+    /// The pose of record `i`: the corrected pose of the processed scan it refers to ⊕ the
+    /// odometry between the two. A record refers to the last processed scan at or before
+    /// it, except that a record sharing its time stamp with the next processed scan (CARMEN
+    /// logs write an ODOM line and the FLASER line at the same instant) takes that scan's
+    /// corrected pose: both describe the robot at the same moment.
     fn pose_at_record(&self, i: usize, path: &[Pose2]) -> Pose2 {
-        match self.last_scan_of_record[i] {
-            u32::MAX => self.odometry[i],
-            k => {
-                let k = k as usize;
-                let r = self.scan_records[k];
-                path[k].compose(&self.odometry[r].between(&self.odometry[i]))
+        let next = match self.last_scan_of_record[i] {
+            u32::MAX => 0,
+            k => k as usize + 1,
+        };
+        let k = if next < path.len() && self.times[self.scan_records[next]] == self.times[i] {
+            next
+        } else {
+            match self.last_scan_of_record[i] {
+                u32::MAX => return self.odometry[i],
+                k => k as usize,
             }
-        }
+        };
+        let r = self.scan_records[k];
+        path[k].compose(&self.odometry[r].between(&self.odometry[i]))
     }
 
     fn check_record(&self, record: &ScanRecord) -> Result<(), GridFastError> {
@@ -313,6 +325,31 @@ impl GridFastSlam {
         let prepared = PreparedScan::new(scan, cfg.beam_step, cfg.max_range);
         let min_inliers =
             ((cfg.match_min_inlier_fraction * prepared.points.len() as f64).ceil() as usize).max(1);
+        // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
+        // particle a second starting point for its hill climbing.
+        let search = cfg.search_range_xy > 0.0 || cfg.search_range_theta > 0.0;
+        let correction = if search && cfg.proposal == Proposal::Improved {
+            let best = &self.particles[self.best];
+            let predicted = cfg.motion.predict(&best.pose, &u);
+            let r = cfg.motion.noise_covariance(&best.pose, &u)
+                + slam_models::Matrix3::from_diagonal(&Vector3::new(
+                    cfg.motion_min_std[0].powi(2),
+                    cfg.motion_min_std[0].powi(2),
+                    cfg.motion_min_std[1].powi(2),
+                ));
+            let window = SearchWindow {
+                range_xy: cfg.search_range_xy,
+                step_xy: cfg.search_step_xy,
+                range_theta: cfg.search_range_theta,
+                step_theta: cfg.search_step_theta,
+                information: r.try_inverse().unwrap_or_else(slam_models::Matrix3::zeros),
+            };
+            predicted.between(&grid_search(
+                &best.map, &prepared, &predicted, &self.lk, &window,
+            ))
+        } else {
+            Pose2::IDENTITY
+        };
         let ctx = StepContext {
             scan: &prepared,
             lk: self.lk,
@@ -326,14 +363,15 @@ impl GridFastSlam {
             ),
             min_inliers,
             offsets: &self.offsets,
+            correction,
         };
         // Scan-matched odometry: one match against the best particle's map corrects the
         // increment for every particle (Hähnel et al. 2003).
         let mut shared_failures = 0;
         let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
             let best = &self.particles[self.best];
-            let predicted = cfg.motion.predict(&best.pose, &u);
-            let matched = hill_climb(&best.map, &prepared, &predicted, &self.lk, &self.hc);
+            let start = cfg.motion.predict(&best.pose, &u);
+            let matched = hill_climb(&best.map, &prepared, &start, &self.lk, &self.hc);
             let s2 = cfg.corrected_odometry_noise_scale.powi(2);
             let a = cfg.motion.alpha;
             let scaled = OdometryModel {
@@ -503,15 +541,171 @@ impl ScanSlam for GridFastSlam {
     fn particles(&self) -> Option<Vec<WeightedPose>> {
         let mut lw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
         normalize_log_weights(&mut lw).ok()?;
+        // Each particle's corrected pose ⊕ the odometry since the last processed scan.
+        let since = match (self.scan_records.last(), self.odometry.last()) {
+            (Some(&r), Some(now)) => self.odometry[r].between(now),
+            _ => Pose2::IDENTITY,
+        };
         Some(
             self.particles
                 .iter()
                 .zip(lw)
                 .map(|(p, l)| WeightedPose {
-                    pose: p.pose,
+                    pose: p.pose.compose(&since),
                     weight: l.exp(),
                 })
                 .collect(),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 181-beam scan of a square room of half-width 3 m seen from `pose`.
+    fn room_scan(pose: &Pose2) -> LaserScan {
+        let inc = std::f64::consts::PI / 180.0;
+        let ranges = (0..181)
+            .map(|k| {
+                let a = pose.theta - std::f64::consts::FRAC_PI_2 + k as f64 * inc;
+                let (dx, dy) = (a.cos(), a.sin());
+                let hit = |d: f64, c: f64| {
+                    if d.abs() < 1e-12 {
+                        f64::INFINITY
+                    } else {
+                        (3.0f64.copysign(d) - c) / d
+                    }
+                };
+                let (tx, ty) = (hit(dx, pose.x), hit(dy, pose.y));
+                tx.min(ty)
+            })
+            .collect();
+        LaserScan {
+            angle_min: -std::f64::consts::FRAC_PI_2,
+            angle_increment: inc,
+            ranges,
+            max_range: 30.0,
+            sensor_pose: Pose2::IDENTITY,
+        }
+    }
+
+    fn rec(t: f64, odo: Pose2, scan: bool) -> ScanRecord {
+        ScanRecord {
+            t,
+            odometry: odo,
+            scan: scan.then(|| room_scan(&odo)),
+        }
+    }
+
+    #[test]
+    fn one_pose_per_record_and_same_instant_records_share_the_correction() {
+        let mut f = GridFastSlam::new(
+            GridFastConfig {
+                particles: 4,
+                linear_update: 0.5,
+                ..Default::default()
+            },
+            1,
+        )
+        .unwrap();
+        let path = [
+            rec(0.0, Pose2::new(0.0, 0.0, 0.0), false),
+            rec(0.0, Pose2::new(0.0, 0.0, 0.0), true),
+            rec(1.0, Pose2::new(0.3, 0.0, 0.0), false),
+            rec(1.5, Pose2::new(0.4, 0.0, 0.0), true), // 0.4 m: not processed
+            rec(2.0, Pose2::new(0.6, 0.1, 0.1), false),
+            rec(2.0, Pose2::new(0.6, 0.1, 0.1), true), // processed
+            rec(3.0, Pose2::new(0.8, 0.1, 0.1), false),
+        ];
+        let processed: Vec<bool> = path
+            .iter()
+            .map(|r| f.process(r).unwrap().processed_scan)
+            .collect();
+        assert_eq!(processed, [false, true, false, false, false, true, false]);
+        let traj = f.trajectory();
+        assert_eq!(traj.len(), path.len());
+        // Before the second update: the odometry itself (world = odometry frame).
+        for i in 0..4 {
+            assert!(traj[i].pose.approx_eq(&path[i].odometry, 1e-12));
+        }
+        // The ODOM line at the scan's instant takes the scan's corrected pose.
+        assert_eq!(traj[4].pose, traj[5].pose);
+        let corrected = f.corrected_poses();
+        assert_eq!(corrected.len(), 2);
+        assert_eq!(corrected[1].pose, traj[5].pose);
+        // Afterwards: corrected pose ⊕ odometry since.
+        let expect = traj[5]
+            .pose
+            .compose(&path[5].odometry.between(&path[6].odometry));
+        assert!(traj[6].pose.approx_eq(&expect, 1e-12));
+        assert!(f.pose().approx_eq(&expect, 1e-12));
+        let w: f64 = f.particles().unwrap().iter().map(|p| p.weight).sum();
+        assert!((w - 1.0).abs() < 1e-9);
+        // The room is square: the matched pose stays within a few cm of the truth.
+        assert!(corrected[1].pose.distance(&path[5].odometry) < 0.05);
+    }
+
+    #[test]
+    fn invalid_records_are_rejected_with_their_index() {
+        let mut f = GridFastSlam::new(GridFastConfig::default(), 1).unwrap();
+        f.process(&rec(0.0, Pose2::IDENTITY, true)).unwrap();
+        let bad = ScanRecord {
+            t: 1.0,
+            odometry: Pose2 {
+                x: f64::NAN,
+                y: 0.0,
+                theta: 0.0,
+            },
+            scan: None,
+        };
+        let e = f.step(&bad).unwrap_err();
+        assert!(
+            matches!(e, GridFastError::InvalidRecord { index: 1, .. }),
+            "{e}"
+        );
+        let mut s = rec(1.0, Pose2::IDENTITY, true);
+        if let Some(scan) = s.scan.as_mut() {
+            scan.ranges[3] = -1.0;
+        }
+        assert!(matches!(f.process(&s), Err(FilterError::InvalidInput(_))));
+        assert!(GridFastSlam::new(
+            GridFastConfig {
+                particles: 0,
+                ..Default::default()
+            },
+            1
+        )
+        .is_err());
+    }
+
+    #[test]
+    fn render_map_is_finer_and_agrees_with_the_matching_map() {
+        let mut f = GridFastSlam::new(
+            GridFastConfig {
+                particles: 3,
+                ..Default::default()
+            },
+            1,
+        )
+        .unwrap();
+        f.process(&rec(0.0, Pose2::new(0.2, 0.1, 0.3), true))
+            .unwrap();
+        let coarse = f.map();
+        let fine = f.render_map(0.01);
+        assert_eq!(fine.resolution, 0.01);
+        // The wall at x = 3 m ahead is occupied in both (the hit lands in the cell on
+        // either side of x = 3 depending on rounding).
+        let occupied = |m: &GridMap, eps: f64| {
+            [3.0 - eps, 3.0 + eps].iter().any(|&x| {
+                m.cell_of(&slam_models::Point2::new(x, 0.1))
+                    .and_then(|(i, j)| m.get(i, j))
+                    .is_some_and(|v| v > 50)
+            })
+        };
+        assert!(occupied(&fine, 0.005) && occupied(&coarse, 0.025));
+        let q = slam_models::Point2::new(1.5, 0.1);
+        let (fx, fy) = fine.cell_of(&q).unwrap();
+        assert!((0..50).contains(&fine.get(fx, fy).unwrap()));
     }
 }

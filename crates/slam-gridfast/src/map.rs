@@ -61,6 +61,8 @@ pub(crate) struct MapParams {
     pub max_range: f64,
     /// Precomputed kernel: min(16·√(dx²+dy²), 16·radius) for |dx|, |dy| ≤ radius.
     kernel: Vec<u8>,
+    /// 16·radius: the truncated distance, field units.
+    max_dist: u8,
 }
 
 impl MapParams {
@@ -90,13 +92,14 @@ impl MapParams {
             radius,
             max_range,
             kernel,
+            max_dist: (radius as f64 * DIST_SCALE).round() as u8,
         }
     }
 
     /// The truncated distance value, in field units.
     #[inline]
     pub fn max_dist(&self) -> u8 {
-        (self.radius as f64 * DIST_SCALE).round() as u8
+        self.max_dist
     }
 }
 
@@ -424,6 +427,7 @@ impl TileMap {
         let rad = self.params.radius;
         let w = 2 * rad + 1;
         let params = Arc::clone(&self.params);
+        let max = params.max_dist();
         for dy in -rad..=rad {
             let y = cy + dy;
             if let Some((_, wy0, _, wy1)) = clip {
@@ -439,7 +443,7 @@ impl TileMap {
                     }
                 }
                 let k = params.kernel[((dy + rad) * w + dx + rad) as usize];
-                if k >= params.max_dist() {
+                if k >= max {
                     continue;
                 }
                 let Some(slot) = self.slot(x, y) else {
@@ -448,7 +452,7 @@ impl TileMap {
                 // Avoid un-sharing a tile when nothing changes.
                 let cur = match self.tiles[slot].as_deref() {
                     Some(t) => t.dist[Self::cell_index(x, y)],
-                    None => params.max_dist(),
+                    None => max,
                 };
                 if k < cur {
                     self.tile_mut(slot).dist[Self::cell_index(x, y)] = k;

@@ -19,6 +19,8 @@ use slam_models::{LaserScan, Pose2};
 #[derive(Debug, Clone)]
 pub(crate) struct PreparedScan {
     pub points: Vec<[f64; 2]>,
+    /// Every 4th of `points`: the coarse phase of hill climbing evaluates these only.
+    pub coarse: Vec<[f64; 2]>,
 }
 
 impl PreparedScan {
@@ -37,8 +39,9 @@ impl PreparedScan {
                     .transform_point(&slam_models::Point2::new(r * a.cos(), r * a.sin()));
                 [p.x, p.y]
             })
-            .collect();
-        Self { points }
+            .collect::<Vec<_>>();
+        let coarse = points.iter().step_by(4).copied().collect();
+        Self { points, coarse }
     }
 }
 
@@ -62,6 +65,12 @@ pub(crate) struct Score {
 /// field between the four cell centres around each end point).
 #[inline]
 pub(crate) fn score(map: &TileMap, scan: &PreparedScan, pose: &Pose2, lk: &Likelihood) -> Score {
+    score_points(map, &scan.points, pose, lk)
+}
+
+/// [`score`] over an explicit set of robot-frame end points.
+#[inline]
+fn score_points(map: &TileMap, points: &[[f64; 2]], pose: &Pose2, lk: &Likelihood) -> Score {
     let res = map.params().resolution;
     let inv = 1.0 / res;
     let unit = res / DIST_SCALE;
@@ -71,13 +80,13 @@ pub(crate) fn score(map: &TileMap, scan: &PreparedScan, pose: &Pose2, lk: &Likel
     let mut sum = 0.0;
     let mut inliers = 0;
     let r_in = lk.radius * 0.999;
-    for p in &scan.points {
+    for p in points {
         // Cell-centre coordinates: cell (i, j) has its centre at (i, j).
         let u = c * p[0] - s * p[1] + tx;
         let v = s * p[0] + c * p[1] + ty;
-        let (fu, fv) = (u.floor(), v.floor());
-        let (au, av) = (u - fu, v - fv);
-        let d = map.dist4(fu as i32, fv as i32);
+        let (iu, iv) = (fast_floor(u), fast_floor(v));
+        let (au, av) = (u - iu as f64, v - iv as f64);
+        let d = map.dist4(iu, iv);
         let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
         let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
         let dm = (d0 + av * (d1 - d0)) * unit;
@@ -90,6 +99,13 @@ pub(crate) fn score(map: &TileMap, scan: &PreparedScan, pose: &Pose2, lk: &Likel
         log_likelihood: -lk.k * sum,
         inliers,
     }
+}
+
+/// ⌊x⌋ as an integer without a libm call (x well inside the i32 range; NaN maps to 0).
+#[inline(always)]
+fn fast_floor(x: f64) -> i32 {
+    let i = x as i32;
+    i - ((i as f64) > x) as i32
 }
 
 /// The outcome of a match.
@@ -107,6 +123,83 @@ pub(crate) struct HillClimb {
     pub refinements: usize,
 }
 
+/// Exhaustive coarse search (Olson's correlative matching, ICRA 2009, at one coarse
+/// resolution) over the poses `initial` ⊕ (dx, dy, dθ) with |dx|, |dy| ≤ `range_xy` in
+/// steps of `step_xy` and |dθ| ≤ `range_theta` in steps of `step_theta`, scored with the
+/// coarse beam subset (times the subsampling factor) plus the log motion prior
+/// −½ eᵀR⁻¹e: the mode of likelihood × motion model on the grid. Returns the best pose (the
+/// initial pose wins ties).
+pub(crate) fn grid_search(
+    map: &TileMap,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    lk: &Likelihood,
+    window: &SearchWindow,
+) -> Pose2 {
+    let points = if scan.coarse.len() >= 20 {
+        &scan.coarse
+    } else {
+        &scan.points
+    };
+    let mut best = *initial;
+    let scale = scan.points.len() as f64 / points.len().max(1) as f64;
+    let mut top = scale * score_points(map, points, initial, lk).log_likelihood;
+    let nxy = (window.range_xy / window.step_xy).floor() as i32;
+    let nth = (window.range_theta / window.step_theta).floor() as i32;
+    for it in -nth..=nth {
+        for iy in -nxy..=nxy {
+            for ix in -nxy..=nxy {
+                if ix == 0 && iy == 0 && it == 0 {
+                    continue;
+                }
+                let delta = Pose2::new(
+                    ix as f64 * window.step_xy,
+                    iy as f64 * window.step_xy,
+                    it as f64 * window.step_theta,
+                );
+                let cand = initial.compose(&delta);
+                // The motion model's prior keeps ambiguous directions (corridors) at
+                // the prediction: −½ eᵀR⁻¹e with e = candidate − prediction.
+                let e =
+                    slam_models::Vector3::new(cand.x - initial.x, cand.y - initial.y, delta.theta);
+                let prior = 0.5 * e.dot(&(window.information * e));
+                let s = scale * score_points(map, points, &cand, lk).log_likelihood - prior;
+                if s > top {
+                    top = s;
+                    best = cand;
+                }
+            }
+        }
+    }
+    best
+}
+
+/// The window of [`grid_search`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SearchWindow {
+    pub range_xy: f64,
+    pub step_xy: f64,
+    pub range_theta: f64,
+    pub step_theta: f64,
+    /// R⁻¹, the inverse of the motion model's covariance at the prediction.
+    pub information: slam_models::Matrix3,
+}
+
+/// The coarse-beam score of a pose (for choosing between starting points).
+pub(crate) fn coarse_score(
+    map: &TileMap,
+    scan: &PreparedScan,
+    pose: &Pose2,
+    lk: &Likelihood,
+) -> f64 {
+    let points = if scan.coarse.len() >= 20 {
+        &scan.coarse
+    } else {
+        &scan.points
+    };
+    score_points(map, points, pose, lk).log_likelihood
+}
+
 /// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
 /// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
 /// the score, otherwise halve both steps, `refinements` times.
@@ -117,46 +210,66 @@ pub(crate) fn hill_climb(
     lk: &Likelihood,
     hc: &HillClimb,
 ) -> MatchOutcome {
+    // Coarse phase: while the steps are at least a quarter of the initial ones, a quarter
+    // of the beams decide (4× cheaper evaluations, same capture range); then all beams.
     let mut best = *initial;
-    let mut best_score = score(map, scan, &best, lk);
     let (mut ls, mut as_) = (hc.linear_step, hc.angular_step);
     let mut halvings = 0;
+    let coarse_halvings = if scan.coarse.len() >= 20 {
+        2.min(hc.refinements)
+    } else {
+        0
+    };
     // A hard cap keeps pathological inputs bounded (≈ GMapping's ~121 evaluations).
     let mut budget = 64;
-    while halvings <= hc.refinements && budget > 0 {
-        budget -= 1;
-        let moves = [
-            Pose2::new(best.x + ls, best.y, best.theta),
-            Pose2::new(best.x - ls, best.y, best.theta),
-            Pose2::new(best.x, best.y + ls, best.theta),
-            Pose2::new(best.x, best.y - ls, best.theta),
-            Pose2::new(best.x, best.y, best.theta + as_),
-            Pose2::new(best.x, best.y, best.theta - as_),
-        ];
-        let mut improved = None;
-        let mut top = best_score.log_likelihood;
-        for m in moves {
-            let s = score(map, scan, &m, lk);
-            if s.log_likelihood > top {
-                top = s.log_likelihood;
-                improved = Some((m, s));
+    for phase in 0..2 {
+        let (points, last) = if phase == 0 {
+            (&scan.coarse[..], coarse_halvings)
+        } else {
+            (&scan.points[..], hc.refinements + 1)
+        };
+        let mut best_score = score_points(map, points, &best, lk);
+        while halvings < last && budget > 0 {
+            budget -= 1;
+            let moves = [
+                Pose2::new(best.x + ls, best.y, best.theta),
+                Pose2::new(best.x - ls, best.y, best.theta),
+                Pose2::new(best.x, best.y + ls, best.theta),
+                Pose2::new(best.x, best.y - ls, best.theta),
+                Pose2::new(best.x, best.y, best.theta + as_),
+                Pose2::new(best.x, best.y, best.theta - as_),
+            ];
+            let mut improved = None;
+            let mut top = best_score.log_likelihood;
+            for m in moves {
+                let s = score_points(map, points, &m, lk);
+                if s.log_likelihood > top {
+                    top = s.log_likelihood;
+                    improved = Some((m, s));
+                }
+            }
+            match improved {
+                Some((m, s)) => {
+                    best = m;
+                    best_score = s;
+                }
+                None => {
+                    ls *= 0.5;
+                    as_ *= 0.5;
+                    halvings += 1;
+                }
             }
         }
-        match improved {
-            Some((m, s)) => {
-                best = m;
-                best_score = s;
-            }
-            None => {
-                ls *= 0.5;
-                as_ *= 0.5;
-                halvings += 1;
-            }
+        if phase == 1 {
+            return MatchOutcome {
+                pose: best,
+                score: best_score,
+            };
         }
     }
     MatchOutcome {
         pose: best,
-        score: best_score,
+        score: score(map, scan, &best, lk),
     }
 }
 

@@ -2,7 +2,7 @@
 //! and by how much its weight changes.
 
 use crate::map::TileMap;
-use crate::matcher::{hill_climb, score, HillClimb, Likelihood, PreparedScan};
+use crate::matcher::{coarse_score, hill_climb, score, HillClimb, Likelihood, PreparedScan};
 use nalgebra::Cholesky;
 use rand::Rng;
 use slam_models::motion::{MotionModel, OdometryModel};
@@ -22,6 +22,9 @@ pub(crate) struct StepContext<'a> {
     pub min_inliers: usize,
     /// Offsets (dx, dy, dθ) of the K samples around the mode (improved proposal).
     pub offsets: &'a [[f64; 3]],
+    /// The correction x̂_best ⊖ x'_best that the shared coarse search found for the best
+    /// particle (identity when the search is off).
+    pub correction: Pose2,
 }
 
 /// A particle's new pose, its log-weight increment, and whether matching failed.
@@ -50,7 +53,9 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 
 /// The improved proposal (Grisetti, Stachniss & Burgard, T-RO 2007, Table I):
 ///
-/// 1. x̂ = argmax p(z | m, x) by hill climbing from x' = xₜ₋₁ ⊕ uₜ;
+/// 1. x̂ = argmax p(z | m, x) by hill climbing from x' = xₜ₋₁ ⊕ uₜ (or from x' ⊕ c, with
+///    c the correction a coarse exhaustive search found for the best particle, when that
+///    fits this particle's map better);
 /// 2. K samples xⱼ on a grid around x̂; τⱼ = p(z | m, xⱼ)·p(xⱼ | xₜ₋₁, uₜ) with the motion
 ///    density the Gaussian N(x', R) of the linearised odometry model (R = V·M·Vᵀ, PR
 ///    table 5.6, plus a floor);
@@ -66,7 +71,18 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Drawn {
     let predicted = ctx.motion.predict(pose, &ctx.u);
-    let m = hill_climb(map, ctx.scan, &predicted, &ctx.lk, &ctx.hc);
+    // Start from the prediction or from the prediction moved by the best particle's coarse
+    // correction, whichever fits this particle's map better.
+    let shifted = predicted.compose(&ctx.correction);
+    let start = if ctx.correction != Pose2::IDENTITY
+        && coarse_score(map, ctx.scan, &shifted, &ctx.lk)
+            > coarse_score(map, ctx.scan, &predicted, &ctx.lk)
+    {
+        shifted
+    } else {
+        predicted
+    };
+    let m = hill_climb(map, ctx.scan, &start, &ctx.lk, &ctx.hc);
     let covariance =
         ctx.motion.noise_covariance(pose, &ctx.u) + Matrix3::from_diagonal(&ctx.min_var);
     let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
