@@ -643,15 +643,49 @@ impl OccupancyGrid {
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (i, j) = (x0 as i32, y0 as i32);
-        let m00 = self.likelihood(CellIndex::new(i, j)) as f64;
-        let m10 = self.likelihood(CellIndex::new(i + 1, j)) as f64;
-        let m01 = self.likelihood(CellIndex::new(i, j + 1)) as f64;
-        let m11 = self.likelihood(CellIndex::new(i + 1, j + 1)) as f64;
+        let blk = self.field_block::<2>(i, j, false);
+        let (m00, m10) = (blk[0][0] as f64, blk[0][1] as f64);
+        let (m01, m11) = (blk[1][0] as f64, blk[1][1] as f64);
         let val = fy * (fx * m11 + (1.0 - fx) * m01) + (1.0 - fy) * (fx * m10 + (1.0 - fx) * m00);
         let du = fy * (m11 - m01) + (1.0 - fy) * (m10 - m00);
         let dv = fx * (m11 - m10) + (1.0 - fx) * (m01 - m00);
         let inv = 1.0 / self.frame.resolution;
         (val, [du * inv, dv * inv])
+    }
+
+    /// The N×N block of field values (or squared distances) with lower-left cell (i0, j0),
+    /// as `out[row][column]`; one tile lookup when the block lies inside one tile.
+    #[inline]
+    fn field_block<const N: usize>(&self, i0: i32, j0: i32, dist2: bool) -> [[f32; N]; N] {
+        let mut out = [[0.0f32; N]; N];
+        let n = N as i32 - 1;
+        let bits = tiles::TILE_BITS;
+        let (tx, ty) = (i0 >> bits, j0 >> bits);
+        if tx == (i0 + n) >> bits && ty == (j0 + n) >> bits {
+            let tile: &FieldTile = match self.layout.slot(tx, ty) {
+                Some(s) => self.field_tile(s),
+                None => &self.far_field,
+            };
+            let arr = if dist2 { &tile.dist2 } else { &tile.values };
+            let t = TILE_SIZE as i32;
+            let (lx, ly) = ((i0 - tx * t) as usize, (j0 - ty * t) as usize);
+            for (b, row) in out.iter_mut().enumerate() {
+                let base = (ly + b) * TILE_SIZE + lx;
+                row.copy_from_slice(&arr[base..base + N]);
+            }
+        } else {
+            for (b, row) in out.iter_mut().enumerate() {
+                for (a, v) in row.iter_mut().enumerate() {
+                    let c = CellIndex::new(i0 + a as i32, j0 + b as i32);
+                    *v = if dist2 {
+                        self.distance_squared(c)
+                    } else {
+                        self.likelihood(c)
+                    };
+                }
+            }
+        }
+        out
     }
 
     /// Squared distance d² (m², clamped to max_distance²) from the centre of cell `c` to the
@@ -681,12 +715,12 @@ impl OccupancyGrid {
         let (wx, dwx) = catmull_rom_weights(u - x0);
         let (wy, dwy) = catmull_rom_weights(v - y0);
         let (i, j) = (x0 as i32, y0 as i32);
+        let blk = self.field_block::<4>(i - 1, j - 1, true);
         let (mut val, mut du, mut dv) = (0.0, 0.0, 0.0);
         for (b, (&wyb, &dwyb)) in wy.iter().zip(&dwy).enumerate() {
             let (mut row, mut drow) = (0.0, 0.0);
             for (a, (&wxa, &dwxa)) in wx.iter().zip(&dwx).enumerate() {
-                let m = self.distance_squared(CellIndex::new(i + a as i32 - 1, j + b as i32 - 1))
-                    as f64;
+                let m = blk[b][a] as f64;
                 row += wxa * m;
                 drow += dwxa * m;
             }
