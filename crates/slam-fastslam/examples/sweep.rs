@@ -6,14 +6,15 @@
 //! cargo run --release -p slam-fastslam --example sweep [seeds]
 //! ```
 //!
-//! Per cell: final position error (m) and landmark RMSE (m) of the best particle's map,
-//! means over the seeds, with dead reckoning for scale. The simulated frame is anchored at
-//! the known initial pose, so no alignment is applied. Under hidden ids a true landmark is
-//! matched to the nearest estimate; "spurious" counts estimates farther than 1 m from every
-//! true landmark (clutter that persisted or duplicates).
+//! Per cell: final position error (m) and the landmark map error of the best particle's map
+//! (`slam_io::eval::landmark_error`: by id under known ids, otherwise nearest neighbour
+//! within 1 m; RMSE over the matched pairs, unaligned since the simulated frame is anchored
+//! at the known initial pose), means over the seeds, with dead reckoning for scale.
+//! "Spurious" estimates matched no true landmark (persisting clutter or duplicates).
 
 use slam_fastslam::{Association, FastSlam, FastSlamConfig, Variant};
-use slam_models::{LandmarkEstimate, LandmarkSlam, Point2, Pose2};
+use slam_io::eval::landmark_error;
+use slam_models::{LandmarkEstimate, LandmarkSlam, Pose2};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::{LandmarkSimRun, SimOutput};
 use std::time::Instant;
@@ -49,36 +50,6 @@ fn config(run: &LandmarkSimRun, variant: Variant, particles: usize) -> FastSlamC
     }
 }
 
-/// (RMSE over true landmarks of the distance to the matched estimate, spurious count).
-fn landmark_error(
-    est: &[LandmarkEstimate],
-    truth: &[(slam_models::LandmarkId, Point2)],
-    by_id: bool,
-) -> (f64, usize) {
-    let mut se = 0.0;
-    let mut n = 0;
-    for (id, p) in truth {
-        let d = if by_id {
-            est.iter()
-                .find(|e| e.id == *id)
-                .map(|e| (e.mean - p).norm())
-        } else {
-            est.iter()
-                .map(|e| (e.mean - p).norm())
-                .min_by(f64::total_cmp)
-        };
-        if let Some(d) = d {
-            se += d * d;
-            n += 1;
-        }
-    }
-    let spurious = est
-        .iter()
-        .filter(|e| truth.iter().all(|(_, p)| (e.mean - p).norm() > 1.0))
-        .count();
-    ((se / n.max(1) as f64).sqrt(), spurious)
-}
-
 fn run_filter(
     run: &LandmarkSimRun,
     cfg: FastSlamConfig,
@@ -97,8 +68,8 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);
-    println!("| scenario | filter | M | final pose error (m) | landmark RMSE (m) | landmarks (true) | spurious | ms/step |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| scenario | filter | M | final pose error (m) | landmark RMSE (m) | landmarks (true) | matched | spurious | ms/step |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for name in ["loop", "clutter"] {
         let runs: Vec<LandmarkSimRun> = (0..seeds).map(|s| scenario(name, s)).collect();
         let truth_n = runs[0].dataset.landmarks.as_ref().map_or(0, |l| l.len());
@@ -112,21 +83,23 @@ fn main() {
             dr += p.distance(r.true_poses.last().expect("steps"));
         }
         println!(
-            "| {name} | dead reckoning | – | {:.3} | – | – | – | – |",
+            "| {name} | dead reckoning | – | {:.3} | – | – | – | – | – |",
             dr / seeds as f64
         );
         for variant in [Variant::FastSlam1, Variant::FastSlam2] {
             for m in [1usize, 10, 100] {
-                let (mut pe, mut le, mut nl, mut sp, mut steps) = (0.0, 0.0, 0.0, 0.0, 0usize);
+                let (mut pe, mut le, mut nl, mut sp, mut mt, mut steps) =
+                    (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
                 let t0 = Instant::now();
                 for (k, r) in runs.iter().enumerate() {
                     let (pose, lms) = run_filter(r, config(r, variant, m), 100 + k as u64);
                     pe += pose.distance(r.true_poses.last().expect("steps"));
                     let truth = r.dataset.landmarks.as_deref().unwrap_or(&[]);
-                    let (rmse, spurious) = landmark_error(&lms, truth, name == "loop");
-                    le += rmse;
+                    let e = landmark_error(&lms, truth, name == "loop");
+                    le += e.rmse;
                     nl += lms.len() as f64;
-                    sp += spurious as f64;
+                    sp += e.spurious as f64;
+                    mt += e.matched as f64;
                     steps += r.dataset.steps.len();
                 }
                 let ms = t0.elapsed().as_secs_f64() * 1e3 / steps as f64;
@@ -137,10 +110,11 @@ fn main() {
                     "FastSLAM 2.0"
                 };
                 println!(
-                    "| {name} | {v} | {m} | {:.3} | {:.3} | {:.1} ({truth_n}) | {:.1} | {ms:.3} |",
+                    "| {name} | {v} | {m} | {:.3} | {:.3} | {:.1} ({truth_n}) | {:.1} | {:.1} | {ms:.3} |",
                     pe / k,
                     le / k,
                     nl / k,
+                    mt / k,
                     sp / k
                 );
             }
