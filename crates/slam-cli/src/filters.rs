@@ -247,3 +247,70 @@ pub(crate) fn build_scan(
         _ => Err(unavailable(info)),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde::de::DeserializeOwned;
+    use serde::Serialize;
+    use std::collections::BTreeSet;
+
+    /// Every key path of a TOML value (`motion.odometry.alpha`, …).
+    fn key_paths(v: &toml::Value, prefix: &str, out: &mut BTreeSet<String>) {
+        if let toml::Value::Table(t) = v {
+            for (k, v) in t {
+                let path = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                key_paths(v, &path, out);
+                out.insert(path);
+            }
+        }
+    }
+
+    /// `configs/<name>.toml` sets every key of `C` (those with a value by default) to its
+    /// default, so the example files document exactly what a run uses without `--config`.
+    fn example_is_complete_and_default<C: DeserializeOwned + Serialize + Default>(
+        name: &str,
+        patch: impl Fn(&mut C),
+    ) {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{name}.toml"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let raw: toml::Value = toml::from_str(&text).unwrap();
+        let mut parsed: C =
+            toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        patch(&mut parsed);
+        let parsed = toml::Value::try_from(&parsed).unwrap();
+        let default = toml::Value::try_from(C::default()).unwrap();
+        let (mut a, mut b) = (BTreeSet::new(), BTreeSet::new());
+        key_paths(&raw, "", &mut a);
+        key_paths(&default, "", &mut b);
+        assert_eq!(
+            a, b,
+            "configs/{name}.toml: keys differ from the config struct's"
+        );
+        assert_eq!(
+            parsed, default,
+            "configs/{name}.toml: values differ from the defaults"
+        );
+    }
+
+    #[test]
+    fn example_configs_match_the_defaults() {
+        for f in filters().iter().filter(|f| f.unavailable.is_none()) {
+            match f.name {
+                "fastslam1" | "fastslam2" => {
+                    example_is_complete_and_default::<slam_fastslam::FastSlamConfig>(f.name, |c| {
+                        c.variant = Default::default()
+                    })
+                }
+                "scanmatch" => {
+                    example_is_complete_and_default::<slam_grid::ScanMatchConfig>(f.name, |_| ())
+                }
+                other => panic!("no example-config check for {other}"),
+            }
+        }
+    }
+}

@@ -41,15 +41,22 @@ impl Progress {
             let bar = ProgressBar::with_draw_target(
                 Some(self.total),
                 ProgressDrawTarget::stderr_with_hz(10),
-            );
+            )
+            .with_elapsed(self.start.elapsed());
             if let Ok(style) = ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} steps ({per_sec}, eta {eta})",
+                "{elapsed_precise} [{bar:30}] {pos}/{len} steps, {msg}",
             ) {
                 bar.set_style(style.progress_chars("=> "));
             }
             self.bar = Some(bar);
         }
         if let Some(bar) = &self.bar {
+            // Rate and time left from the whole run so far (indicatif's own estimator would
+            // see the bar start at a large position and report a spike).
+            let elapsed = self.start.elapsed().as_secs_f64();
+            let rate = done as f64 / elapsed.max(1e-9);
+            let left = (self.total as f64 - done as f64).max(0.0) / rate.max(1e-9);
+            bar.set_message(format!("{rate:.0}/s, {left:.0} s left"));
             bar.set_position(done as u64);
         }
     }

@@ -39,6 +39,14 @@ pub struct RunReport {
     pub files: Vec<PathBuf>,
 }
 
+/// What a run loop hands back.
+struct Finished {
+    metrics: Metrics,
+    files: Vec<PathBuf>,
+    /// Extra summary lines.
+    notes: Vec<String>,
+}
+
 /// The data a run works on.
 enum Data {
     Landmark {
@@ -114,7 +122,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         relations,
     };
     let threads = args.threads.map(|t| t as usize);
-    let run = |input: &mut Input| -> Result<(Metrics, Vec<PathBuf>), CliError> {
+    let run = |input: &mut Input| -> Result<Finished, CliError> {
         match &mut input.data {
             Data::Landmark {
                 dataset,
@@ -123,7 +131,11 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             Data::Laser(dataset) => run_scan(&ctx, &input.name, input.has_clock, dataset),
         }
     };
-    let (metrics, files) = match threads {
+    let Finished {
+        metrics,
+        files,
+        notes,
+    } = match threads {
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -136,7 +148,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         }
         None => run(&mut input)?,
     };
-    print_summary(out, &metrics, &out_dir, &files);
+    print_summary(out, &metrics, &notes, &out_dir, &files);
     Ok(RunReport {
         out_dir,
         metrics,
@@ -286,7 +298,7 @@ fn run_landmark(
     has_clock: bool,
     dataset: &LandmarkDataset,
     sim_models: Option<(MotionModels, RangeBearingModel)>,
-) -> Result<(Metrics, Vec<PathBuf>), CliError> {
+) -> Result<Finished, CliError> {
     let info = &ctx.info;
     let built = filters::build_landmark(
         info,
@@ -336,6 +348,7 @@ fn run_landmark(
     let landmarks = filter.landmarks();
     let particles = filter.particles();
     let mut m = Metrics::new(info.name, name, steps.len());
+    let mut notes = Vec::new();
     m.set_timing(
         wall,
         duration(
@@ -348,7 +361,7 @@ fn run_landmark(
         trajectory_metrics(&mut m, &trajectory, gt);
     }
     if let Some(rel) = &ctx.relations {
-        relations_metrics(&mut m, &trajectory, rel);
+        notes.push(relations_metrics(&mut m, &trajectory, rel));
     }
     if let Some(truth) = &dataset.landmarks {
         let by_id = steps
@@ -399,7 +412,11 @@ fn run_landmark(
     let p = dir.join("metrics.json");
     m.write(&p).map_err(write_err(&p))?;
     files.push(p);
-    Ok((m, files))
+    Ok(Finished {
+        metrics: m,
+        files,
+        notes,
+    })
 }
 
 fn run_scan(
@@ -407,7 +424,7 @@ fn run_scan(
     name: &str,
     has_clock: bool,
     dataset: &ScanDataset,
-) -> Result<(Metrics, Vec<PathBuf>), CliError> {
+) -> Result<Finished, CliError> {
     let info = &ctx.info;
     let built = filters::build_scan(
         info,
@@ -449,6 +466,7 @@ fn run_scan(
     }
 
     let mut m = Metrics::new(info.name, name, records.len());
+    let mut notes = Vec::new();
     m.set_timing(
         wall,
         duration(
@@ -469,7 +487,7 @@ fn run_scan(
         trajectory_metrics(&mut m, &trajectory, gt);
     }
     if let Some(rel) = &ctx.relations {
-        relations_metrics(&mut m, &trajectory, rel);
+        notes.push(relations_metrics(&mut m, &trajectory, rel));
     }
     m.peak_rss_mb = metrics::peak_rss_mb();
 
@@ -500,7 +518,11 @@ fn run_scan(
     let p = dir.join("metrics.json");
     m.write(&p).map_err(write_err(&p))?;
     files.push(p);
-    Ok((m, files))
+    Ok(Finished {
+        metrics: m,
+        files,
+        notes,
+    })
 }
 
 /// The ground truth moved rigidly so that its first pose with an estimate at the same time
@@ -544,32 +566,53 @@ fn trajectory_metrics(m: &mut Metrics, trajectory: &[TimedPose], gt: &[TimedPose
     }
 }
 
-/// The Kümmerle et al. relations metric.
+/// The Kümmerle et al. relations metric; returns a line for the summary.
 fn relations_metrics(
     m: &mut Metrics,
     trajectory: &[TimedPose],
     relations: &[slam_io::relations::Relation],
-) {
+) -> String {
     let r = eval::relations_error(trajectory, relations);
     if r.used > 0 {
         m.relations_trans_mean_m = Some(r.trans_mean);
         m.relations_rot_mean_deg = Some(r.rot_mean_deg);
+        format!(
+            "relations error {:.3} ± {:.3} m / {:.2} ± {:.2} deg ({} relations used, {} without both ends in the trajectory)",
+            r.trans_mean, r.trans_std, r.rot_mean_deg, r.rot_std_deg, r.used, r.dropped
+        )
     } else {
-        eprintln!(
-            "slam: warning: none of the {} relations has both ends in the trajectory (within 6 ms); is it on the same clock?",
+        let msg = format!(
+            "no relations metric: none of the {} relations has both ends in the trajectory (within 6 ms); is it on the same clock?",
             relations.len()
         );
+        eprintln!("slam: warning: {msg}");
+        msg
+    }
+}
+
+/// `x` with 3 decimals, or in scientific notation when huge (a diverged NEES).
+fn fmt_num(x: f64) -> String {
+    if x.abs() >= 1e5 {
+        format!("{x:.3e}")
+    } else {
+        format!("{x:.3}")
     }
 }
 
 fn fmt_opt(v: Option<f64>, unit: &str) -> String {
     match v {
-        Some(x) => format!("{x:.3}{unit}"),
+        Some(x) => format!("{}{unit}", fmt_num(x)),
         None => "n/a".into(),
     }
 }
 
-fn print_summary(out: &mut dyn Write, m: &Metrics, dir: &Path, files: &[PathBuf]) {
+fn print_summary(
+    out: &mut dyn Write,
+    m: &Metrics,
+    notes: &[String],
+    dir: &Path,
+    files: &[PathBuf],
+) {
     let rtf = m
         .real_time_factor
         .map(|r| format!(", {r:.1}x real time"))
@@ -609,13 +652,8 @@ fn print_summary(out: &mut dyn Write, m: &Metrics, dir: &Path, files: &[PathBuf]
             fmt_opt(m.nees_pose_mean, ""),
         );
     }
-    if m.relations_trans_mean_m.is_some() {
-        let _ = writeln!(
-            out,
-            "  relations error {} / {}",
-            fmt_opt(m.relations_trans_mean_m, " m"),
-            fmt_opt(m.relations_rot_mean_deg, " deg"),
-        );
+    for note in notes {
+        let _ = writeln!(out, "  {note}");
     }
     let names: Vec<String> = files
         .iter()
