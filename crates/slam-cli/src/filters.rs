@@ -56,7 +56,7 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "EKF-SLAM (PR ch. 10), dense covariance, known or unknown data association",
             particle_filter: false,
-            unavailable: Some("the slam-ekf crate has not landed yet"),
+            unavailable: None,
         },
         FilterInfo {
             name: "fastslam1",
@@ -86,7 +86,7 @@ pub fn filters() -> Vec<FilterInfo> {
             kind: DataKind::Laser,
             description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
             particle_filter: true,
-            unavailable: Some("the slam-gridfast crate has not landed yet"),
+            unavailable: None,
         },
     ]
 }
@@ -182,6 +182,24 @@ pub(crate) fn build_landmark(
         message: e.to_string(),
     };
     match info.name {
+        "ekf" => {
+            use slam_ekf::{EkfConfig, EkfSlam};
+            let mut loaded = config::load::<EkfConfig>(setup.config_path)?;
+            let (motion, sensor) = sim_noise(&loaded, setup);
+            let c = &mut loaded.config;
+            if let Some(m) = motion {
+                c.motion = m;
+            }
+            if let Some(s) = sensor {
+                c.sensor = s;
+            }
+            let config_toml = config::to_toml(&loaded.config);
+            let f = EkfSlam::new(loaded.config, setup.initial_pose).map_err(|e| invalid(&e))?;
+            Ok(Built {
+                filter: Box::new(f),
+                config_toml,
+            })
+        }
         "fastslam1" | "fastslam2" => {
             use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
             let mut loaded = config::load::<FastSlamConfig>(setup.config_path)?;
@@ -239,6 +257,19 @@ pub(crate) fn build_scan(
             let loaded = config::load::<ScanMatchConfig>(setup.config_path)?;
             let config_toml = config::to_toml(&loaded.config);
             let f = ScanMatchOdometry::new(loaded.config).map_err(|e| invalid(&e))?;
+            Ok(Built {
+                filter: Box::new(f),
+                config_toml,
+            })
+        }
+        "gridfast" => {
+            use slam_gridfast::{GridFastConfig, GridFastSlam};
+            let mut loaded = config::load::<GridFastConfig>(setup.config_path)?;
+            if let Some(n) = setup.particles {
+                loaded.config.particles = n;
+            }
+            let config_toml = config::to_toml(&loaded.config);
+            let f = GridFastSlam::new(loaded.config, setup.seed).map_err(|e| invalid(&e))?;
             Ok(Built {
                 filter: Box::new(f),
                 config_toml,
@@ -308,6 +339,10 @@ mod tests {
                 }
                 "scanmatch" => {
                     example_is_complete_and_default::<slam_grid::ScanMatchConfig>(f.name, |_| ())
+                }
+                "ekf" => example_is_complete_and_default::<slam_ekf::EkfConfig>(f.name, |_| ()),
+                "gridfast" => {
+                    example_is_complete_and_default::<slam_gridfast::GridFastConfig>(f.name, |_| ())
                 }
                 other => panic!("no example-config check for {other}"),
             }

@@ -619,11 +619,15 @@ fn print_summary(
         .unwrap_or_default();
     let _ = writeln!(
         out,
-        "{} on {}: {} steps in {:.2} s ({:.0} steps/s{rtf}), peak memory {}",
+        "{} on {}: {} steps in {} s ({:.0} steps/s{rtf}), peak memory {}",
         m.filter,
         m.dataset,
         m.steps,
-        m.wall_s,
+        if m.wall_s < 1.0 {
+            format!("{:.3}", m.wall_s)
+        } else {
+            format!("{:.1}", m.wall_s)
+        },
         m.steps_per_s.unwrap_or(0.0),
         fmt_opt(m.peak_rss_mb, " MB"),
     );
