@@ -46,6 +46,11 @@ pub struct GridFastConfig {
     /// … or turned this much (sum of |Δθ| of the odometry since the last update), radians.
     /// Default 0.5 (GMapping `angularUpdate`).
     pub angular_update: f64,
+    /// When true, the motion that triggers an update is summed from scan record to scan
+    /// record only (the odometry at scan times, as a ROS node sees it); when false, over
+    /// the odometry of every record (GMapping's `processScan`, which sums |Δodometry| over
+    /// every laser reading of a raw log). Default false.
+    pub accumulate_per_scan: bool,
     /// Resample when N_eff < `resample_threshold`·M (Grisetti et al. 2007 §V). Default 0.5.
     pub resample_threshold: f64,
     /// Resampling scheme (slam-models). Default systematic.
@@ -126,6 +131,7 @@ impl Default for GridFastConfig {
             resolution: 0.05,
             linear_update: 1.0,
             angular_update: 0.5,
+            accumulate_per_scan: false,
             resample_threshold: 0.5,
             resampler: Resampler::Systematic,
             motion: OdometryModel::new([0.05, 0.002, 0.02, 0.002]),

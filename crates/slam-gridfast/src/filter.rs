@@ -34,8 +34,9 @@ struct Particle {
 /// Each input record moves the estimate by its odometry; a record with a scan triggers a
 /// filter update once the odometry path since the last update exceeds
 /// [`GridFastConfig::linear_update`] metres or its accumulated turning exceeds
-/// [`GridFastConfig::angular_update`] radians, both summed from scan record to scan record
-/// (GMapping's rule; the first scan is always used). An update
+/// [`GridFastConfig::angular_update`] radians, both summed over the odometry of every
+/// record (GMapping's rule; see [`GridFastConfig::accumulate_per_scan`]); the first scan
+/// is always used. An update
 /// draws every particle's pose from the configured [`Proposal`], updates the weights,
 /// resamples when N_eff < `resample_threshold`·M, and integrates the scan into every
 /// surviving particle's map. Between updates a pose is the last corrected pose ⊕ the
@@ -75,7 +76,7 @@ pub struct GridFastSlam {
     scans: Vec<LaserScan>,
     acc_linear: f64,
     acc_angular: f64,
-    last_scan_odometry: Option<Pose2>,
+    motion_reference: Option<Pose2>,
 }
 
 /// splitmix64: a bijective 64-bit mixer (Steele, Lea & Flood 2014), used to derive
@@ -147,7 +148,7 @@ impl GridFastSlam {
             scans: Vec::new(),
             acc_linear: 0.0,
             acc_angular: 0.0,
-            last_scan_odometry: None,
+            motion_reference: None,
         })
     }
 
@@ -250,14 +251,16 @@ impl GridFastSlam {
     /// Processes one record (the [`ScanSlam::process`] contract, with this crate's error).
     pub fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridFastError> {
         self.check_record(record)?;
-        // Motion is accumulated from scan to scan, as GMapping does: the odometry-only
-        // records in between would add their jitter to the path length.
-        if record.scan.is_some() {
-            if let Some(prev) = self.last_scan_odometry {
+        // Motion is accumulated over every odometry reading, as GMapping's processScan
+        // does per reading (`m_linearDistance += |Δ|`, `m_angularDistance += |Δθ|`);
+        // with `accumulate_per_scan` only from scan record to scan record (what a ROS
+        // node that sees only the scans does).
+        if !self.config.accumulate_per_scan || record.scan.is_some() {
+            if let Some(prev) = self.motion_reference {
                 self.acc_linear += prev.distance(&record.odometry);
                 self.acc_angular += normalize_angle(record.odometry.theta - prev.theta).abs();
             }
-            self.last_scan_odometry = Some(record.odometry);
+            self.motion_reference = Some(record.odometry);
         }
         self.times.push(record.t);
         self.odometry.push(record.odometry);
