@@ -44,7 +44,10 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
         }
     }
     let scanner = LaserScanner::default();
-    let matcher = RefinedCorrelativeMatcher::default();
+    // The refinement with a narrower Gaussian than the field's (see
+    // `GaussNewtonMatcher::sigma`): 94 % instead of 78 % on the 5 cm map.
+    let mut matcher = RefinedCorrelativeMatcher::default();
+    matcher.refine.sigma = 0.02;
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
     let mut errs = Vec::with_capacity(n);
     let mut rots = Vec::with_capacity(n);
@@ -86,10 +89,11 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
 }
 
 /// The target is ≥ 99 % of 1,000 trials within 1 cm and 0.5° (correlative +
-/// refinement). Measured (seed 2024): 5 cm map 77.9 %, median 6.0 mm; 2.5 cm map 96.8 %,
-/// median 3.0 mm: the target is NOT met; the bounds below guard the measured level. The
-/// remaining error is the map's representation (GN started at the true pose settles a
-/// median 9 mm away on the 5 cm map, at a lower cost than the truth's).
+/// refinement). Measured (seed 2024): 5 cm map 94.3 %, median 3.1 mm, p99 1.8 cm; 2.5 cm
+/// map 98.2 % (500 trials), median 2.5 mm: the target is NOT quite met; the bounds below
+/// guard the measured level. The remaining error is the map's representation (Gauss-Newton
+/// started at the true pose settles a few millimetres away, at a lower cost than the
+/// truth's), not convergence.
 #[test]
 fn office_matching_from_large_offsets() {
     let t = office_trials(0.05, 1000, 2024);
@@ -101,9 +105,9 @@ fn office_matching_from_large_offsets() {
             t.ok, t.n, t.median_err, t.p99_err, t.median_rot_deg
         );
     }
-    assert!(t.ok * 100 >= 70 * t.n, "5 cm: {}/{}", t.ok, t.n);
-    assert!(t.median_err < 0.01 && t.p99_err < 0.05);
-    assert!(t2.ok * 100 >= 94 * t2.n, "2.5 cm: {}/{}", t2.ok, t2.n);
+    assert!(t.ok * 100 >= 92 * t.n, "5 cm: {}/{}", t.ok, t.n);
+    assert!(t.median_err < 0.005 && t.p99_err < 0.03);
+    assert!(t2.ok * 100 >= 96 * t2.n, "2.5 cm: {}/{}", t2.ok, t2.n);
 }
 
 /// Reads a perturbed copy of a corrected log (odometry replaced, ground truth written by

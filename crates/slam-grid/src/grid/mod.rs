@@ -709,6 +709,14 @@ impl OccupancyGrid {
     /// (mean hit) position instead of on a cell centre, as the bilinear interpolant's does.
     #[inline]
     pub fn likelihood_bicubic(&self, p: &Point2) -> (f64, [f64; 2]) {
+        self.likelihood_bicubic_sigma(p, self.params.sigma)
+    }
+
+    /// [`OccupancyGrid::likelihood_bicubic`] with a σ of the caller's choice (metres, > 0)
+    /// in M = exp(−D/(2σ²)): the squared distances do not depend on σ, so a refinement can
+    /// use a narrower Gaussian than the field's own.
+    #[inline]
+    pub fn likelihood_bicubic_sigma(&self, p: &Point2, sigma: f64) -> (f64, [f64; 2]) {
         let (u, v) = self.frame.world_to_continuous(p);
         let (u, v) = (u - 0.5, v - 0.5);
         let (x0, y0) = (u.floor(), v.floor());
@@ -729,7 +737,7 @@ impl OccupancyGrid {
             dv += dwyb * row;
         }
         let inv = 1.0 / self.frame.resolution;
-        let k = -0.5 / (self.params.sigma * self.params.sigma);
+        let k = -0.5 / (sigma * sigma);
         let m = (k * val.max(0.0)).exp();
         (m, [m * k * du * inv, m * k * dv * inv])
     }

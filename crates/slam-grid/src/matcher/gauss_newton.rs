@@ -35,6 +35,12 @@ pub struct GaussNewtonMatcher {
     pub min_points: usize,
     /// How the field is interpolated between cell centres. Default bicubic.
     pub interpolation: Interpolation,
+    /// σ of M = exp(−D/(2σ²)) for the bicubic interpolant, metres; 0 (the default) uses
+    /// the grid's [`crate::LikelihoodParams::sigma`]. A narrower σ than the field's sharpens
+    /// the optimum on clean maps (simulated office, 5 cm grid: 94 % of matches within 1 cm
+    /// and 0.5° with 0.02 m against 78 % with the field's 0.05 m) but made scan-matching
+    /// odometry on the real Intel log worse (ATE 2.1 m against 0.37 m).
+    pub sigma: f64,
 }
 
 /// Interpolation of the likelihood field between cell centres.
@@ -50,12 +56,17 @@ pub enum Interpolation {
 }
 
 impl Interpolation {
-    /// Field value and world-frame gradient at `p`.
+    /// Field value and world-frame gradient at `p` (`sigma` > 0 for the bicubic one).
     #[inline]
-    pub(crate) fn eval(self, grid: &OccupancyGrid, p: &slam_models::Point2) -> (f64, [f64; 2]) {
+    pub(crate) fn eval(
+        self,
+        grid: &OccupancyGrid,
+        p: &slam_models::Point2,
+        sigma: f64,
+    ) -> (f64, [f64; 2]) {
         match self {
             Interpolation::Bilinear => grid.likelihood_interpolated(p),
-            Interpolation::Bicubic => grid.likelihood_bicubic(p),
+            Interpolation::Bicubic => grid.likelihood_bicubic_sigma(p, sigma),
         }
     }
 }
@@ -68,6 +79,7 @@ impl Default for GaussNewtonMatcher {
             max_displacement: 0.5,
             min_points: 10,
             interpolation: Interpolation::Bicubic,
+            sigma: 0.0,
         }
     }
 }
@@ -75,6 +87,7 @@ impl Default for GaussNewtonMatcher {
 /// Cost Σ (1 − M)², Hessian approximation H = JᵀJ and gradient b = Jᵀr at `pose`.
 fn normal_equations(
     interp: Interpolation,
+    sigma: f64,
     grid: &OccupancyGrid,
     scan: &PreparedScan,
     pose: &Pose2,
@@ -84,7 +97,7 @@ fn normal_equations(
     let mut b = Vector3::zeros();
     let mut cost = 0.0;
     for (p, w) in scan.points.iter().zip(transform_points(&scan.points, pose)) {
-        let (m, g) = interp.eval(grid, &w);
+        let (m, g) = interp.eval(grid, &w, sigma);
         let r = 1.0 - m;
         let dth = g[0] * (-s * p.x - c * p.y) + g[1] * (c * p.x - s * p.y);
         let j = Vector3::new(g[0], g[1], dth);
@@ -95,10 +108,16 @@ fn normal_equations(
     (cost, h, b)
 }
 
-fn cost_at(interp: Interpolation, grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+fn cost_at(
+    interp: Interpolation,
+    sigma: f64,
+    grid: &OccupancyGrid,
+    scan: &PreparedScan,
+    pose: &Pose2,
+) -> f64 {
     transform_points(&scan.points, pose)
         .map(|w| {
-            let r = 1.0 - interp.eval(grid, &w).0;
+            let r = 1.0 - interp.eval(grid, &w, sigma).0;
             r * r
         })
         .sum()
@@ -113,6 +132,12 @@ impl GaussNewtonMatcher {
             "max_displacement",
             self.max_displacement,
             "> 0 m",
+        )?;
+        ensure_config(
+            self.sigma >= 0.0,
+            "sigma",
+            self.sigma,
+            ">= 0 m (0: the grid's)",
         )
     }
 
@@ -125,8 +150,14 @@ impl GaussNewtonMatcher {
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
         check_input(scan, initial, self.min_points)?;
+        let sigma = if self.sigma > 0.0 {
+            self.sigma
+        } else {
+            grid.likelihood_params().sigma
+        };
         let mut pose = *initial;
-        let (mut cost, mut h, mut b) = normal_equations(self.interpolation, grid, scan, &pose);
+        let (mut cost, mut h, mut b) =
+            normal_equations(self.interpolation, sigma, grid, scan, &pose);
         for _ in 0..self.max_iterations {
             let Some(chol) = nalgebra::Cholesky::new(h) else {
                 return Err(GridError::Degenerate(
@@ -143,7 +174,7 @@ impl GaussNewtonMatcher {
                     pose.y + step * delta[1],
                     pose.theta + step * delta[2],
                 );
-                let c = cost_at(self.interpolation, grid, scan, &trial);
+                let c = cost_at(self.interpolation, sigma, grid, scan, &trial);
                 if c < cost {
                     accepted = Some((trial, c));
                     break;
@@ -153,7 +184,7 @@ impl GaussNewtonMatcher {
             let Some((trial, _)) = accepted else { break };
             let moved = (step * delta[0]).hypot(step * delta[1]) + (step * delta[2]).abs();
             pose = trial;
-            (cost, h, b) = normal_equations(self.interpolation, grid, scan, &pose);
+            (cost, h, b) = normal_equations(self.interpolation, sigma, grid, scan, &pose);
             if moved < self.tolerance {
                 break;
             }
