@@ -531,3 +531,193 @@ fn freiburg_course_data_runs_with_landmark_error() {
     assert!(num(&m, "landmark_rmse_aligned_m").is_finite());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Grid FastSLAM too: `--threads` never changes the result.
+#[test]
+fn gridfast_results_do_not_depend_on_threads() {
+    if !available(filters::DataKind::Laser).contains(&"gridfast") {
+        eprintln!("SKIPPED: gridfast not available");
+        return;
+    }
+    let dir = scratch("threads-gridfast");
+    let mut outputs = Vec::new();
+    for t in ["1", "3"] {
+        let out = dir.join(t);
+        let (r, text) = slam(&[
+            "run",
+            "--filter",
+            "gridfast",
+            "--sim",
+            "office",
+            "--steps",
+            "40",
+            "--particles",
+            "8",
+            "--threads",
+            t,
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+        outputs.push((
+            std::fs::read(out.join("trajectory.tum")).unwrap(),
+            std::fs::read(out.join("map.pgm")).unwrap(),
+        ));
+    }
+    assert!(
+        outputs[0] == outputs[1],
+        "trajectory or map differs with 1 and 3 threads"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `configs/eval.txt` (run by `cargo xtask eval`): every line parses as a `slam run`, names
+/// an available filter, its `--config` works with that filter, and its data exist.
+#[test]
+fn eval_plan_lines_are_valid() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let text = std::fs::read_to_string(root.join("configs/eval.txt")).unwrap();
+    let have_data = dataset("README.md").is_some();
+    let dir = scratch("evalplan");
+    let mut runs = 0;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        runs += 1;
+        let args: Vec<&str> = line.split_whitespace().collect();
+        let parsed = <slam_cli::cli::Cli as clap::Parser>::try_parse_from(
+            std::iter::once("slam").chain(args.iter().copied()),
+        )
+        .unwrap_or_else(|e| panic!("eval.txt line {}: {e}", i + 1));
+        let slam_cli::cli::Command::Run(run) = parsed.command else {
+            panic!("eval.txt line {}: not a `run`", i + 1)
+        };
+        let info = filters::find(&run.filter).unwrap();
+        assert!(
+            info.unavailable.is_none(),
+            "line {}: {} unavailable",
+            i + 1,
+            info.name
+        );
+        assert!(
+            run.out.is_some() && run.quiet,
+            "line {}: --out and --quiet",
+            i + 1
+        );
+        if let Some(cfg) = &run.config {
+            let cfg = root.join(cfg);
+            let sim = match info.kind {
+                filters::DataKind::Landmark => "loop",
+                filters::DataKind::Laser => "office",
+            };
+            let out = dir.join(format!("line{}", i + 1));
+            let (r, _) = slam(&[
+                "run",
+                "--filter",
+                info.name,
+                "--sim",
+                sim,
+                "--steps",
+                "3",
+                "--config",
+                cfg.to_str().unwrap(),
+                "--quiet",
+                "--out",
+                out.to_str().unwrap(),
+            ]);
+            assert!(matches!(r, Ok(Outcome::Ran(_))), "line {}: {r:?}", i + 1);
+        }
+        if have_data {
+            for p in [&run.dataset, &run.ground_truth, &run.relations]
+                .into_iter()
+                .flatten()
+            {
+                assert!(
+                    root.join(p).exists(),
+                    "line {}: {} missing",
+                    i + 1,
+                    p.display()
+                );
+            }
+        }
+    }
+    assert!(runs >= 40, "{runs} runs");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Laser data: `slam sim office` writes a CARMEN log and TUM ground truth; running on them
+/// gives what running on the scenario gives. Then the map of that run is replayed as a new
+/// world with `replay:<map.yaml>`.
+#[test]
+fn laser_sim_round_trip_and_replay() {
+    let dir = scratch("laser-roundtrip");
+    let data = dir.join("data");
+    let (r, _) = slam(&[
+        "sim",
+        "office",
+        "--seed",
+        "2",
+        "--steps",
+        "40",
+        "--out",
+        data.to_str().unwrap(),
+    ]);
+    let Ok(Outcome::Simulated(rep)) = r else {
+        panic!("{r:?}")
+    };
+    assert_eq!(rep.kind, "laser");
+    assert!(rep.dataset_path.is_file() && rep.ground_truth.is_file());
+    let run = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "run",
+            "--filter",
+            "scanmatch",
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let (r, text) = slam(&args);
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+        read_metrics(out)
+    };
+    let direct = run(
+        &["--sim", "office", "--seed", "2", "--steps", "40"],
+        &dir.join("a"),
+    );
+    let replayed = run(
+        &[
+            "--dataset",
+            rep.dataset_path.to_str().unwrap(),
+            "--ground-truth",
+            rep.ground_truth.to_str().unwrap(),
+        ],
+        &dir.join("b"),
+    );
+    assert_eq!(direct["steps"], replayed["steps"]);
+    for key in ["ate_rmse_m", "data_duration_s"] {
+        let (a, b) = (num(&direct, key), num(&replayed, key));
+        assert!(
+            (a - b).abs() < 0.01 * (1.0 + a.abs()),
+            "{key}: direct {a}, replayed {b}"
+        );
+    }
+    // The map just built, as the world of a new simulation.
+    let yaml = dir.join("a").join("map.yaml");
+    let spec = format!("replay:{}", yaml.display());
+    let (r, out) = slam(&[
+        "sim",
+        &spec,
+        "--steps",
+        "20",
+        "--out",
+        dir.join("replay").to_str().unwrap(),
+    ]);
+    assert!(matches!(r, Ok(Outcome::Simulated(_))), "{r:?}\n{out}");
+    let (r, _) = slam(&["sim", "replay", "--out", dir.join("x").to_str().unwrap()]);
+    assert!(r.err().unwrap().to_string().contains("replay:<map.yaml>"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
