@@ -115,7 +115,9 @@ pub struct ScenarioOptions {
     /// Velocity noise α1..α6 (PR table 5.3; default: the slam-models default).
     pub velocity_alpha: Option<[f64; 6]>,
     /// Model mismatch: draw the noise with all standard deviations multiplied by this factor
-    /// while the data still reports the nominal models (default 1 = the filter's own model).
+    /// (default 1 = the filter's own model). Landmark runs still report the nominal models
+    /// in `motion`/`sensor` (the drawn ones in `true_motion`/`true_sensor`); laser runs
+    /// report the scaled models actually used.
     pub noise_scale: Option<f64>,
     /// Laser beams per scan (default 181 over 180°).
     pub beams: Option<usize>,
