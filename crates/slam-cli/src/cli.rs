@@ -110,7 +110,9 @@ pub struct SimArgs {
     pub out: PathBuf,
 }
 
-/// `slam eval`.
+/// `slam eval`. ATE "as is" compares the positions in the frames the files give (no
+/// anchoring; `slam run` anchors a laser run's ground truth at the first common pose before
+/// its ATE), "aligned" after the least-squares SE(2) alignment.
 #[derive(Debug, Clone, Args)]
 #[command(group(ArgGroup::new("reference").required(true).multiple(true).args(["ground_truth", "relations"])))]
 pub struct EvalArgs {

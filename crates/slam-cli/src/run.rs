@@ -88,6 +88,15 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             reason: why.to_string(),
         });
     }
+    // Fail on a missing config file before loading a possibly large dataset.
+    if let Some(c) = &args.config {
+        if !c.is_file() {
+            return Err(CliError::Read {
+                path: c.clone(),
+                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+            });
+        }
+    }
     let mut input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);
     if input.kind() != info.kind {

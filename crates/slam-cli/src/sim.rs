@@ -121,14 +121,23 @@ pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
             }
         }
     };
-    let _ =
-        writeln!(
+    let run_hint = if report.kind == "landmark" {
+        // The Freiburg reader picks up ground_truth.tum from the folder by itself.
+        format!(
+            "slam run --filter fastslam2 --dataset {}",
+            report.dataset_path.display()
+        )
+    } else {
+        format!(
+            "slam run --filter gridfast --dataset {} --ground-truth {}",
+            report.dataset_path.display(),
+            report.ground_truth.display()
+        )
+    };
+    let _ = writeln!(
         out,
-        "ground truth: {}\nrun a filter on it: slam run --filter {} --dataset {} --ground-truth {}",
+        "ground truth: {}\nrun a filter on it: {run_hint}",
         report.ground_truth.display(),
-        if report.kind == "landmark" { "fastslam2" } else { "gridfast" },
-        report.dataset_path.display(),
-        report.ground_truth.display()
     );
     Ok(report)
 }
