@@ -1,5 +1,5 @@
 //! The command line, as clap types. This module only describes the arguments; the
-//! subcommands live in [`crate::run`], [`crate::sim`], [`crate::eval`] and [`crate::list`].
+//! subcommands live in [`crate::run`], [`crate::sim`], [`crate::eval`] and `list`.
 
 use clap::{ArgGroup, Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -65,7 +65,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub particles: Option<u64>,
 
-    /// Filter configuration, a TOML file (see configs/<filter>.toml); unknown keys are an error.
+    /// Filter configuration, a TOML file (see configs/FILTER.toml); unknown keys are an error.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
 
@@ -77,7 +77,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub relations: Option<PathBuf>,
 
-    /// Output folder (default ./slam-out/<filter>-<dataset>).
+    /// Output folder (default ./slam-out/FILTER-DATASET).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 
