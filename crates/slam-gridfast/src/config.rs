@@ -75,7 +75,9 @@ pub struct GridFastConfig {
     pub beam_step: usize,
     /// Log-odds added to a cell where a beam ended. Default 0.85 (p = 0.7).
     pub log_odds_hit: f32,
-    /// Log-odds added to a cell a beam passed through (negative). Default −0.4 (p = 0.4).
+    /// Log-odds added to a cell a beam passed through (negative). Default −0.2 (p = 0.45):
+    /// walls survive more grazing pass-throughs (on intel.log −0.2 scored 0.0555 m against
+    /// 0.0578 m for −0.4).
     pub log_odds_miss: f32,
     /// Log-odds clamping bounds (lower, upper). Default (−2.0, 3.5).
     pub log_odds_clamp: [f32; 2],
@@ -140,7 +142,7 @@ impl Default for GridFastConfig {
             max_range: 50.0,
             beam_step: 1,
             log_odds_hit: 0.85,
-            log_odds_miss: -0.4,
+            log_odds_miss: -0.2,
             log_odds_clamp: [-2.0, 3.5],
             likelihood_sigma: 0.05,
             field_radius: 0.2,
