@@ -289,3 +289,83 @@ fn clutter_with_jcbb_finds_landmarks_without_false_merges() {
     assert_eq!(merges, 0);
     assert!(found_once as f64 >= 0.99 * eligible as f64);
 }
+
+/// The same NEES check with velocity controls (the velocity motion model, PR table 5.3).
+#[test]
+fn loop_nees_with_velocity_controls() {
+    let runs = 50;
+    let mut sum: Vec<f64> = Vec::new();
+    for seed in 0..runs {
+        let opts = ScenarioOptions {
+            velocity: true,
+            ..ScenarioOptions::default()
+        };
+        let r = loop_run(1000 + seed, opts);
+        assert!(matches!(
+            r.dataset.steps[0].control,
+            slam_models::Control::Velocity(_)
+        ));
+        let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose).unwrap();
+        for (k, s) in r.dataset.steps.iter().enumerate() {
+            ekf.predict(&s.control).unwrap();
+            ekf.update(&s.observations).unwrap();
+            let e = nees_pose(&ekf.pose(), &ekf.pose_covariance(), &r.true_poses[k]);
+            if sum.len() <= k {
+                sum.push(0.0);
+            }
+            sum[k] += e / runs as f64;
+        }
+    }
+    let (lo, hi) = chi2_band(3, runs as usize, 0.95);
+    let lap = ((60.6f64 / 0.2) as usize).min(sum.len());
+    let first = &sum[..lap];
+    let inside = first.iter().filter(|&&e| e >= lo && e <= hi).count();
+    let mean = first.iter().sum::<f64>() / first.len() as f64;
+    println!(
+        "loop (velocity controls) NEES over {runs} runs: first lap {inside}/{} inside [{lo:.3}, {hi:.3}], mean {mean:.3}",
+        first.len()
+    );
+    assert!(mean > lo && mean < hi);
+    assert!(
+        inside as f64 >= 0.9 * first.len() as f64,
+        "{inside} of {}",
+        first.len()
+    );
+}
+
+/// Ids ignored by the filter (no clutter), maximum-likelihood nearest neighbour: every observation that
+/// is used goes to the map landmark of its true landmark (no false merges, no duplicates).
+#[test]
+fn nearest_neighbour_on_hidden_ids_maps_each_landmark_once() {
+    let opts = ScenarioOptions {
+        seed: 3,
+        ..ScenarioOptions::default()
+    };
+    let r = loop_run(3, opts);
+    let config = EkfConfig {
+        association: AssociationMode::NearestNeighbour,
+        ..sim_config(r.motion, r.sensor)
+    };
+    let mut ekf = EkfSlam::new(config, r.dataset.initial_pose).unwrap();
+    let mut took: HashMap<LandmarkId, HashSet<LandmarkId>> = HashMap::new();
+    for s in &r.dataset.steps {
+        ekf.predict(&s.control).unwrap();
+        ekf.update(&s.observations).unwrap();
+        for (i, a) in ekf.last_associations().iter().enumerate() {
+            if let Association::Landmark(m) | Association::New(m) = a {
+                took.entry(*m)
+                    .or_default()
+                    .insert(s.observations[i].id.expect("loop keeps ids"));
+            }
+        }
+    }
+    let merges = took.values().filter(|t| t.len() > 1).count();
+    let mapped: HashSet<LandmarkId> = took.values().flatten().copied().collect();
+    println!(
+        "loop, ids ignored, nearest neighbour: {} map landmarks for {} true ones, {merges} merges",
+        took.len(),
+        mapped.len()
+    );
+    assert_eq!(merges, 0);
+    assert_eq!(took.len(), mapped.len(), "a landmark was mapped twice");
+}
