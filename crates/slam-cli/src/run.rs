@@ -284,11 +284,26 @@ fn file_safe(name: &str) -> String {
         .collect()
 }
 
-fn duration(first: Option<f64>, last: Option<f64>, has_clock: bool) -> Option<f64> {
-    match (first, last, has_clock) {
-        (Some(a), Some(b), true) => Some(b - a),
-        _ => None,
+/// Time span of the data (last time − first, in file order), or `None` when the data has
+/// no usable clock: step indices (Freiburg course data), or timestamps so coarse that fewer
+/// than a tenth of the steps have distinct times (some GMapping logs printed times as
+/// `1.13486e+09`); the latter adds a summary note.
+fn data_duration(times: &[f64], has_clock: bool, notes: &mut Vec<String>) -> Option<f64> {
+    if !has_clock || times.len() < 2 {
+        return None;
     }
+    let mut distinct = times.to_vec();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    if distinct.len() < 2 || distinct.len() * 10 < times.len() {
+        notes.push(format!(
+            "no data duration / real-time factor: timestamps too coarse ({} distinct times for {} steps)",
+            distinct.len(),
+            times.len()
+        ));
+        return None;
+    }
+    Some(times[times.len() - 1] - times[0])
 }
 
 fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
@@ -358,14 +373,9 @@ fn run_landmark(
     let particles = filter.particles();
     let mut m = Metrics::new(info.name, name, steps.len());
     let mut notes = Vec::new();
-    m.set_timing(
-        wall,
-        duration(
-            steps.first().map(|s| s.t),
-            steps.last().map(|s| s.t),
-            has_clock,
-        ),
-    );
+    let times: Vec<f64> = steps.iter().map(|s| s.t).collect();
+    let span = data_duration(&times, has_clock, &mut notes);
+    m.set_timing(wall, span);
     if let Some(gt) = ground_truth {
         trajectory_metrics(&mut m, &trajectory, gt);
     }
@@ -381,6 +391,15 @@ fn run_landmark(
             let e = eval::landmark_error(&landmarks, truth, by_id);
             m.landmark_rmse_m = metrics::finite(Some(e.rmse));
             m.landmark_rmse_aligned_m = metrics::finite(Some(e.rmse_aligned));
+            notes.push(format!(
+                "{} landmarks mapped: {} matched to the {} true ones ({}), {} true ones unmatched, {} spurious",
+                landmarks.len(),
+                e.matched,
+                truth.len(),
+                if by_id { "by id" } else { "by nearest neighbour within 1 m" },
+                e.unmatched_true,
+                e.spurious
+            ));
         }
     }
     if !nees.is_empty() {
@@ -476,14 +495,9 @@ fn run_scan(
 
     let mut m = Metrics::new(info.name, name, records.len());
     let mut notes = Vec::new();
-    m.set_timing(
-        wall,
-        duration(
-            records.first().map(|r| r.t),
-            records.last().map(|r| r.t),
-            has_clock,
-        ),
-    );
+    let times: Vec<f64> = records.iter().map(|r| r.t).collect();
+    let span = data_duration(&times, has_clock, &mut notes);
+    m.set_timing(wall, span);
     // Laser filters start at the identity pose (ScanSlam takes no initial pose), so the
     // ground truth is re-expressed in the estimate's frame, anchored at their first common
     // pose: "as is" then means "sharing the start frame", as for landmark runs.
@@ -673,4 +687,56 @@ fn print_summary(
         .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().to_string()))
         .collect();
     let _ = writeln!(out, "  wrote {}/{{{}}}", dir.display(), names.join(", "));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_models::Pose2;
+
+    #[test]
+    fn data_duration_needs_a_usable_clock() {
+        let mut notes = Vec::new();
+        assert_eq!(data_duration(&[1.0, 1.5, 4.0], true, &mut notes), Some(3.0));
+        assert_eq!(data_duration(&[1.0, 1.5, 4.0], false, &mut notes), None);
+        assert!(notes.is_empty());
+        // 3 distinct times for 40 steps: printed with too few digits.
+        let coarse: Vec<f64> = (0..40).map(|k| 1.0e9 + (k / 15) as f64 * 1e4).collect();
+        assert_eq!(data_duration(&coarse, true, &mut notes), None);
+        assert_eq!(notes.len(), 1);
+    }
+
+    #[test]
+    fn ground_truth_is_anchored_at_the_first_common_pose() {
+        let est = [
+            TimedPose {
+                t: 1.0,
+                pose: Pose2::new(0.0, 0.0, 0.0),
+            },
+            TimedPose {
+                t: 2.0,
+                pose: Pose2::new(1.0, 0.0, 0.0),
+            },
+        ];
+        // The same motion seen from a frame rotated by 90° and shifted; the first truth
+        // pose has no estimate at its time.
+        let gt = [
+            TimedPose {
+                t: 0.0,
+                pose: Pose2::new(9.0, 9.0, 0.0),
+            },
+            TimedPose {
+                t: 1.0,
+                pose: Pose2::new(5.0, 3.0, std::f64::consts::FRAC_PI_2),
+            },
+            TimedPose {
+                t: 2.0,
+                pose: Pose2::new(5.0, 4.0, std::f64::consts::FRAC_PI_2),
+            },
+        ];
+        let a = anchor_ground_truth(&est, &gt);
+        assert!(a[1].pose.approx_eq(&est[0].pose, 1e-12), "{:?}", a[1]);
+        assert!(a[2].pose.approx_eq(&est[1].pose, 1e-12), "{:?}", a[2]);
+        assert_eq!(a[0].t, 0.0);
+    }
 }
