@@ -2,7 +2,7 @@
 
 use crate::association::compatibility::{linearise, projected_cov};
 use crate::association::{candidates, jcbb, nearest, Candidate};
-use crate::chi2::{quantile_even, GateTable};
+use crate::chi2::{chi2_quantile, GateTable};
 use crate::config::{AssociationMode, EkfConfig};
 use crate::error::EkfError;
 use crate::provisional::ProvisionalList;
@@ -97,12 +97,12 @@ impl EkfSlam {
             Matrix3::from_diagonal(&Vector3::new(v[0], v[1], v[2])),
         );
         Ok(Self {
-            gate: quantile_even(2, config.gate_probability),
-            new_landmark_gate: quantile_even(2, config.new_landmark_gate_probability),
+            gate: chi2_quantile(2, config.gate_probability),
+            new_landmark_gate: chi2_quantile(2, config.new_landmark_gate_probability),
             known_gate: config
                 .known_id_gate_probability
-                .map(|p| quantile_even(2, p)),
-            provisional_gate: quantile_even(2, config.provisional_gate_probability),
+                .map(|p| chi2_quantile(2, p)),
+            provisional_gate: chi2_quantile(2, config.provisional_gate_probability),
             joint: GateTable::new(config.joint_probability),
             next_id: if config.association == AssociationMode::Auto {
                 AUTO_ID_BASE

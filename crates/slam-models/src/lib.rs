@@ -9,7 +9,8 @@
 //!   space, and a sampler.
 //! * [`measurement`]: the range-bearing landmark model (PR eq. 6.40, table 10.1) with its
 //!   inverse (landmark initialisation) and all Jacobians.
-//! * [`gaussian`]: numerically safe Gaussian log-likelihoods of innovations.
+//! * [`gaussian`]: numerically safe Gaussian log-likelihoods of innovations; [`chi2`]:
+//!   chi-square quantiles for gates and consistency bands.
 //! * [`particle`]: log-space weights, N_eff and four O(N) resamplers.
 //! * [`data`]: the data types every reader, simulator and filter exchanges (controls,
 //!   observations, laser scans, time steps, whole datasets).
@@ -26,6 +27,7 @@
 #![warn(missing_docs)]
 
 pub mod angle;
+pub mod chi2;
 pub mod data;
 pub mod error;
 pub mod filter;

@@ -175,7 +175,7 @@ pub(crate) fn associate(
 mod tests {
     use super::*;
     use crate::association::{candidates, nearest};
-    use crate::chi2::quantile_even;
+    use crate::chi2::chi2_quantile;
     use slam_models::measurement::RangeBearingModel;
     use slam_models::{Matrix3, Pose2, RangeBearing, Vector3};
 
@@ -210,7 +210,7 @@ mod tests {
                 id: None,
             })
             .collect();
-        let gate = quantile_even(2, 0.999);
+        let gate = chi2_quantile(2, 0.999);
         let cands: Vec<Vec<Candidate>> = obs
             .iter()
             .map(|z| candidates(&st, &sensor, z, gate))
