@@ -18,9 +18,18 @@ pub fn dataset(rel: &str) -> Option<PathBuf> {
     if p.exists() {
         return Some(p);
     }
-    if std::env::var("CI").map(|v| v == "true" || v == "1").unwrap_or(false) {
-        panic!("dataset {} is missing and CI=true: dataset tests must run in CI", p.display());
+    if std::env::var("CI")
+        .map(|v| v == "true" || v == "1")
+        .unwrap_or(false)
+    {
+        panic!(
+            "dataset {} is missing and CI=true: dataset tests must run in CI",
+            p.display()
+        );
     }
-    eprintln!("SKIPPED: dataset {} not found (set SLAM_DATASETS to its folder)", p.display());
+    eprintln!(
+        "SKIPPED: dataset {} not found (set SLAM_DATASETS to its folder)",
+        p.display()
+    );
     None
 }

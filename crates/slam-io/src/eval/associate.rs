@@ -1,6 +1,6 @@
 //! Looking an estimate up at a time (the rule of the dataset README, section 6).
 
-use slam_models::TimedPose;
+use slam_models::{normalize_angle, Pose2, TimedPose};
 
 /// The default largest time difference between a requested time and the estimate used
 /// for it, seconds (6 ms, as in the benchmark figures of the dataset README).
@@ -36,6 +36,59 @@ pub fn lookup(sorted: &[TimedPose], t: f64, max_dt: f64) -> Option<usize> {
     ((sorted[pick].t - t).abs() <= max_dt).then_some(pick)
 }
 
+/// How an estimate is read at a time t.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseLookup {
+    /// The nearest pose by [`lookup`] within `max_dt` seconds (the dataset README's rule,
+    /// used for every published figure we compare with).
+    Nearest {
+        /// Largest accepted time difference, s.
+        max_dt: f64,
+    },
+    /// A pose whose time equals t exactly (the first such) if there is one; otherwise the
+    /// linear interpolation between the last pose before t and the first after it —
+    /// x and y linearly, θ along the shorter arc — provided the two are at most `max_gap`
+    /// seconds apart. No extrapolation beyond the ends.
+    Interpolate {
+        /// Largest time gap bridged by interpolation, s.
+        max_gap: f64,
+    },
+}
+
+impl Default for PoseLookup {
+    /// `Nearest` with [`DEFAULT_MAX_DT`].
+    fn default() -> Self {
+        PoseLookup::Nearest {
+            max_dt: DEFAULT_MAX_DT,
+        }
+    }
+}
+
+/// The estimated pose at time `t` from `sorted` (sorted by time, see [`sorted_by_time`]),
+/// read as `how` says; `None` when the rule finds none.
+pub fn pose_at(sorted: &[TimedPose], t: f64, how: PoseLookup) -> Option<Pose2> {
+    match how {
+        PoseLookup::Nearest { max_dt } => lookup(sorted, t, max_dt).map(|i| sorted[i].pose),
+        PoseLookup::Interpolate { max_gap } => {
+            let i = sorted.partition_point(|p| p.t < t);
+            if i < sorted.len() && sorted[i].t == t {
+                return Some(sorted[i].pose);
+            }
+            let (a, b) = (sorted.get(i.checked_sub(1)?)?, sorted.get(i)?);
+            if b.t - a.t > max_gap {
+                return None;
+            }
+            let f = (t - a.t) / (b.t - a.t);
+            let dth = normalize_angle(b.pose.theta - a.pose.theta);
+            Some(Pose2::new(
+                a.pose.x + f * (b.pose.x - a.pose.x),
+                a.pose.y + f * (b.pose.y - a.pose.y),
+                a.pose.theta + f * dth,
+            ))
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -64,5 +117,39 @@ mod tests {
         assert_eq!(lookup(&s, 1.011, 0.006), None);
         assert_eq!(lookup(&s, 1.0099, 0.006), Some(3));
         assert_eq!(lookup(&[], 1.0, 1.0), None);
+    }
+
+    #[test]
+    fn interpolation_hand_computed() {
+        use std::f64::consts::PI;
+        let s = sorted_by_time(&[
+            TimedPose {
+                t: 0.0,
+                pose: Pose2::new(0.0, 0.0, PI - 0.1),
+            },
+            TimedPose {
+                t: 1.0,
+                pose: Pose2::new(2.0, -4.0, -PI + 0.1),
+            },
+            TimedPose {
+                t: 3.0,
+                pose: Pose2::new(0.0, 0.0, 0.0),
+            },
+        ]);
+        let how = PoseLookup::Interpolate { max_gap: 1.5 };
+        // A quarter of the way from t = 0 to t = 1: (0.5, −1), heading across ±π by the
+        // short arc: π − 0.1 + 0.25·0.2 = π − 0.05.
+        let p = pose_at(&s, 0.25, how).unwrap();
+        assert!((p.x - 0.5).abs() < 1e-12 && (p.y + 1.0).abs() < 1e-12);
+        assert!((normalize_angle(p.theta - (PI - 0.05))).abs() < 1e-12);
+        // Exact time: that pose.
+        assert_eq!(pose_at(&s, 1.0, how).unwrap().x, 2.0);
+        // The gap 1 → 3 is 2 s > 1.5 s; outside the ends: none.
+        assert!(pose_at(&s, 2.0, how).is_none());
+        assert!(pose_at(&s, -0.1, how).is_none() && pose_at(&s, 3.1, how).is_none());
+        assert!(pose_at(&s, 2.0, PoseLookup::Interpolate { max_gap: 2.0 }).is_some());
+        // Nearest: the README rule.
+        assert_eq!(pose_at(&s, 0.004, PoseLookup::default()).unwrap().x, 0.0);
+        assert!(pose_at(&s, 0.5, PoseLookup::default()).is_none());
     }
 }

@@ -11,7 +11,8 @@
 //! benchmark figures: sort the estimate by time, keeping file order among equal times;
 //! take the last pose with time < t and the first with time ≥ t; use the nearer of the two
 //! (the earlier on a tie); and give up if it is more than `max_dt` away
-//! ([`DEFAULT_MAX_DT`] = 6 ms unless said otherwise).
+//! ([`DEFAULT_MAX_DT`] = 6 ms unless said otherwise). For estimates that are sparse in
+//! time, [`relations_error_lookup`] with [`PoseLookup::Interpolate`] interpolates instead.
 
 mod align;
 mod associate;
@@ -21,12 +22,14 @@ mod relations;
 mod trajectory;
 
 pub use align::align_se2;
-pub use associate::{lookup, sorted_by_time, DEFAULT_MAX_DT};
+pub use associate::{lookup, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
 pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
 pub use landmarks::{
     landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,
 };
-pub use relations::{relations_error, relations_error_with, RelationsResult};
+pub use relations::{
+    relations_error, relations_error_lookup, relations_error_with, RelationsResult,
+};
 pub use trajectory::{ate, ate_with, rpe, rpe_with, AteResult, RpeResult};
 
 /// Mean and population standard deviation (÷ n) of a sample; (NaN, NaN) when empty.

@@ -3,7 +3,7 @@
 //! reported, as in the paper, as mean ± std of the absolute and of the squared
 //! translational [m] and rotational [deg] errors, separately.
 
-use super::{lookup, mean_std, sorted_by_time, DEFAULT_MAX_DT};
+use super::{mean_std, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
 use crate::relations::Relation;
 use serde::Serialize;
 use slam_models::TimedPose;
@@ -45,6 +45,17 @@ pub fn relations_error(est: &[TimedPose], rel: &[Relation]) -> RelationsResult {
 /// rot = |normalize(θ(δ) − θ(δ*))| in degrees. Relations with an end that finds no pose
 /// are dropped and counted; non-finite estimated poses are not used.
 pub fn relations_error_with(est: &[TimedPose], rel: &[Relation], max_dt: f64) -> RelationsResult {
+    relations_error_lookup(est, rel, PoseLookup::Nearest { max_dt })
+}
+
+/// The relations metric with the estimate read at t1 and t2 as `how` says: the README's
+/// nearest-pose rule, or interpolation for estimates that have no pose near a relation's
+/// time (e.g. a trajectory kept only at keyframes).
+pub fn relations_error_lookup(
+    est: &[TimedPose],
+    rel: &[Relation],
+    how: PoseLookup,
+) -> RelationsResult {
     let sorted: Vec<TimedPose> = sorted_by_time(est)
         .into_iter()
         .filter(|p| p.t.is_finite() && p.pose.is_finite())
@@ -52,11 +63,11 @@ pub fn relations_error_with(est: &[TimedPose], rel: &[Relation], max_dt: f64) ->
     let mut tr = Vec::with_capacity(rel.len());
     let mut rot = Vec::with_capacity(rel.len());
     for r in rel {
-        let (Some(i), Some(j)) = (lookup(&sorted, r.t1, max_dt), lookup(&sorted, r.t2, max_dt))
+        let (Some(x1), Some(x2)) = (pose_at(&sorted, r.t1, how), pose_at(&sorted, r.t2, how))
         else {
             continue;
         };
-        let delta = sorted[i].pose.between(&sorted[j].pose);
+        let delta = x1.between(&x2);
         let e = r.delta.between(&delta);
         tr.push(e.x.hypot(e.y));
         rot.push(e.theta.abs().to_degrees());
@@ -134,5 +145,36 @@ mod tests {
         let none = relations_error(&[], &rel);
         assert_eq!((none.used, none.dropped), (0, 3));
         assert!(none.trans_mean.is_nan());
+    }
+
+    #[test]
+    fn interpolated_lookup_scores_sparse_estimates() {
+        use slam_models::Pose2;
+        // Estimate only at whole seconds along the x axis at 1 m/s; relations between
+        // half-second times, each true motion 1 m straight ahead (one off by 0.2 m).
+        let est: Vec<TimedPose> = (0..4)
+            .map(|k| TimedPose {
+                t: k as f64,
+                pose: Pose2::new(k as f64, 0.0, 0.0),
+            })
+            .collect();
+        let rel = vec![
+            Relation {
+                t1: 0.5,
+                t2: 1.5,
+                delta: Pose2::new(1.0, 0.0, 0.0),
+            },
+            Relation {
+                t1: 1.5,
+                t2: 2.5,
+                delta: Pose2::new(1.2, 0.0, 0.0),
+            },
+        ];
+        // The README's nearest rule finds nothing within 6 ms.
+        assert_eq!(relations_error(&est, &rel).used, 0);
+        let r = relations_error_lookup(&est, &rel, PoseLookup::Interpolate { max_gap: 1.5 });
+        assert_eq!(r.used, 2);
+        assert!((r.trans_mean - 0.1).abs() < 1e-12, "{}", r.trans_mean);
+        assert!(r.rot_mean_deg.abs() < 1e-12);
     }
 }
