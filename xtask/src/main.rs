@@ -203,13 +203,17 @@ fn eval(extra: &[String]) -> Result<(), String> {
             plan.display()
         )
     })?;
-    let exe = std::path::Path::new("target/release/slam");
+    // Honour CARGO_TARGET_DIR, as cargo itself does.
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"));
+    let exe = target.join("release").join("slam");
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let mut cmd = Command::new(exe);
+        let mut cmd = Command::new(&exe);
         cmd.args(line.split_whitespace()).args(extra);
         run(&format!("eval line {}: slam {line}", i + 1), &mut cmd)?;
     }

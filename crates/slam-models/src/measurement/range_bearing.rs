@@ -53,7 +53,7 @@ impl Default for RangeBearingModel {
 /// h(x, m) with its two Jacobians.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PredictedRangeBearing {
-    /// Predicted measurement ẑ = (range [m], bearing [rad] in (−π, π]).
+    /// Predicted measurement ẑ = (range in m, bearing in rad, in (−π, π\]).
     pub z: Vector2,
     /// ∂h/∂(x, y, θ), 2×3.
     pub h_pose: Matrix2x3,

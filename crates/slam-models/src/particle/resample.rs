@@ -1,7 +1,7 @@
 //! O(N) resamplers (Douc, Cappé & Moulines 2005; PR table 4.4 for the low-variance one).
 //!
 //! Each draws N ancestor indices from normalised weights w and returns them in ascending
-//! order, so that particle i is copied cᵢ times with E[cᵢ] = N·wᵢ for all four schemes.
+//! order, so that particle i is copied cᵢ times with E(cᵢ) = N·wᵢ for all four schemes.
 //! All of them walk the cumulative weights once against N sorted points u₁ ≤ … ≤ u_N in
 //! [0, 1): O(N) time, no sorting, no binary search.
 //!
