@@ -62,7 +62,8 @@ fn landmark_scenarios_round_trip_through_freiburg_files() {
         assert_eq!(back.initial_pose, run.dataset.initial_pose, "{name}: start");
         let _ = std::fs::remove_dir_all(&dir);
     }
-    // Hidden ids cannot be written in a format that needs them: an error, not a panic.
+    // Hidden ids (clutter) round-trip too: written as id -1, read back as `None`, with the
+    // observations unchanged.
     let clutter = landmark(
         "clutter",
         &ScenarioOptions {
@@ -72,7 +73,15 @@ fn landmark_scenarios_round_trip_through_freiburg_files() {
         },
     );
     let dir = scratch_dir("clutter");
-    assert!(freiburg::write_freiburg(&dir, &clutter.dataset).is_err());
+    freiburg::write_freiburg(&dir, &clutter.dataset).expect("write clutter");
+    let back = freiburg::read_freiburg(&dir).expect("read clutter");
+    let hidden = clutter.dataset.steps.iter().flat_map(|s| &s.observations);
+    assert!(hidden.clone().all(|z| z.id.is_none()), "clutter hides ids");
+    let got: Vec<_> = back.steps.iter().flat_map(|s| &s.observations).collect();
+    assert_eq!(got.len(), hidden.clone().count());
+    for (a, b) in hidden.zip(got) {
+        assert_eq!((a.range, a.bearing, a.id), (b.range, b.bearing, b.id));
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -15,6 +15,11 @@
 //! * `times.dat`: one time per step, in seconds;
 //! * `ground_truth.tum`: the true trajectory in TUM format (see [`crate::tum`]).
 //!
+//! **Unknown ids.** The course format always names the landmark. For data whose association
+//! is unknown (simulated clutter scenes with hidden ids), `SENSOR -1 range bearing` stands
+//! for "no id": [`write_freiburg`] writes it and the reader gives `id: None`. `-1` is never a
+//! course-data id (those are positive).
+//!
 //! **Invalid observations.** The course data holds one negative range
 //! (`SENSOR 7 -0.035065641258 0.975887269646`). A negative range is not a measurement a
 //! range-bearing model can explain, so such an observation is **kept out of the dataset and
@@ -124,6 +129,17 @@ pub(crate) fn parse_world(f: &TextFile) -> Result<Vec<(LandmarkId, Point2)>, IoE
     Ok(out)
 }
 
+/// A `SENSOR` id: a landmark id, or `-1` for "no id" (see the module docs).
+fn parse_sensor_id(l: &mut crate::text::Line<'_>) -> Result<Option<LandmarkId>, IoError> {
+    let word = l.word("a landmark id or -1")?;
+    if word == "-1" {
+        return Ok(None);
+    }
+    word.parse::<u32>()
+        .map(|v| Some(LandmarkId(v)))
+        .map_err(|_| l.error("a landmark id (0 .. 2^32) or -1 for no id", word))
+}
+
 fn parse_id(l: &mut crate::text::Line<'_>) -> Result<LandmarkId, IoError> {
     let v = l.u64("landmark id")?;
     u32::try_from(v)
@@ -152,19 +168,22 @@ pub(crate) fn parse_sensor_data(f: &TextFile) -> Result<(LandmarkDataset, Vec<Sk
                 });
             }
             "SENSOR" => {
-                let id = parse_id(&mut l)?;
+                let id = parse_sensor_id(&mut l)?;
                 let range = l.f64("range")?;
                 let bearing = l.f64("bearing")?;
                 l.end("`SENSOR id range bearing`")?;
                 let Some(step) = steps.last_mut() else {
                     return Err(l.error("an ODOMETRY line before the first SENSOR line", l.text));
                 };
-                match RangeBearing::new(range, bearing, Some(id)) {
+                match RangeBearing::new(range, bearing, id) {
                     Ok(z) => step.observations.push(z),
                     Err(e) => skipped.push(Skipped {
                         path: f.path.clone(),
                         line: l.no,
-                        reason: format!("observation of landmark {id} left out: {e}"),
+                        reason: match id {
+                            Some(id) => format!("observation of landmark {id} left out: {e}"),
+                            None => format!("observation without id left out: {e}"),
+                        },
                     }),
                 }
             }
@@ -208,8 +227,9 @@ fn as_odometry(c: &Control) -> OdometryControl {
 /// Numbers are written with Rust's shortest round-trip formatting, so
 /// [`read_freiburg`] gives back exactly the same values.
 ///
-/// Errors: an observation without a landmark id (the format requires ids), or a
-/// non-finite value.
+/// Observations without an id are written with the id `-1` (see the module docs).
+///
+/// Errors: a non-finite value.
 pub fn write_freiburg(dir: &Path, d: &LandmarkDataset) -> Result<(), IoError> {
     std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
     let sensor = dir.join("sensor_data.dat");
@@ -221,19 +241,20 @@ pub fn write_freiburg(dir: &Path, d: &LandmarkDataset) -> Result<(), IoError> {
         let u = as_odometry(&step.control);
         let _ = writeln!(s, "ODOMETRY {} {} {}", u.rot1, u.trans, u.rot2);
         for z in &step.observations {
-            let Some(id) = z.id else {
-                return Err(IoError::invalid(
-                    &sensor,
-                    format!("step {k}: an observation has no landmark id; the Freiburg format needs ids"),
-                ));
-            };
             if !(z.range.is_finite() && z.bearing.is_finite()) {
                 return Err(IoError::invalid(
                     &sensor,
                     format!("step {k}: non-finite observation"),
                 ));
             }
-            let _ = writeln!(s, "SENSOR {} {} {}", id.0, z.range, z.bearing);
+            match z.id {
+                Some(id) => {
+                    let _ = writeln!(s, "SENSOR {} {} {}", id.0, z.range, z.bearing);
+                }
+                None => {
+                    let _ = writeln!(s, "SENSOR -1 {} {}", z.range, z.bearing);
+                }
+            }
         }
     }
     write_text(&sensor, &s)?;
@@ -282,6 +303,10 @@ mod tests {
         assert_eq!(d.steps[1].t, 1.0);
         assert_eq!(skipped.len(), 1);
         assert_eq!(skipped[0].line, 3);
+        // `-1` is "no id".
+        let f = from_str("s.dat", "ODOMETRY 0 1 0\nSENSOR -1 2.0 0.5\n");
+        let (d, _) = parse_sensor_data(&f).unwrap();
+        assert_eq!(d.steps[0].observations[0].id, None);
     }
 
     #[test]
@@ -293,7 +318,8 @@ mod tests {
             ("ODOMETRY 1 2 3 4\n", "end of line"),
             ("ODOMETRY 1 x 3\n", "odometry t (a number)"),
             ("ODOMETRY 1 inf 3\n", "not finite"),
-            ("ODOMETRY 1 2 3\nSENSOR -1 2 3\n", "landmark id"),
+            ("ODOMETRY 1 2 3\nSENSOR -2 2 3\n", "landmark id"),
+            ("ODOMETRY 1 2 3\nSENSOR 1.5 2 3\n", "landmark id"),
             ("ODOMETRY 1 2 3\nSENSOR 1 NaN 3\n", "not finite"),
             ("ODOMETRY 1 2 3\nLASER 1 2 3\n", "ODOMETRY or SENSOR"),
         ];
