@@ -177,16 +177,23 @@ fn tidy() -> Result<(), String> {
 }
 
 fn bench(name: Option<&str>) -> Result<(), String> {
+    // The benches live in the root package's `benches/`, one group per crate measured.
     let mut cmd = cargo();
-    cmd.arg("bench");
-    match name {
-        None => {
-            cmd.arg("--workspace");
-        }
-        Some(n @ ("ekf" | "fastslam" | "grid" | "gridfast" | "sim")) => {
-            cmd.args(["-p", &format!("slam-{n}")]);
-        }
+    cmd.args(["bench", "-p", "slam"]);
+    let benches: &[&str] = match name {
+        None => &[],
+        Some("ekf") => &["ekf_update"],
+        Some("fastslam") => &["fastslam_step"],
+        Some("grid") => &["grid_update", "scan_match"],
+        Some("gridfast") => &["gridfast"],
+        Some("sim") => &["raycast", "scenarios"],
         Some(other) => return Err(format!("unknown bench group {other:?}")),
+    };
+    for b in benches {
+        cmd.args(["--bench", b]);
+    }
+    if benches.is_empty() {
+        cmd.arg("--benches");
     }
     run("bench", &mut cmd)
 }

@@ -9,7 +9,7 @@
 //! 2. 1,000 particles on `loop`: steps per second on one thread and on all threads.
 //!
 //! ```text
-//! cargo bench -p slam-fastslam --bench fastslam_step
+//! cargo xtask bench fastslam
 //! ```
 
 use criterion::{criterion_group, criterion_main, Criterion};

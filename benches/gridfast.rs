@@ -1,13 +1,13 @@
 //! Criterion benches of grid FastSLAM on the simulated loop corridor (≈ 560 records,
 //! ≈ 56 processed scans of 181 beams): a whole run with 30 particles per proposal, on one
 //! thread and on all threads. Whole-Intel figures (wall time, real-time factor, peak RSS)
-//! come from `cargo run --release -p slam-gridfast --example intel`.
+//! come from `cargo run --release --example gridfast_intel`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
 use slam_models::ScanSlam;
 
-#[path = "../tests/support/mod.rs"]
+#[path = "../crates/slam-gridfast/tests/support/mod.rs"]
 mod support;
 
 fn bench(c: &mut Criterion) {

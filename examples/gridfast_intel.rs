@@ -1,7 +1,7 @@
 //! Whole-Intel benchmark run: relations error, wall time, real-time factor and peak RSS.
 //!
 //! ```text
-//! cargo run --release -p slam-gridfast --example intel -- \
+//! cargo run --release --example gridfast_intel -- \
 //!     [--particles 30] [--proposal improved|odometry|scan-matched-odometry] [--threads 1] \
 //!     [--seed 1] [--config file.json] [--log PATH] [--relations PATH] [--pgm map.pgm]
 //! ```

@@ -3,7 +3,7 @@
 //! scan) scenarios, several seeds each.
 //!
 //! ```text
-//! cargo run --release -p slam-fastslam --example sweep [seeds]
+//! cargo run --release --example fastslam_sweep -- [seeds]
 //! ```
 //!
 //! Per cell: final position error (m) and the landmark map error of the best particle's map
