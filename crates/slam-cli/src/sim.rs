@@ -6,7 +6,8 @@
 //!   `ground_truth.tum` (written by `slam_io::freiburg::write_freiburg`).
 //! * Laser scenarios → a CARMEN log `<scenario>.log` and `ground_truth.tum`.
 //!
-//! `replay:<map.yaml>` reads a ROS map_server map and drives through its free space.
+//! `replay:<map.yaml>` (or `replay:<map.pgm>` with its YAML beside it) reads a ROS
+//! map_server map and drives through its free space.
 
 use crate::cli::SimArgs;
 use crate::error::CliError;
@@ -49,7 +50,20 @@ pub(crate) fn scenario_options(
                     "scenario replay needs a map: replay:<map.yaml> (a ROS map_server YAML)".into(),
                 ));
             }
-            opts.replay_map = Some(slam_io::ros_map::read_ros_map(Path::new(map))?);
+            // A map image is accepted too: its resolution and origin come from the
+            // map_server YAML of the same name beside it.
+            let mut path = Path::new(map).to_path_buf();
+            if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) {
+                path.set_extension("yaml");
+                if !path.exists() {
+                    return Err(CliError::InvalidArgument(format!(
+                        "replay:{map}: a map image needs its map_server YAML (resolution, origin) \
+                         beside it, expected {}",
+                        path.display()
+                    )));
+                }
+            }
+            opts.replay_map = Some(slam_io::ros_map::read_ros_map(&path)?);
             "replay".to_string()
         }
         Some((other, _)) => {

@@ -717,6 +717,26 @@ fn laser_sim_round_trip_and_replay() {
         dir.join("replay").to_str().unwrap(),
     ]);
     assert!(matches!(r, Ok(Outcome::Simulated(_))), "{r:?}\n{out}");
+    // The map image works as well (its YAML is found beside it); a lone image is an error.
+    let pgm = format!("replay:{}", dir.join("a").join("map.pgm").display());
+    let (r, out) = slam(&[
+        "sim",
+        &pgm,
+        "--steps",
+        "20",
+        "--out",
+        dir.join("replay-pgm").to_str().unwrap(),
+    ]);
+    assert!(matches!(r, Ok(Outcome::Simulated(_))), "{r:?}\n{out}");
+    let lone = dir.join("lone.pgm");
+    std::fs::copy(dir.join("a").join("map.pgm"), &lone).unwrap();
+    let (r, _) = slam(&[
+        "sim",
+        &format!("replay:{}", lone.display()),
+        "--out",
+        dir.join("y").to_str().unwrap(),
+    ]);
+    assert!(r.err().unwrap().to_string().contains("map_server YAML"));
     let (r, _) = slam(&["sim", "replay", "--out", dir.join("x").to_str().unwrap()]);
     assert!(r.err().unwrap().to_string().contains("replay:<map.yaml>"));
     let _ = std::fs::remove_dir_all(&dir);
