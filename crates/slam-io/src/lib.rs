@@ -22,6 +22,7 @@ mod dataset;
 pub mod error;
 pub mod eval;
 pub mod freiburg;
+mod glyphs;
 pub mod landmarks_csv;
 pub mod mrclam;
 pub mod picture;

@@ -19,6 +19,7 @@
 //! | particles | teal dots |
 
 use crate::error::IoError;
+use crate::glyphs;
 use image::RgbImage;
 use slam_models::{GridMap, LandmarkEstimate, LandmarkId, Point2, Pose2, WeightedPose};
 use std::path::Path;
@@ -383,18 +384,26 @@ fn draw_grid(img: &mut RgbImage, view: &View) {
     let tl = view.world(0.0, 0.0);
     let br = view.world(w, h);
     let step = nice_step((br.x - tl.x).max(tl.y - br.y), 8.0);
+    let label = image::Rgb([120, 120, 120]);
     let mut x = (tl.x / step).ceil() * step;
     while x <= br.x {
         let (u, _) = view.px(&Point2::new(x, 0.0));
         segment(img, (u, 0.0), (u, h), GRID, 1.0);
+        // World x in metres along the bottom edge.
+        let text = glyphs::format_tick(x, step);
+        glyphs::draw_text(img, u as i64 + 3, h as i64 - 13, &text, label, 2);
         x += step;
     }
     let mut y = (br.y / step).ceil() * step;
     while y <= tl.y {
         let (_, v) = view.px(&Point2::new(0.0, y));
         segment(img, (0.0, v), (w, v), GRID, 1.0);
+        // World y in metres along the left edge.
+        let text = glyphs::format_tick(y, step);
+        glyphs::draw_text(img, 3, v as i64 - 12, &text, label, 2);
         y += step;
     }
+    glyphs::draw_text(img, w as i64 - 12, h as i64 - 26, "m", label, 2);
 }
 
 /// One curve of a [`plot_series`] plot.
@@ -409,7 +418,8 @@ pub struct Series<'a> {
 /// A line plot of one or more series over shared `x` values, with an optional horizontal
 /// band [lo, hi] shaded light blue and outlined (e.g. the chi-square 95 % band of an
 /// average NEES, from [`crate::eval::chi2_band`]). Bounds fit the data and the band; light
-/// grey lines mark a 1-2-5 grid in y; no text. Non-finite points break the line. Errors
+/// grey lines mark a 1-2-5 grid in y, labelled with its values, and the x axis carries
+/// 1-2-5 tick values. Non-finite points break the line. Errors
 /// when a series' length differs from `x`'s or nothing is finite.
 pub fn plot_series(
     path: &Path,
@@ -418,6 +428,8 @@ pub fn plot_series(
     band: Option<(f64, f64)>,
 ) -> Result<(), IoError> {
     let (w, h, m) = (900u32, 450u32, 20.0);
+    // Room on the left for the y labels, below for the x labels.
+    let (ml, mb) = (56.0, 30.0);
     for s in series {
         if s.y.len() != x.len() {
             return Err(IoError::invalid(
@@ -456,33 +468,54 @@ pub fn plot_series(
     let y1 = y1 + 0.05 * (y1 - y0);
     let to_px = |xv: f64, yv: f64| {
         (
-            m + (xv - x0) / (x1 - x0) * (w as f64 - 2.0 * m),
-            (h as f64 - m) - (yv - y0) / (y1 - y0) * (h as f64 - 2.0 * m),
+            ml + (xv - x0) / (x1 - x0) * (w as f64 - ml - m),
+            (h as f64 - mb) - (yv - y0) / (y1 - y0) * (h as f64 - mb - m),
         )
     };
+    let label = image::Rgb([90, 90, 90]);
     let mut img = RgbImage::from_pixel(w, h, WHITE);
     let step = nice_step(y1 - y0, 6.0);
     let mut g = (y0 / step).ceil() * step;
     while g <= y1 {
         let (_, v) = to_px(x0, g);
-        segment(&mut img, (m, v), (w as f64 - m, v), GRID, 1.0);
+        segment(&mut img, (ml, v), (w as f64 - m, v), GRID, 1.0);
+        let text = glyphs::format_tick(g, step);
+        let tw = glyphs::text_width(&text, 2) as i64;
+        glyphs::draw_text(&mut img, ml as i64 - 6 - tw, v as i64 - 5, &text, label, 2);
         g += step;
+    }
+    // x labels: a 1-2-5 grid of ticks under the axis.
+    let xstep = nice_step(x1 - x0, 8.0);
+    let mut gx = (x0 / xstep).ceil() * xstep;
+    while gx <= x1 + 1e-9 * xstep {
+        let (u, _) = to_px(gx, y0);
+        let text = glyphs::format_tick(gx, xstep);
+        let tw = glyphs::text_width(&text, 2) as i64;
+        glyphs::draw_text(
+            &mut img,
+            u as i64 - tw / 2,
+            h as i64 - mb as i64 + 8,
+            &text,
+            label,
+            2,
+        );
+        gx += xstep;
     }
     if let Some((lo, hi)) = band.filter(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi) {
         let (_, vlo) = to_px(x0, lo);
         let (_, vhi) = to_px(x0, hi);
         for py in vhi.max(0.0) as u32..=(vlo.min(h as f64 - 1.0) as u32) {
-            for px in m as u32..(w - m as u32) {
+            for px in ml as u32..(w - m as u32) {
                 img.put_pixel(px, py, image::Rgb([215, 230, 250]));
             }
         }
-        segment(&mut img, (m, vlo), (w as f64 - m, vlo), BLUE.into(), 1.0);
-        segment(&mut img, (m, vhi), (w as f64 - m, vhi), BLUE.into(), 1.0);
+        segment(&mut img, (ml, vlo), (w as f64 - m, vlo), BLUE.into(), 1.0);
+        segment(&mut img, (ml, vhi), (w as f64 - m, vhi), BLUE.into(), 1.0);
     }
     // Axes: left and bottom.
-    segment(&mut img, (m, m), (m, h as f64 - m), BLACK.into(), 1.0);
+    segment(&mut img, (ml, m), (ml, h as f64 - mb), BLACK.into(), 1.0);
     let (_, v0) = to_px(x0, y0.max(0.0).min(y1));
-    segment(&mut img, (m, v0), (w as f64 - m, v0), BLACK.into(), 1.0);
+    segment(&mut img, (ml, v0), (w as f64 - m, v0), BLACK.into(), 1.0);
     for s in series {
         for i in 1..x.len() {
             let (a, b) = ((x[i - 1], s.y[i - 1]), (x[i], s.y[i]));
