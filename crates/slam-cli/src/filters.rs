@@ -6,7 +6,7 @@
 //! runs the filter's motion and sensor noise default to the models the data was generated
 //! with, unless the file sets `motion` or `sensor` itself.
 
-use crate::config::{self, Loaded};
+use crate::config;
 use crate::error::CliError;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
@@ -152,19 +152,23 @@ fn check_particles(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError>
     Ok(())
 }
 
-/// The simulator's noise models, each `None` when the config file sets it (`motion`,
-/// `sensor`) or the data is not simulated.
-fn sim_noise<C>(
-    loaded: &Loaded<C>,
+/// On simulated data, a filter uses the simulator's own noise models (its "true" model),
+/// except where the config file sets `motion` or `sensor` itself.
+fn apply_sim_noise(
+    config_keys: &[String],
     setup: &Setup<'_>,
-) -> (Option<MotionModels>, Option<RangeBearingModel>) {
-    let has = |k: &str| loaded.keys.iter().any(|x| x == k);
-    match setup.sim_models {
-        Some((motion, sensor)) => (
-            (!has("motion")).then_some(motion),
-            (!has("sensor")).then_some(sensor),
-        ),
-        None => (None, None),
+    motion: &mut MotionModels,
+    sensor: &mut RangeBearingModel,
+) {
+    let Some((sim_motion, sim_sensor)) = setup.sim_models else {
+        return;
+    };
+    let has = |k: &str| config_keys.iter().any(|x| x == k);
+    if !has("motion") {
+        *motion = sim_motion;
+    }
+    if !has("sensor") {
+        *sensor = sim_sensor;
     }
 }
 
@@ -185,14 +189,8 @@ pub(crate) fn build_landmark(
         "ekf" => {
             use slam_ekf::{EkfConfig, EkfSlam};
             let mut loaded = config::load::<EkfConfig>(setup.config_path)?;
-            let (motion, sensor) = sim_noise(&loaded, setup);
             let c = &mut loaded.config;
-            if let Some(m) = motion {
-                c.motion = m;
-            }
-            if let Some(s) = sensor {
-                c.sensor = s;
-            }
+            apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
             let config_toml = config::to_toml(&loaded.config);
             let f = EkfSlam::new(loaded.config, setup.initial_pose).map_err(|e| invalid(&e))?;
             Ok(Built {
@@ -214,15 +212,9 @@ pub(crate) fn build_landmark(
                     loaded.config.variant, info.name
                 )));
             }
-            let (motion, sensor) = sim_noise(&loaded, setup);
             let c = &mut loaded.config;
             c.variant = variant;
-            if let Some(m) = motion {
-                c.motion = m;
-            }
-            if let Some(s) = sensor {
-                c.sensor = s;
-            }
+            apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
             if let Some(n) = setup.particles {
                 c.particles = n;
             }

@@ -424,15 +424,9 @@ impl OccupancyGrid {
             self.model.l_max,
             self.params.occupied_threshold,
         );
-        let mut i = 0;
-        while i < updates.len() {
-            let slot = updates[i].0 as usize;
-            let mut j = i;
-            while j < updates.len() && updates[j].0 as usize == slot {
-                j += 1;
-            }
-            let run = &updates[i..j];
-            i = j;
+        // Updates come sorted by tile slot: handle each tile's run at once.
+        for run in updates.chunk_by(|a, b| a.0 == b.0) {
+            let slot = run[0].0 as usize;
             // Skip the copy entirely when no value in the run would change (saturated cells).
             let needs_write = match &self.tiles[slot] {
                 None => true,
@@ -486,15 +480,9 @@ impl OccupancyGrid {
             self.model.l_max,
             self.params.occupied_threshold,
         );
-        let mut i = 0;
-        while i < updates.len() {
-            let slot = updates[i].0 as usize;
-            let mut j = i;
-            while j < updates.len() && updates[j].0 as usize == slot {
-                j += 1;
-            }
-            let run = &updates[i..j];
-            i = j;
+        // Updates come sorted by tile slot: handle each tile's run at once.
+        for run in updates.chunk_by(|a, b| a.0 == b.0) {
+            let slot = run[0].0 as usize;
             let needs_write = match &self.tiles[slot] {
                 None => true,
                 Some(t) => run.iter().any(|&(_, l, _, _)| {

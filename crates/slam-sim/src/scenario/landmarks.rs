@@ -149,13 +149,7 @@ fn steps_for(opts: &ScenarioOptions, len: f64, default_laps: f64) -> Result<usiz
     if let Some(s) = opts.steps {
         return Ok(s);
     }
-    let laps = check_range(
-        "laps",
-        opts.laps.unwrap_or(default_laps),
-        0.0,
-        1e4,
-        "0 <= laps <= 10000",
-    )?;
+    let laps = opts.laps_or(default_laps)?;
     let f = FollowerConfig::default();
     Ok((laps * len / (f.speed * f.dt)).round() as usize)
 }

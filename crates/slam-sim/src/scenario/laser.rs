@@ -50,13 +50,7 @@ fn scans_for(opts: &ScenarioOptions, len: f64, default_laps: f64) -> Result<usiz
     if let Some(s) = opts.steps {
         return Ok(s);
     }
-    let laps = check_range(
-        "laps",
-        opts.laps.unwrap_or(default_laps),
-        0.0,
-        1e4,
-        "0 <= laps <= 10000",
-    )?;
+    let laps = opts.laps_or(default_laps)?;
     let c = LaserSimConfig::default();
     let per_scan = c.follower.speed * c.follower.dt * c.odometry_per_scan as f64;
     Ok(((laps * len / per_scan).round() as usize).max(1))

@@ -128,6 +128,20 @@ pub struct ScenarioOptions {
 }
 
 /// The names [`generate`] accepts, comma separated.
+impl ScenarioOptions {
+    /// The number of laps to drive: `laps` when given, else the scenario's default; an
+    /// error outside 0..=10,000.
+    pub(crate) fn laps_or(&self, default_laps: f64) -> Result<f64, SimError> {
+        crate::error::check_range(
+            "laps",
+            self.laps.unwrap_or(default_laps),
+            0.0,
+            1e4,
+            "0 <= laps <= 10000",
+        )
+    }
+}
+
 fn names() -> String {
     list().iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
 }
