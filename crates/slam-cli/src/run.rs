@@ -505,7 +505,7 @@ fn run_scan(
         .ground_truth
         .as_ref()
         .or(dataset.ground_truth.as_ref())
-        .map(|gt| anchor_ground_truth(&trajectory, gt));
+        .map(|gt| eval::anchor_at_first_match(&trajectory, gt));
     if let Some(gt) = &ground_truth {
         trajectory_metrics(&mut m, &trajectory, gt);
     }
@@ -546,27 +546,6 @@ fn run_scan(
         files,
         notes,
     })
-}
-
-/// The ground truth moved rigidly so that its first pose with an estimate at the same time
-/// (within [`eval::DEFAULT_MAX_DT`]) coincides with that estimate: T = e ⊕ g⁻¹ applied to
-/// every ground-truth pose. Unchanged when no pose matches in time (ATE then says so).
-fn anchor_ground_truth(trajectory: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
-    let est = eval::sorted_by_time(trajectory);
-    let anchor = eval::sorted_by_time(gt).into_iter().find_map(|g| {
-        eval::lookup(&est, g.t, eval::DEFAULT_MAX_DT)
-            .map(|i| est[i].pose.compose(&g.pose.inverse()))
-    });
-    match anchor {
-        Some(t) => gt
-            .iter()
-            .map(|g| TimedPose {
-                t: g.t,
-                pose: t.compose(&g.pose),
-            })
-            .collect(),
-        None => gt.to_vec(),
-    }
 }
 
 /// ATE (as is, aligned) and RPE against a ground-truth trajectory. A metric that cannot be
@@ -692,7 +671,6 @@ fn print_summary(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slam_models::Pose2;
 
     #[test]
     fn data_duration_needs_a_usable_clock() {
@@ -704,39 +682,5 @@ mod tests {
         let coarse: Vec<f64> = (0..40).map(|k| 1.0e9 + (k / 15) as f64 * 1e4).collect();
         assert_eq!(data_duration(&coarse, true, &mut notes), None);
         assert_eq!(notes.len(), 1);
-    }
-
-    #[test]
-    fn ground_truth_is_anchored_at_the_first_common_pose() {
-        let est = [
-            TimedPose {
-                t: 1.0,
-                pose: Pose2::new(0.0, 0.0, 0.0),
-            },
-            TimedPose {
-                t: 2.0,
-                pose: Pose2::new(1.0, 0.0, 0.0),
-            },
-        ];
-        // The same motion seen from a frame rotated by 90° and shifted; the first truth
-        // pose has no estimate at its time.
-        let gt = [
-            TimedPose {
-                t: 0.0,
-                pose: Pose2::new(9.0, 9.0, 0.0),
-            },
-            TimedPose {
-                t: 1.0,
-                pose: Pose2::new(5.0, 3.0, std::f64::consts::FRAC_PI_2),
-            },
-            TimedPose {
-                t: 2.0,
-                pose: Pose2::new(5.0, 4.0, std::f64::consts::FRAC_PI_2),
-            },
-        ];
-        let a = anchor_ground_truth(&est, &gt);
-        assert!(a[1].pose.approx_eq(&est[0].pose, 1e-12), "{:?}", a[1]);
-        assert!(a[2].pose.approx_eq(&est[1].pose, 1e-12), "{:?}", a[2]);
-        assert_eq!(a[0].t, 0.0);
     }
 }

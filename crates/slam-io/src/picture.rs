@@ -415,6 +415,26 @@ pub struct Series<'a> {
     pub colour: Rgb,
 }
 
+/// How a [`plot_series_with`] axis maps values to pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Scale {
+    /// Linear; the y axis always includes 0.
+    #[default]
+    Linear,
+    /// Base-10 logarithmic, ticks at 1-2-5 × 10ᵏ (only 10ᵏ beyond three decades);
+    /// non-positive values are not drawn.
+    Log10,
+}
+
+/// The scales of a plot's two axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Axes {
+    /// Horizontal axis scale.
+    pub x: Scale,
+    /// Vertical axis scale.
+    pub y: Scale,
+}
+
 /// A line plot of one or more series over shared `x` values, with an optional horizontal
 /// band [lo, hi] shaded light blue and outlined (e.g. the chi-square 95 % band of an
 /// average NEES, from [`crate::eval::chi2_band`]). Bounds fit the data and the band; light
@@ -427,6 +447,52 @@ pub fn plot_series(
     series: &[Series<'_>],
     band: Option<(f64, f64)>,
 ) -> Result<(), IoError> {
+    plot_series_with(path, x, series, band, Axes::default())
+}
+
+/// Tick values of an axis spanning [lo, hi] in plotted units (log10 of the value on a log
+/// axis), as (plotted position, label).
+fn ticks(scale: Scale, lo: f64, hi: f64, target: f64) -> Vec<(f64, String)> {
+    let mut out = Vec::new();
+    match scale {
+        Scale::Linear => {
+            let step = nice_step(hi - lo, target);
+            let mut g = (lo / step).ceil() * step;
+            while g <= hi + 1e-9 * step {
+                out.push((g, glyphs::format_tick(g, step)));
+                g += step;
+            }
+        }
+        Scale::Log10 => {
+            let mults: &[f64] = if hi - lo > 3.0 {
+                &[1.0]
+            } else {
+                &[1.0, 2.0, 5.0]
+            };
+            for k in (lo.floor() as i32)..=(hi.ceil() as i32) {
+                let decade = 10f64.powi(k);
+                for &m in mults {
+                    let v = m * decade;
+                    let p = v.log10();
+                    if p >= lo - 1e-9 && p <= hi + 1e-9 {
+                        out.push((p, glyphs::format_tick(v, decade)));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// [`plot_series`] with a choice of linear or logarithmic axes (e.g. error against particle
+/// count on log–log axes).
+pub fn plot_series_with(
+    path: &Path,
+    x: &[f64],
+    series: &[Series<'_>],
+    band: Option<(f64, f64)>,
+    axes: Axes,
+) -> Result<(), IoError> {
     let (w, h, m) = (900u32, 450u32, 20.0);
     // Room on the left for the y labels, below for the x labels.
     let (ml, mb) = (56.0, 30.0);
@@ -438,10 +504,23 @@ pub fn plot_series(
             ));
         }
     }
-    let xs: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
-    let mut ys: Vec<f64> = series
+    // Values in plotted units: log10 on a log axis (non-positive values become NaN).
+    let tf = |scale: Scale, v: f64| match scale {
+        Scale::Linear => v,
+        Scale::Log10 if v > 0.0 => v.log10(),
+        Scale::Log10 => f64::NAN,
+    };
+    let x: Vec<f64> = x.iter().map(|&v| tf(axes.x, v)).collect();
+    let ys_plotted: Vec<Vec<f64>> = series
         .iter()
-        .flat_map(|s| s.y.iter().copied())
+        .map(|s| s.y.iter().map(|&v| tf(axes.y, v)).collect())
+        .collect();
+    let band = band.map(|(lo, hi)| (tf(axes.y, lo), tf(axes.y, hi)));
+    let xs: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+    let mut ys: Vec<f64> = ys_plotted
+        .iter()
+        .flatten()
+        .copied()
         .filter(|v| v.is_finite())
         .collect();
     if let Some((lo, hi)) = band {
@@ -460,12 +539,17 @@ pub fn plot_series(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
             (a.min(v), b.max(v))
         });
-    y0 = y0.min(0.0);
+    if axes.y == Scale::Linear {
+        y0 = y0.min(0.0);
+    }
     if y1 - y0 < 1e-12 {
         y1 = y0 + 1.0;
     }
     let x1 = if x1 - x0 < 1e-12 { x0 + 1.0 } else { x1 };
     let y1 = y1 + 0.05 * (y1 - y0);
+    if axes.y == Scale::Log10 {
+        y0 -= 0.05 * (y1 - y0);
+    }
     let to_px = |xv: f64, yv: f64| {
         (
             ml + (xv - x0) / (x1 - x0) * (w as f64 - ml - m),
@@ -474,22 +558,15 @@ pub fn plot_series(
     };
     let label = image::Rgb([90, 90, 90]);
     let mut img = RgbImage::from_pixel(w, h, WHITE);
-    let step = nice_step(y1 - y0, 6.0);
-    let mut g = (y0 / step).ceil() * step;
-    while g <= y1 {
+    for (g, text) in ticks(axes.y, y0, y1, 6.0) {
         let (_, v) = to_px(x0, g);
         segment(&mut img, (ml, v), (w as f64 - m, v), GRID, 1.0);
-        let text = glyphs::format_tick(g, step);
         let tw = glyphs::text_width(&text, 2) as i64;
         glyphs::draw_text(&mut img, ml as i64 - 6 - tw, v as i64 - 5, &text, label, 2);
-        g += step;
     }
     // x labels: a 1-2-5 grid of ticks under the axis.
-    let xstep = nice_step(x1 - x0, 8.0);
-    let mut gx = (x0 / xstep).ceil() * xstep;
-    while gx <= x1 + 1e-9 * xstep {
+    for (gx, text) in ticks(axes.x, x0, x1, 8.0) {
         let (u, _) = to_px(gx, y0);
-        let text = glyphs::format_tick(gx, xstep);
         let tw = glyphs::text_width(&text, 2) as i64;
         glyphs::draw_text(
             &mut img,
@@ -499,7 +576,6 @@ pub fn plot_series(
             label,
             2,
         );
-        gx += xstep;
     }
     if let Some((lo, hi)) = band.filter(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi) {
         let (_, vlo) = to_px(x0, lo);
@@ -515,10 +591,15 @@ pub fn plot_series(
     // Axes: left and bottom.
     segment(&mut img, (ml, m), (ml, h as f64 - mb), BLACK.into(), 1.0);
     let (_, v0) = to_px(x0, y0.max(0.0).min(y1));
+    let v0 = if axes.y == Scale::Log10 {
+        h as f64 - mb
+    } else {
+        v0
+    };
     segment(&mut img, (ml, v0), (w as f64 - m, v0), BLACK.into(), 1.0);
-    for s in series {
+    for (s, y) in series.iter().zip(&ys_plotted) {
         for i in 1..x.len() {
-            let (a, b) = ((x[i - 1], s.y[i - 1]), (x[i], s.y[i]));
+            let (a, b) = ((x[i - 1], y[i - 1]), (x[i], y[i]));
             if [a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
                 segment(
                     &mut img,
@@ -628,6 +709,57 @@ mod tests {
                 colour: RED,
             }],
             Some((0.5, 2.5)),
+        )
+        .unwrap();
+        std::fs::remove_file(&p).ok();
+    }
+
+    #[test]
+    fn log_axes_tick_at_decades_and_straighten_power_laws() {
+        let labels: Vec<String> = ticks(Scale::Log10, 0.0, 2.0, 8.0)
+            .into_iter()
+            .map(|(_, t)| t)
+            .collect();
+        assert_eq!(labels, ["1", "2", "5", "10", "20", "50", "100"]);
+        let wide: Vec<String> = ticks(Scale::Log10, -2.0, 2.0, 8.0)
+            .into_iter()
+            .map(|(_, t)| t)
+            .collect();
+        assert_eq!(wide, ["0.01", "0.1", "1", "10", "100"]);
+        // y = 1/x over 1..100 on log–log axes is a straight line: the red pixel of the
+        // middle column lies halfway between the red pixels of the first and last columns.
+        let x: Vec<f64> = (0..=20).map(|k| 10f64.powf(k as f64 / 10.0)).collect();
+        let y: Vec<f64> = x.iter().map(|v| 1.0 / v).collect();
+        let p = std::env::temp_dir().join(format!("slam-io-loglog-{}.png", std::process::id()));
+        let axes = Axes {
+            x: Scale::Log10,
+            y: Scale::Log10,
+        };
+        let curve = [Series { y: &y, colour: RED }];
+        plot_series_with(&p, &x, &curve, None, axes).unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        std::fs::remove_file(&p).ok();
+        let red_row = |col: u32| -> Option<f64> {
+            let rows: Vec<u32> = (0..img.height())
+                .filter(|&r| img.get_pixel(col, r).0 == RED.0)
+                .collect();
+            (!rows.is_empty()).then(|| rows.iter().sum::<u32>() as f64 / rows.len() as f64)
+        };
+        let (first, last) = (58, img.width() - 22);
+        let (a, b) = (red_row(first).unwrap(), red_row(last).unwrap());
+        let mid = red_row((first + last) / 2).unwrap();
+        assert!(a < b, "falling curve: top-left to bottom-right");
+        assert!((mid - (a + b) / 2.0).abs() < 3.0, "{a} {mid} {b}");
+        // Non-positive values are skipped on a log axis, not an error.
+        plot_series_with(
+            &p,
+            &[1.0, 2.0],
+            &[Series {
+                y: &[0.0, 1.0],
+                colour: RED,
+            }],
+            None,
+            axes,
         )
         .unwrap();
         std::fs::remove_file(&p).ok();

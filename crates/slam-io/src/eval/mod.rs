@@ -30,7 +30,7 @@ pub use landmarks::{
 pub use relations::{
     relations_error, relations_error_lookup, relations_error_with, RelationsResult,
 };
-pub use trajectory::{ate, ate_with, rpe, rpe_with, AteResult, RpeResult};
+pub use trajectory::{anchor_at_first_match, ate, ate_with, rpe, rpe_with, AteResult, RpeResult};
 
 /// Mean and population standard deviation (÷ n) of a sample; (NaN, NaN) when empty.
 pub(crate) fn mean_std(v: &[f64]) -> (f64, f64) {

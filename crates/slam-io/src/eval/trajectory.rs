@@ -34,6 +34,29 @@ fn matched_pairs(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Vec<(Pose2
         .collect()
 }
 
+/// The ground truth `gt` moved rigidly so that its first pose with an estimate at the same time
+/// (within [`DEFAULT_MAX_DT`]) coincides with that estimate: T = e ⊕ g⁻¹ applied to
+/// every ground-truth pose. Unchanged when no pose matches in time (ATE then says so).
+///
+/// Use it when the estimate starts in its own frame (a laser filter starts at the identity):
+/// "as is" metrics then mean "sharing the start frame".
+pub fn anchor_at_first_match(trajectory: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
+    let est = sorted_by_time(trajectory);
+    let anchor = sorted_by_time(gt).into_iter().find_map(|g| {
+        lookup(&est, g.t, DEFAULT_MAX_DT).map(|i| est[i].pose.compose(&g.pose.inverse()))
+    });
+    match anchor {
+        Some(t) => gt
+            .iter()
+            .map(|g| TimedPose {
+                t: g.t,
+                pose: t.compose(&g.pose),
+            })
+            .collect(),
+        None => gt.to_vec(),
+    }
+}
+
 /// [`ate_with`] with `max_dt` = [`DEFAULT_MAX_DT`].
 pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
     ate_with(est, gt, DEFAULT_MAX_DT)
@@ -241,5 +264,39 @@ mod tests {
         assert!((r.rot_mean_deg - 45.0).abs() < 1e-9);
         assert!(rpe_with(&est, &gt, 0.006, 0).is_err());
         assert!(rpe_with(&est, &gt, 0.006, 3).is_err());
+    }
+
+    #[test]
+    fn ground_truth_is_anchored_at_the_first_common_pose() {
+        let est = [
+            TimedPose {
+                t: 1.0,
+                pose: Pose2::new(0.0, 0.0, 0.0),
+            },
+            TimedPose {
+                t: 2.0,
+                pose: Pose2::new(1.0, 0.0, 0.0),
+            },
+        ];
+        // The same motion seen from a frame rotated by 90° and shifted; the first truth
+        // pose has no estimate at its time.
+        let gt = [
+            TimedPose {
+                t: 0.0,
+                pose: Pose2::new(9.0, 9.0, 0.0),
+            },
+            TimedPose {
+                t: 1.0,
+                pose: Pose2::new(5.0, 3.0, std::f64::consts::FRAC_PI_2),
+            },
+            TimedPose {
+                t: 2.0,
+                pose: Pose2::new(5.0, 4.0, std::f64::consts::FRAC_PI_2),
+            },
+        ];
+        let a = anchor_at_first_match(&est, &gt);
+        assert!(a[1].pose.approx_eq(&est[0].pose, 1e-12), "{:?}", a[1]);
+        assert!(a[2].pose.approx_eq(&est[1].pose, 1e-12), "{:?}", a[2]);
+        assert_eq!(a[0].t, 0.0);
     }
 }
