@@ -59,16 +59,25 @@ pub(crate) fn compute_region(
     let mut out = Vec::with_capacity(w * h);
     let mut dist2 = Vec::with_capacity(w * h);
     let dmax = params.max_distance;
+    // Surfaces of the obstacle sites, fitted on first use (many cells share a site).
+    let mut surfaces: Vec<Option<Surface>> = if params.subcell {
+        vec![None; gw * gh]
+    } else {
+        Vec::new()
+    };
     for y in 0..h {
         for x in 0..w {
             let k = (y + m) * gw + x + m;
             let d = if !d2[k].is_finite() {
                 f64::INFINITY
             } else if params.subcell {
-                // Distance to the surface point of the nearest obstacle cell (chosen by
+                // Distance to the surface around the nearest obstacle cell (chosen by
                 // centre distance: the exact EDT's feature transform).
-                let (sx, sy) = surface_point(site[k] as usize, &obstacles, &offsets, gw, gh);
-                ((x + m) as f64 - sx).hypot((y + m) as f64 - sy) * res
+                let s = site[k] as usize;
+                let surface = *surfaces[s].get_or_insert_with(|| {
+                    Surface::fit(s, &obstacles, &offsets, gw, gh, params.surface_lines)
+                });
+                surface.distance((x + m) as f64, (y + m) as f64) * res
             } else {
                 d2[k].sqrt() * res
             };
@@ -79,34 +88,125 @@ pub(crate) fn compute_region(
     Some((out, dist2))
 }
 
-/// The surface point of obstacle cell `s` in region cell coordinates (cell (i, j) centred
-/// at (i, j)): the hit-count-weighted mean of the mean hit positions of the obstacle cells
-/// in its 3×3 neighbourhood. Averaging over neighbours matters where a wall runs along a
-/// cell boundary: range noise then splits its hits between two cells whose own means sit
-/// on either side of the wall (truncated distributions), while their joint mean is on it.
-fn surface_point(
-    s: usize,
-    obstacles: &[bool],
-    offsets: &[(i8, i8, u8)],
-    gw: usize,
-    gh: usize,
-) -> (f64, f64) {
-    let (cx, cy) = ((s % gw) as i64, (s / gw) as i64);
-    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-    for ny in (cy - 1).max(0)..=(cy + 1).min(gh as i64 - 1) {
-        for nx in (cx - 1).max(0)..=(cx + 1).min(gw as i64 - 1) {
-            let n = ny as usize * gw + nx as usize;
-            if !obstacles[n] {
-                continue;
+/// The obstacle surface near one obstacle cell, in region cell coordinates (cell (i, j)
+/// centred at (i, j)), estimated from the mean hit positions (GMapping's per-cell
+/// statistic) of the obstacle cells around it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Surface {
+    /// A point: the hit-count-weighted mean of the mean hit positions of the obstacle cells
+    /// in the 3×3 neighbourhood. Averaging over neighbours matters where a wall runs along
+    /// a cell boundary: range noise then splits its hits between two cells whose own means
+    /// sit on either side of the wall (truncated distributions), while their joint mean is
+    /// on it.
+    Point { c: [f64; 2] },
+    /// A segment {c + t·e : t ∈ [t0, t1]} (|e| = 1): the total-least-squares line through
+    /// the same weighted means, cut to the extent of the means along it.
+    Segment {
+        c: [f64; 2],
+        e: [f64; 2],
+        t0: f64,
+        t1: f64,
+    },
+}
+
+/// Largest ratio λ₂/λ₁ of the weighted scatter matrix's eigenvalues for which the means
+/// around a site count as one straight wall (an L-shaped corner in a 3×3 neighbourhood
+/// gives ≈ 0.3 and more, a wall's truncated-noise spread across it at σ = 0.2 cell ≈ 0.05).
+const LINE_RATIO: f64 = 0.15;
+
+impl Surface {
+    /// Fits the surface of obstacle cell `s` (see the variants); `lines` false always gives
+    /// the point.
+    fn fit(
+        s: usize,
+        obstacles: &[bool],
+        offsets: &[(i8, i8, u8)],
+        gw: usize,
+        gh: usize,
+        lines: bool,
+    ) -> Self {
+        let (cx, cy) = ((s % gw) as i64, (s / gw) as i64);
+        // Weighted means of the obstacle cells' hit means in the 3×3 (fit) and 5×5 (extent)
+        // neighbourhoods.
+        let mut pts = [([0.0f64; 2], 0.0f64, false); 25];
+        let mut n = 0;
+        let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
+        for ny in (cy - 2).max(0)..=(cy + 2).min(gh as i64 - 1) {
+            for nx in (cx - 2).max(0)..=(cx + 2).min(gw as i64 - 1) {
+                let i = ny as usize * gw + nx as usize;
+                if !obstacles[i] {
+                    continue;
+                }
+                let (ox, oy, c) = offsets[i];
+                let wgt = c.max(1) as f64;
+                let p = [nx as f64 + ox as f64 / 256.0, ny as f64 + oy as f64 / 256.0];
+                let inner = (nx - cx).abs() <= 1 && (ny - cy).abs() <= 1;
+                pts[n] = (p, wgt, inner);
+                n += 1;
+                if inner {
+                    sx += wgt * p[0];
+                    sy += wgt * p[1];
+                    sw += wgt;
+                }
             }
-            let (ox, oy, c) = offsets[n];
-            let wgt = c.max(1) as f64;
-            sx += wgt * (nx as f64 + ox as f64 / 256.0);
-            sy += wgt * (ny as f64 + oy as f64 / 256.0);
-            sw += wgt;
+        }
+        let c = [sx / sw, sy / sw];
+        if !lines {
+            return Surface::Point { c };
+        }
+        // Weighted scatter of the 3×3 means about their mean (total least squares:
+        // the line's direction is the principal eigenvector).
+        let (mut sxx, mut sxy, mut syy, mut m) = (0.0, 0.0, 0.0, 0);
+        for &(p, wgt, inner) in &pts[..n] {
+            if inner {
+                let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+                sxx += wgt * dx * dx;
+                sxy += wgt * dx * dy;
+                syy += wgt * dy * dy;
+                m += 1;
+            }
+        }
+        let half_tr = 0.5 * (sxx + syy);
+        let disc = (0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy).sqrt();
+        let (l1, l2) = (half_tr + disc, half_tr - disc);
+        if m < 2 || l1 <= 0.0 || l2 > LINE_RATIO * l1 {
+            return Surface::Point { c };
+        }
+        // Principal direction: angle ½·atan2(2 sxy, sxx − syy).
+        let phi = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+        let e = [phi.cos(), phi.sin()];
+        // Extent: the means of the 5×5 neighbourhood lying on the line (within half a cell
+        // of it), grown by half a cell, so a one-cell gap in a mapped wall is bridged.
+        let (mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &(p, _, _) in &pts[..n] {
+            let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+            let t = dx * e[0] + dy * e[1];
+            let off = -dx * e[1] + dy * e[0];
+            if off.abs() <= 0.5 {
+                t0 = t0.min(t);
+                t1 = t1.max(t);
+            }
+        }
+        Surface::Segment {
+            c,
+            e,
+            t0: t0.min(0.0) - 0.5,
+            t1: t1.max(0.0) + 0.5,
         }
     }
-    (sx / sw, sy / sw)
+
+    /// Euclidean distance (cells) from (x, y) to the surface.
+    #[inline]
+    fn distance(&self, x: f64, y: f64) -> f64 {
+        match *self {
+            Surface::Point { c } => (x - c[0]).hypot(y - c[1]),
+            Surface::Segment { c, e, t0, t1 } => {
+                let (dx, dy) = (x - c[0], y - c[1]);
+                let t = (dx * e[0] + dy * e[1]).clamp(t0, t1);
+                (dx - t * e[0]).hypot(dy - t * e[1])
+            }
+        }
+    }
 }
 
 /// A dense likelihood field over a rectangle of cells of a grid: s = exp(−d²/(2σ²)) with d

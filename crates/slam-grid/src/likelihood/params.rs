@@ -33,6 +33,16 @@ pub struct LikelihoodParams {
     /// Measure distances to the mean hit position of the nearest obstacle cell (sub-cell
     /// accuracy, as GMapping's per-cell hit mean) instead of to its centre. Default true.
     pub subcell: bool,
+    /// With `subcell`: where the mean hit positions of the obstacle cells around the nearest
+    /// one lie on a straight line (total least squares through their hit-count-weighted
+    /// means, scatter eigenvalue ratio λ₂/λ₁ ≤ 0.15), measure the distance to that line
+    /// (cut to the means' extent) instead of to their mean point. A wall's zero set is then
+    /// its fitted line, not circles around a few points: end points between two mapped
+    /// cells, or in a cell the wall crosses but that holds no obstacle (a wall along a cell
+    /// boundary scatters its hits between the two sides), are not pushed off the wall.
+    /// The same idea as point-to-line ICP (Censi, "An ICP variant using a point-to-line
+    /// metric", ICRA 2008) with the lines taken from the map's hit means. Default true.
+    pub surface_lines: bool,
 }
 
 impl Default for LikelihoodParams {
@@ -45,6 +55,7 @@ impl Default for LikelihoodParams {
             z_rand: 0.1,
             z_max: 30.0,
             subcell: true,
+            surface_lines: true,
         }
     }
 }
