@@ -294,3 +294,70 @@ impl LikelihoodField {
 pub(crate) fn margin_cells_clamped(params: &LikelihoodParams, resolution: f64) -> i32 {
     margin_cells(params, resolution).min(crate::grid::tiles::TILE_SIZE as i32)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testutil::SegmentWorld;
+    use crate::{InverseSensorModel, LikelihoodParams, OccupancyGrid};
+    use slam_models::{Point2, Pose2};
+
+    /// A corridor wall y = 1 on a cell boundary, mapped from noise-free scans taken while
+    /// driving along it: its hits fall on either side of the boundary by rounding, and
+    /// grazing beams clear some of the cells they land in, so the wall's obstacle cells
+    /// have gaps and alternate sides.
+    fn boundary_wall(surface_lines: bool) -> OccupancyGrid {
+        let world = SegmentWorld {
+            segments: vec![(Point2::new(-5.0, 1.0), Point2::new(10.0, 1.0))],
+        };
+        let params = LikelihoodParams {
+            surface_lines,
+            ..Default::default()
+        };
+        let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+            .with_likelihood(params)
+            .unwrap();
+        for k in 0..40 {
+            let pose = Pose2::new(0.1 * k as f64, 0.3 + 0.003 * k as f64, 0.2);
+            let scan = world.scan(&pose, 181, std::f64::consts::PI, 20.0);
+            g.integrate_scan(&pose, &scan);
+        }
+        g
+    }
+
+    /// Largest error (m) of the field's distances at the cell centres within two cells of
+    /// the wall over x ∈ [1, 3], and of the bicubic interpolant's peak across the wall.
+    fn wall_errors(g: &OccupancyGrid) -> (f64, f64) {
+        let (mut dist_err, mut peak_err) = (0.0f64, 0.0f64);
+        for i in 0..40 {
+            let x = 1.0 + 0.05 * i as f64 + 0.025;
+            for y in [0.925, 0.975, 1.025, 1.075] {
+                let c = g.world_to_cell(&Point2::new(x, y));
+                let d = (g.distance_squared(c) as f64).sqrt();
+                dist_err = dist_err.max((d - (y - 1.0f64).abs()).abs());
+            }
+            // Peak of the interpolated field on a 0.1 mm lattice across the wall.
+            let best = (0..400)
+                .map(|j| 0.98 + 0.0001 * j as f64)
+                .max_by(|a, b| {
+                    let fa = g.likelihood_bicubic(&Point2::new(x, *a)).0;
+                    let fb = g.likelihood_bicubic(&Point2::new(x, *b)).0;
+                    fa.total_cmp(&fb)
+                })
+                .unwrap();
+            peak_err = peak_err.max((best - 1.0).abs());
+        }
+        (dist_err, peak_err)
+    }
+
+    #[test]
+    fn fitted_lines_put_a_gappy_boundary_wall_where_it_is() {
+        let g = boundary_wall(true);
+        let (dist_err, peak_err) = wall_errors(&g);
+        assert!(dist_err < 1e-3, "distance error {dist_err} m");
+        assert!(peak_err < 1e-3, "peak {peak_err} m off the wall");
+        // The point surfaces (distance to the mean of the 3×3 hit means) do not: end points
+        // between mapped cells are pushed off the wall.
+        let (dist_err, peak_err) = wall_errors(&boundary_wall(false));
+        assert!(dist_err > 5e-3 || peak_err > 5e-3, "{dist_err} {peak_err}");
+    }
+}

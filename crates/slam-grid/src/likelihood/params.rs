@@ -41,7 +41,11 @@ pub struct LikelihoodParams {
     /// cells, or in a cell the wall crosses but that holds no obstacle (a wall along a cell
     /// boundary scatters its hits between the two sides), are not pushed off the wall.
     /// The same idea as point-to-line ICP (Censi, "An ICP variant using a point-to-line
-    /// metric", ICRA 2008) with the lines taken from the map's hit means. Default true.
+    /// metric", ICRA 2008) with the lines taken from the map's hit means. Default false:
+    /// on clean maps of straight walls it removes the refinement's bias (simulated office,
+    /// 5 cm grid: 99.9 % of matches within 1 cm and 0.5° of the truth instead of 94.7 %),
+    /// but scan-matching odometry on the real Intel log got much worse with it (perturbed
+    /// odometry, seed 7: ATE 2.06 m against 0.37 m).
     pub surface_lines: bool,
 }
 
@@ -55,7 +59,7 @@ impl Default for LikelihoodParams {
             z_rand: 0.1,
             z_max: 30.0,
             subcell: true,
-            surface_lines: true,
+            surface_lines: false,
         }
     }
 }
