@@ -114,6 +114,41 @@ enum Surface {
 /// gives ≈ 0.3 and more, a wall's truncated-noise spread across it at σ = 0.2 cell ≈ 0.05).
 const LINE_RATIO: f64 = 0.15;
 
+/// Where a mapped wall ends, along its line (cells): `ts` sorted ascending are the
+/// positions of the hit means on the line, `start` the site's. The run of means from
+/// `start` upwards (consecutive spacing ≤ 2.2: one missing cell is bridged) ends at its
+/// last mean t_l; with hits spread uniformly along the wall, the last cell's hits cover
+/// [entry, end] and their mean is the middle, so end = t_l + (t_l − entry), the entry
+/// taken half a cell past the previous column's mean t_p (its cell fully covered):
+/// end = t_l + clamp(t_l − t_p − ½, 0, ½), exact for walls along the grid axes; half a
+/// cell when there is no previous column within 1.5 cells.
+fn run_end(ts: impl Iterator<Item = f64>, start: f64) -> f64 {
+    let (mut last, mut prev) = (start, f64::NEG_INFINITY);
+    for t in ts {
+        if t <= last {
+            if t < last - 0.5 {
+                prev = prev.max(t);
+            }
+            continue;
+        }
+        if t - last > 2.2 {
+            break;
+        }
+        if t > last + 0.5 {
+            // A new column: the last one becomes the previous column.
+            prev = last;
+        }
+        last = t;
+    }
+    let gap = last - prev;
+    let grow = if gap <= 1.5 {
+        (gap - 0.5).clamp(0.0, 0.5)
+    } else {
+        0.5
+    };
+    last + grow
+}
+
 impl Surface {
     /// Fits the surface of obstacle cell `s` (see the variants); `lines` false always gives
     /// the point.
@@ -175,24 +210,29 @@ impl Surface {
         // Principal direction: angle ½·atan2(2 sxy, sxx − syy).
         let phi = 0.5 * (2.0 * sxy).atan2(sxx - syy);
         let e = [phi.cos(), phi.sin()];
-        // Extent: the means of the 5×5 neighbourhood lying on the line (within half a cell
-        // of it), grown by half a cell, so a one-cell gap in a mapped wall is bridged.
-        let (mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY);
+        // Extent: the run of means of the 5×5 neighbourhood lying on the line (within half
+        // a cell of it) through the site's own mean, bridging one missing cell (spacing up
+        // to 2.2 cells), see `run_end`.
+        let (ox, oy, _) = offsets[s];
+        let site = [
+            cx as f64 + ox as f64 / 256.0 - c[0],
+            cy as f64 + oy as f64 / 256.0 - c[1],
+        ];
+        let ts = site[0] * e[0] + site[1] * e[1];
+        let mut ts_on = [0.0f64; 25];
+        let mut k = 0;
         for &(p, _, _) in &pts[..n] {
             let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
-            let t = dx * e[0] + dy * e[1];
-            let off = -dx * e[1] + dy * e[0];
-            if off.abs() <= 0.5 {
-                t0 = t0.min(t);
-                t1 = t1.max(t);
+            if (-dx * e[1] + dy * e[0]).abs() <= 0.5 {
+                ts_on[k] = dx * e[0] + dy * e[1];
+                k += 1;
             }
         }
-        Surface::Segment {
-            c,
-            e,
-            t0: t0.min(0.0) - 0.5,
-            t1: t1.max(0.0) + 0.5,
-        }
+        let on = &mut ts_on[..k];
+        on.sort_unstable_by(f64::total_cmp);
+        let t1 = run_end(on.iter().copied(), ts);
+        let t0 = -run_end(on.iter().rev().map(|t| -t), -ts);
+        Surface::Segment { c, e, t0, t1 }
     }
 
     /// Euclidean distance (cells) from (x, y) to the surface.
@@ -347,6 +387,29 @@ mod tests {
             peak_err = peak_err.max((best - 1.0).abs());
         }
         (dist_err, peak_err)
+    }
+
+    #[test]
+    fn run_ends_follow_the_hits() {
+        use super::run_end;
+        // Columns of means at −2, −1, 0 (site) and a full last column at 1: the wall ends at
+        // the far edge of that cell, 1.5.
+        let ts = [-2.0, -1.0, 0.0, 1.0];
+        assert!((run_end(ts.iter().copied(), 0.0) - 1.5).abs() < 1e-12);
+        // The last cell covered over 0.4 of its width from its entry at 0.5: hits in
+        // [0.5, 0.9], mean 0.7; the end is 0.9.
+        let ts = [-1.0, 0.0, 0.7];
+        assert!((run_end(ts.iter().copied(), 0.0) - 0.9).abs() < 1e-12);
+        // Downwards, by the same function on negated positions: the end is −1.5.
+        let down = -run_end(ts.iter().rev().map(|t| -t), 0.0);
+        assert!((down + 1.5).abs() < 1e-12, "{down}");
+        // One missing cell is bridged, two are not (the run ends at 2, grown by ½).
+        let ts = [0.0, 2.0, 5.0];
+        assert!((run_end(ts.iter().copied(), 0.0) - 2.5).abs() < 1e-12);
+        // Two means per column (a wall along a cell boundary splits its hits) count as one.
+        let ts = [-1.02, -0.98, 0.01, 0.03, 0.97, 1.01];
+        let end = run_end(ts.iter().copied(), 0.01);
+        assert!((end - 1.5).abs() < 0.03, "{end}");
     }
 
     #[test]
