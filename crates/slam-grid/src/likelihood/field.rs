@@ -252,7 +252,8 @@ impl Surface {
 /// A dense likelihood field over a rectangle of cells of a grid: s = exp(−d²/(2σ²)) with d
 /// the Euclidean distance (metres, clamped to `max_distance`) from the cell centre to the
 /// nearest obstacle cell, found by an exact EDT (to its centre when
-/// [`LikelihoodParams::subcell`] is off; to its mean hit position when on).
+/// [`LikelihoodParams::subcell`] is off; to the mean hit position of it and its neighbours
+/// when on, or to the line fitted through those with [`LikelihoodParams::surface_lines`]).
 ///
 /// ```
 /// use slam_grid::{CellIndex, InverseSensorModel, LikelihoodField, OccupancyGrid};
