@@ -1,10 +1,12 @@
 //! Matching benchmarks: one correlative + Gauss-Newton match of a 180-beam scan (the
-//! default windows: ±0.4 m, ±12°), and the stages on their own.
+//! default windows: ±0.4 m, ±12°), and the stages on their own; the same match on a grid
+//! whose field measures to fitted lines (`LikelihoodParams::surface_lines`), and the
+//! field of the whole room computed from scratch both ways.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_grid::{
-    CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, InverseSensorModel, OccupancyGrid,
-    PreparedScan, RefinedCorrelativeMatcher,
+    CellIndex, CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, InverseSensorModel,
+    LikelihoodField, LikelihoodParams, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher,
 };
 use slam_models::{LaserScan, Pose2};
 use std::hint::black_box;
@@ -58,14 +60,27 @@ fn scan_at(p: &Pose2, n: usize, fov: f64) -> LaserScan {
     }
 }
 
-fn matching(c: &mut Criterion) {
-    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
+/// The room mapped from 16 full scans, with the given likelihood parameters.
+fn room_grid(params: LikelihoodParams) -> OccupancyGrid {
+    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_likelihood(params)
+        .expect("valid parameters");
     for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
         for k in 0..4 {
             let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
             grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
         }
     }
+    grid
+}
+
+fn matching(c: &mut Criterion) {
+    let grid = room_grid(LikelihoodParams::default());
+    let lines = LikelihoodParams {
+        surface_lines: true,
+        ..Default::default()
+    };
+    let grid_lines = room_grid(lines);
     let truth = Pose2::new(5.2, 2.9, 0.4);
     let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
     let initial = Pose2::new(5.4, 2.75, 0.4 + 0.12);
@@ -75,9 +90,28 @@ fn matching(c: &mut Criterion) {
         .match_prepared(&grid, &scan, &initial)
         .expect("match");
     println!("match error {:.4} m", r.pose.distance(&truth));
+    let r = refined
+        .match_prepared(&grid_lines, &scan, &initial)
+        .expect("match");
+    println!(
+        "match error with surface lines {:.4} m",
+        r.pose.distance(&truth)
+    );
     let mut g = c.benchmark_group("scan_match");
     g.bench_function("correlative_plus_gauss_newton_180_beams", |b| {
         b.iter(|| refined.match_prepared(black_box(&grid), &scan, black_box(&initial)))
+    });
+    g.bench_function(
+        "correlative_plus_gauss_newton_180_beams_surface_lines",
+        |b| b.iter(|| refined.match_prepared(black_box(&grid_lines), &scan, black_box(&initial))),
+    );
+    // The field of the whole room (≈ 250 × 170 cells with the margin), from scratch.
+    let (lo, hi) = (CellIndex::new(-20, -20), CellIndex::new(220, 140));
+    g.bench_function("likelihood_field_room", |b| {
+        b.iter(|| LikelihoodField::from_grid(black_box(&grid), lo, hi))
+    });
+    g.bench_function("likelihood_field_room_surface_lines", |b| {
+        b.iter(|| LikelihoodField::from_grid(black_box(&grid_lines), lo, hi))
     });
     let corr = CorrelativeMatcher::default();
     g.bench_function("correlative_only_180_beams", |b| {

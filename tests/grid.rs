@@ -6,8 +6,8 @@ mod common;
 
 use rand::{Rng, SeedableRng};
 use slam::grid::{
-    InverseSensorModel, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher, ScanMatchConfig,
-    ScanMatchOdometry,
+    InverseSensorModel, LikelihoodParams, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher,
+    ScanMatchConfig, ScanMatchOdometry,
 };
 use slam::models::{normalize_angle, Pose2, ScanSlam, TimedPose};
 use slam::sim::laser::LaserScanner;
@@ -21,12 +21,17 @@ struct Trials {
     median_err: f64,
     p99_err: f64,
     median_rot_deg: f64,
+    /// Translation error histogram over [0, 2.5, 5, 7.5, 10, 20, 50) mm and beyond.
+    hist: [usize; 7],
 }
 
-/// Builds the office map at `res` from the first `scans` scans of the simulated run at
-/// their true poses, then matches `n` fresh scans (simulated at random true poses of the
-/// run) from initial offsets up to 0.3 m and 10°.
+/// Builds the office map at `res` from every scan of the simulated run (seed 1) at its
+/// true pose, then matches `n` fresh scans, each simulated at a random true pose of the
+/// run, from a random initial offset up to 0.3 m (uniform in a disk) and 10°. Trial `i`
+/// draws everything from its own stream (`seed`, `i`), so the outcome does not depend on
+/// how rayon spreads the trials over threads.
 fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
+    use rayon::prelude::*;
     let opts = ScenarioOptions {
         seed: 1,
         ..Default::default()
@@ -35,7 +40,14 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
         panic!("office scenario did not generate a laser run");
     };
     let gt = run.dataset.ground_truth.as_ref().expect("ground truth");
-    let mut grid = OccupancyGrid::new(res, InverseSensorModel::default());
+    // Distances to lines fitted through the hit means (`LikelihoodParams::surface_lines`).
+    let params = LikelihoodParams {
+        surface_lines: true,
+        ..Default::default()
+    };
+    let mut grid = OccupancyGrid::new(res, InverseSensorModel::default())
+        .with_likelihood(params)
+        .expect("valid likelihood parameters");
     let mut poses = Vec::new();
     for (rec, truth) in run.dataset.records.iter().zip(gt) {
         if let Some(scan) = &rec.scan {
@@ -45,38 +57,48 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
     }
     let scanner = LaserScanner::default();
     // The refinement with a narrower Gaussian than the field's (see
-    // `GaussNewtonMatcher::sigma`): 94 % instead of 78 % on the 5 cm map.
+    // `GaussNewtonMatcher::sigma`).
     let mut matcher = RefinedCorrelativeMatcher::default();
     matcher.refine.sigma = 0.02;
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
-    let mut errs = Vec::with_capacity(n);
-    let mut rots = Vec::with_capacity(n);
-    let mut ok = 0;
-    for _ in 0..n {
-        let truth = poses[rng.random_range(0..poses.len())];
-        let scan = scanner.scan(&run.world, &truth, &mut rng);
-        let r = 0.3 * rng.random::<f64>().sqrt();
-        let a = rng.random_range(0.0..std::f64::consts::TAU);
-        let dth = rng.random_range(-10f64..=10.0).to_radians();
-        let initial = Pose2::new(
-            truth.x + r * a.cos(),
-            truth.y + r * a.sin(),
-            truth.theta + dth,
-        );
-        let prepared = PreparedScan::new(&scan).expect("valid simulated scan");
-        let m = matcher
-            .match_prepared(&grid, &prepared, &initial)
-            .expect("match");
-        let e = m.pose.distance(&truth);
-        let de = normalize_angle(m.pose.theta - truth.theta)
-            .abs()
-            .to_degrees();
-        if e < 0.01 && de < 0.5 {
-            ok += 1;
-        }
-        errs.push(e);
-        rots.push(de);
+    let errors: Vec<(f64, f64)> = (0..n as u64)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed.wrapping_mul(1_000_003) + i);
+            let truth = poses[rng.random_range(0..poses.len())];
+            let scan = scanner.scan(&run.world, &truth, &mut rng);
+            let r = 0.3 * rng.random::<f64>().sqrt();
+            let a = rng.random_range(0.0..std::f64::consts::TAU);
+            let dth = rng.random_range(-10f64..=10.0).to_radians();
+            let initial = Pose2::new(
+                truth.x + r * a.cos(),
+                truth.y + r * a.sin(),
+                truth.theta + dth,
+            );
+            let prepared = PreparedScan::new(&scan).expect("valid simulated scan");
+            let m = matcher
+                .match_prepared(&grid, &prepared, &initial)
+                .expect("match");
+            let e = m.pose.distance(&truth);
+            let de = normalize_angle(m.pose.theta - truth.theta)
+                .abs()
+                .to_degrees();
+            (e, de)
+        })
+        .collect();
+    let ok = errors
+        .iter()
+        .filter(|(e, de)| *e < 0.01 && *de < 0.5)
+        .count();
+    let mut hist = [0; 7];
+    for (e, _) in &errors {
+        let k = [0.0025, 0.005, 0.0075, 0.01, 0.02, 0.05]
+            .iter()
+            .position(|&b| *e < b)
+            .unwrap_or(6);
+        hist[k] += 1;
     }
+    let mut errs: Vec<f64> = errors.iter().map(|e| e.0).collect();
+    let mut rots: Vec<f64> = errors.iter().map(|e| e.1).collect();
     errs.sort_by(f64::total_cmp);
     rots.sort_by(f64::total_cmp);
     Trials {
@@ -85,29 +107,31 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
         median_err: errs[n / 2],
         p99_err: errs[(n * 99) / 100],
         median_rot_deg: rots[n / 2],
+        hist,
     }
 }
 
-/// The issue's target is ≥ 99 % of 1,000 trials within 1 cm and 0.5° (correlative +
-/// refinement). Measured (seed 2024): 5 cm map 94.3 %, median 3.1 mm, p99 1.8 cm; 2.5 cm
-/// map 98.2 % (500 trials), median 2.5 mm: the target is NOT quite met; the bounds below
-/// guard the measured level. The remaining error is the map's representation (Gauss-Newton
-/// started at the true pose settles a few millimetres away, at a lower cost than the
-/// truth's), not convergence.
+/// Issue #7: matching a scan simulated in the `office` world against its map (5 cm cells,
+/// as in the scan-matching odometry) from offsets up to 0.3 m and 10° converges within
+/// 1 cm and 0.5° of the simulator's true pose in ≥ 99 % of 1,000 random trials
+/// (correlative + Gauss-Newton refinement). The field measures to lines fitted through the
+/// map's mean hit positions (`LikelihoodParams::surface_lines`, off by default); with
+/// distances to mean hit points (the default) the same trials gave 94.7 %, the refinement
+/// settling a few millimetres off the truth even when started on it (none of the failures
+/// was the correlative search's). The margin is thin: map seeds 1–5 × trial seeds 7 and
+/// 2024 gave 98.8–99.9 % (9 of 10 at or above 99 %); the failures are refinements along a
+/// corridor where only door jambs and walls seen through doors fix the position along it.
 #[test]
 fn office_matching_from_large_offsets() {
     let t = office_trials(0.05, 1000, 2024);
-    let t2 = office_trials(0.025, 500, 2025);
-    for (res, t) in [(0.05, &t), (0.025, &t2)] {
-        println!(
-            "office, {res} m grid: {}/{} within 1 cm and 0.5°; translation error median {:.4} m, \
-             p99 {:.4} m; rotation error median {:.3}°",
-            t.ok, t.n, t.median_err, t.p99_err, t.median_rot_deg
-        );
-    }
-    assert!(t.ok * 100 >= 92 * t.n, "5 cm: {}/{}", t.ok, t.n);
-    assert!(t.median_err < 0.005 && t.p99_err < 0.03);
-    assert!(t2.ok * 100 >= 96 * t2.n, "2.5 cm: {}/{}", t2.ok, t2.n);
+    println!(
+        "office, 5 cm grid: {}/{} within 1 cm and 0.5°; translation error median {:.4} m, \
+         p99 {:.4} m; rotation error median {:.3}°; translation errors in mm \
+         [0,2.5,5,7.5,10,20,50,∞): {:?}",
+        t.ok, t.n, t.median_err, t.p99_err, t.median_rot_deg, t.hist
+    );
+    assert!(t.ok * 100 >= 99 * t.n, "5 cm: {}/{}", t.ok, t.n);
+    assert!(t.median_err < 0.005 && t.p99_err < 0.01);
 }
 
 /// Reads a perturbed copy of a corrected log (odometry replaced, ground truth written by

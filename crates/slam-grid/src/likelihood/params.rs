@@ -33,6 +33,24 @@ pub struct LikelihoodParams {
     /// Measure distances to the mean hit position of the nearest obstacle cell (sub-cell
     /// accuracy, as GMapping's per-cell hit mean) instead of to its centre. Default true.
     pub subcell: bool,
+    /// With `subcell`: where the mean hit positions of the obstacle cells around the nearest
+    /// one lie on a straight line (total least squares through their hit-count-weighted
+    /// means, scatter eigenvalue ratio λ₂/λ₁ ≤ 0.15), measure the distance to that line
+    /// (cut to the means' extent) instead of to their mean point. A wall's zero set is then
+    /// its fitted line, not circles around a few points: end points between two mapped
+    /// cells, or in a cell the wall crosses but that holds no obstacle (a wall along a cell
+    /// boundary scatters its hits between the two sides), are not pushed off the wall.
+    /// The same idea as point-to-line ICP (Censi, "An ICP variant using a point-to-line
+    /// metric", ICRA 2008) with the lines taken from the map's hit means. Default false:
+    /// on clean maps of straight walls it removes the refinement's bias (simulated office,
+    /// 5 cm grid: 99.9 % of matches within 1 cm and 0.5° of the truth instead of 94.7 %),
+    /// but on real data it is no clear gain: scan-matching odometry on the Intel log with
+    /// perturbed odometry (seeds 1–8) failed fewer matches with it (38 against 60) at about
+    /// the same mean RPE (0.053 m / 0.72° against 0.054 m / 0.71°), and its ATE, which one
+    /// bad early match can ruin, was better on 3 seeds and worse on 5 (median 2.8 m against
+    /// 1.0 m; seed 7: 0.59 m against 0.37 m). Matching Intel scans against a map built at the
+    /// reference poses gave the same errors both ways.
+    pub surface_lines: bool,
 }
 
 impl Default for LikelihoodParams {
@@ -45,6 +63,7 @@ impl Default for LikelihoodParams {
             z_rand: 0.1,
             z_max: 30.0,
             subcell: true,
+            surface_lines: false,
         }
     }
 }
