@@ -12,6 +12,13 @@
 //! samplers built on uniform draws only, and the `cargo xtask tidy` check that keeps std's
 //! transcendental functions and `rand_distr` out of slam-models and slam-sim.
 //!
+//! A check that needs no second machine, on x86-64 with glibc: glibc picks FMA or non-FMA
+//! code for `sin`/`exp`/… by CPU at run time, and
+//! `GLIBC_TUNABLES=glibc.cpu.hwcaps=-AVX2,-FMA,-AVX2_Usable,-FMA_Usable` makes it take the
+//! path of a CPU without FMA. With std's maths (before `detmath`), the `figure8` digest
+//! changed under that setting (0x3d8e742d91d5a8df → 0x0efb8f062e654544); now all four
+//! digests stay put.
+//!
 //! The hash is FNV-1a (64-bit) over the bit patterns of every number of the run, written
 //! out here field by field: `std::hash::DefaultHasher` is not stable across Rust releases,
 //! and a text format would add a formatting layer to the promise.
