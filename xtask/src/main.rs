@@ -4,6 +4,7 @@
 //! * `cargo xtask test-all`: fmt check, clippy with warnings as errors, the whole test suite
 //!   in release mode (doc tests included), rustdoc with warnings as errors, then a one-line
 //!   summary. Exits non-zero if any step fails. This is what CI runs.
+//! * `cargo xtask tidy`: only the cheap source checks of `test-all` (see `tidy`).
 //! * `cargo xtask bench [NAME]`: the criterion benches (all, or one crate's: `ekf`,
 //!   `fastslam`, `grid`, `gridfast`, `sim`).
 //! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
@@ -17,11 +18,12 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("test-all") => test_all(),
+        Some("tidy") => tidy(),
         Some("bench") => bench(args.get(1).map(String::as_str)),
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | bench [ekf|fastslam|grid|gridfast|sim] | eval>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|sim] | eval>"
             );
             return ExitCode::from(2);
         }
@@ -122,7 +124,7 @@ fn test_all() -> Result<(), String> {
 
 /// Cheap source checks (rust-analyzer's "tidy"): every library source file opens with a
 /// module doc comment; no `dbg!` left behind; no `#[should_panic]` standing in for an error
-/// type.
+/// type; the simulator's path uses deterministic maths only (see [`deterministic_math`]).
 fn tidy() -> Result<(), String> {
     eprintln!("xtask: == tidy");
     let mut problems = Vec::new();
@@ -166,6 +168,9 @@ fn tidy() -> Result<(), String> {
             }
         }
     }
+    for dir in DETERMINISTIC_DIRS {
+        deterministic_math(std::path::Path::new(dir), &mut problems)?;
+    }
     if problems.is_empty() {
         Ok(())
     } else {
@@ -174,6 +179,147 @@ fn tidy() -> Result<(), String> {
         }
         Err(format!("tidy found {} problem(s)", problems.len()))
     }
+}
+
+/// The sources whose output must be bit-identical on every machine: the simulator and the
+/// models it calls.
+const DETERMINISTIC_DIRS: &[&str] = &["crates/slam-models/src", "crates/slam-sim/src"];
+
+/// Calls whose result comes from the platform's math library (or, for `powi`, an evaluation
+/// order LLVM leaves unspecified) and may differ in the last bit between machines. Method
+/// form (`x.sin()`) and path form (`f64::sin(x)`) are both caught.
+const NON_DETERMINISTIC_MATH: &[&str] = &[
+    "sin", "cos", "sin_cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh",
+    "asinh", "acosh", "atanh", "exp", "exp2", "exp_m1", "ln", "ln_1p", "log", "log2", "log10",
+    "hypot", "powf", "powi", "cbrt",
+];
+
+/// Checks every `.rs` file under `dir` for std transcendental calls and `rand_distr` outside
+/// test code (the item after a `#[cfg(test)]` is skipped; comments, doc examples included,
+/// are ignored). Such code must use `slam_models::detmath` and `slam_models::sampling`.
+fn deterministic_math(dir: &std::path::Path, problems: &mut Vec<String>) -> Result<(), String> {
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let entries = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+                continue;
+            }
+            if path.extension().and_then(|e| e.to_str()) != Some("rs") {
+                continue;
+            }
+            let text =
+                std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            for (line, code) in non_test_code(&text) {
+                for f in NON_DETERMINISTIC_MATH {
+                    if code.contains(&format!(".{f}("))
+                        || code.contains(&format!("f64::{f}("))
+                        || code.contains(&format!("f32::{f}("))
+                    {
+                        problems.push(format!(
+                            "{}:{line}: `{f}` may differ in the last bit between machines; use \
+                             slam_models::detmath (or write a `powi` out as products)",
+                            path.display()
+                        ));
+                    }
+                }
+                if code.contains("rand_distr") {
+                    problems.push(format!(
+                        "{}:{line}: rand_distr (its samplers call the platform's exp/ln); use \
+                         slam_models::sampling",
+                        path.display()
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The lines of `text` (1-based number, code with comments and string contents blanked)
+/// that are not test code: an item annotated `#[cfg(test)]` is skipped up to its matching
+/// closing brace (or its `;`). A light lexer, enough for this codebase's sources: it knows
+/// line comments, block comments, string literals and the char literals `'{'`/`'}'`.
+fn non_test_code(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    let mut in_block_comment = false;
+    let mut in_string = false;
+    // Brace depth inside a skipped test item, and whether a `#[cfg(test)]` item is pending.
+    let mut skip_depth: Option<usize> = None;
+    let mut pending_test_item = false;
+    for (i, raw) in text.lines().enumerate() {
+        let mut code = String::with_capacity(raw.len());
+        let chars: Vec<char> = raw.chars().collect();
+        let mut k = 0;
+        while k < chars.len() {
+            let c = chars[k];
+            let next = chars.get(k + 1).copied();
+            if in_block_comment {
+                if c == '*' && next == Some('/') {
+                    in_block_comment = false;
+                    k += 1;
+                }
+            } else if in_string {
+                if c == '\\' {
+                    k += 1;
+                } else if c == '"' {
+                    in_string = false;
+                    code.push('"');
+                }
+            } else if c == '/' && next == Some('/') {
+                break;
+            } else if c == '/' && next == Some('*') {
+                in_block_comment = true;
+                k += 1;
+            } else if c == '"' {
+                in_string = true;
+                code.push('"');
+            } else if c == '\''
+                && matches!(next, Some('{') | Some('}'))
+                && chars.get(k + 2) == Some(&'\'')
+            {
+                code.push_str("' '");
+                k += 2;
+            } else {
+                code.push(c);
+            }
+            k += 1;
+        }
+        let trimmed = code.trim();
+        if skip_depth.is_none() && trimmed.starts_with("#[cfg(test)]") {
+            pending_test_item = true;
+            continue;
+        }
+        if pending_test_item && skip_depth.is_none() {
+            if trimmed.is_empty() || trimmed.starts_with("#[") {
+                continue;
+            }
+            skip_depth = Some(0);
+            pending_test_item = false;
+        }
+        if let Some(depth) = skip_depth.as_mut() {
+            let mut opened = false;
+            for c in code.chars() {
+                match c {
+                    '{' => {
+                        *depth += 1;
+                        opened = true;
+                    }
+                    '}' => *depth = depth.saturating_sub(1),
+                    _ => {}
+                }
+            }
+            // The item ends when its braces close, or at a `;` before any brace (`mod t;`).
+            if *depth == 0 && (opened || code.contains('}') || trimmed.ends_with(';')) {
+                skip_depth = None;
+            }
+            continue;
+        }
+        out.push((i + 1, code));
+    }
+    out
 }
 
 fn bench(name: Option<&str>) -> Result<(), String> {

@@ -209,8 +209,13 @@ fn as_odometry(c: &Control) -> OdometryControl {
         Control::Velocity(u) => {
             let model = slam_models::motion::VelocityModel::default();
             let p = slam_models::motion::MotionModel::predict(&model, &Pose2::IDENTITY, u);
-            let trans = p.x.hypot(p.y);
-            let rot1 = if trans > 0.0 { p.y.atan2(p.x) } else { 0.0 };
+            // libm, not std: `slam sim` output must be byte-identical on every machine.
+            let trans = slam_models::detmath::hypot(p.x, p.y);
+            let rot1 = if trans > 0.0 {
+                slam_models::detmath::atan2(p.y, p.x)
+            } else {
+                0.0
+            };
             OdometryControl {
                 rot1,
                 trans,

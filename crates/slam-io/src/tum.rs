@@ -59,7 +59,9 @@ pub fn write_tum(path: &Path, traj: &[TimedPose]) -> Result<(), IoError> {
                 format!("pose {i} (t = {}) is not finite", p.t),
             ));
         }
-        let (sh, ch) = (0.5 * p.pose.theta).sin_cos();
+        // libm, not std: `slam sim` writes ground truth through here, and its files are
+        // promised to be byte-identical on every machine.
+        let (sh, ch) = slam_models::detmath::sin_cos(0.5 * p.pose.theta);
         let _ = writeln!(s, "{} {} {} 0 0 0 {} {}", p.t, p.pose.x, p.pose.y, sh, ch);
     }
     write_text(path, &s)

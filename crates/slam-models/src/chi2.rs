@@ -5,6 +5,8 @@
 //! found by bisection on the regularised lower incomplete gamma function
 //! P(k/2, x/2) = F(x; k), so any number of degrees of freedom is exact to double precision.
 
+use crate::detmath;
+
 /// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, n = 9; relative error < 1e-15).
 fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
@@ -22,7 +24,7 @@ fn ln_gamma(x: f64) -> f64 {
     if x < 0.5 {
         // Reflection: Γ(x)Γ(1−x) = π / sin(πx).
         let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+        return detmath::ln(pi / detmath::sin(pi * x)) - ln_gamma(1.0 - x);
     }
     let x = x - 1.0;
     let mut a = C[0];
@@ -30,7 +32,7 @@ fn ln_gamma(x: f64) -> f64 {
     for (i, c) in C.iter().enumerate().skip(1) {
         a += c / (x + i as f64);
     }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+    0.5 * detmath::ln(2.0 * std::f64::consts::PI) + (x + 0.5) * detmath::ln(t) - t + detmath::ln(a)
 }
 
 /// The regularised lower incomplete gamma function P(a, x) = γ(a, x)/Γ(a), a > 0, x ≥ 0:
@@ -46,7 +48,7 @@ pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
     if x.is_infinite() {
         return 1.0;
     }
-    let lead = a * x.ln() - x - ln_gamma(a);
+    let lead = a * detmath::ln(x) - x - ln_gamma(a);
     if x < a + 1.0 {
         let (mut ap, mut sum, mut del) = (a, 1.0 / a, 1.0 / a);
         for _ in 0..10_000 {
@@ -57,7 +59,7 @@ pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
                 break;
             }
         }
-        (sum.ln() + lead).exp().min(1.0)
+        detmath::exp(detmath::ln(sum) + lead).min(1.0)
     } else {
         const TINY: f64 = 1e-300;
         let mut b = x + 1.0 - a;
@@ -82,7 +84,7 @@ pub fn regularized_gamma_p(a: f64, x: f64) -> f64 {
                 break;
             }
         }
-        (1.0 - (lead.exp() * h)).max(0.0)
+        (1.0 - (detmath::exp(lead) * h)).max(0.0)
     }
 }
 

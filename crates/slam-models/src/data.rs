@@ -4,6 +4,7 @@
 //! [`ScanDataset`]; filters consume their steps. Keeping these types here, at the bottom
 //! layer, means simulated and real data go through exactly the same code paths.
 
+use crate::detmath;
 use crate::error::{ensure_finite, ModelError};
 use crate::{Point2, Pose2};
 use serde::{Deserialize, Serialize};
@@ -196,7 +197,7 @@ impl LaserScan {
                 let a = self.beam_angle(k);
                 let r = self.ranges[k];
                 self.sensor_pose
-                    .transform_point(&Point2::new(r * a.cos(), r * a.sin()))
+                    .transform_point(&Point2::new(r * detmath::cos(a), r * detmath::sin(a)))
             })
             .collect()
     }

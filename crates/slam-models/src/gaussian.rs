@@ -10,6 +10,7 @@
 //! With S = LLᵀ: νᵀS⁻¹ν = ‖L⁻¹ν‖² and ln det S = 2·Σ ln Lᵢᵢ, so nothing is inverted
 //! explicitly and nothing under- or overflows for tiny or huge S.
 
+use crate::detmath;
 use crate::error::ModelError;
 use nalgebra::{SMatrix, SVector};
 
@@ -38,7 +39,7 @@ pub fn mahalanobis_and_log_det<const D: usize>(
         .ok_or(ModelError::NotPositiveDefinite {
             what: "innovation covariance S",
         })?;
-    let log_det = 2.0 * (0..D).map(|i| l[(i, i)].ln()).sum::<f64>();
+    let log_det = 2.0 * (0..D).map(|i| detmath::ln(l[(i, i)])).sum::<f64>();
     Ok((y.norm_squared(), log_det))
 }
 

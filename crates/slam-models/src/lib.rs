@@ -14,6 +14,9 @@
 //! * [`particle`]: log-space weights, N_eff and four O(N) resamplers.
 //! * [`data`]: the data types every reader, simulator and filter exchanges (controls,
 //!   observations, laser scans, time steps, whole datasets).
+//! * [`detmath`] and [`sampling`]: transcendental functions and normal/exponential samplers
+//!   that give the same bits on every machine (pure-Rust `libm`, no platform math library);
+//!   everything in this crate uses them, so the simulator built on it is reproducible.
 //! * [`filter`]: the traits [`LandmarkSlam`] and [`ScanSlam`] that downstream code swaps
 //!   filters behind.
 //!
@@ -29,6 +32,7 @@
 pub mod angle;
 pub mod chi2;
 pub mod data;
+pub mod detmath;
 pub mod error;
 pub mod filter;
 pub mod gaussian;
@@ -37,6 +41,7 @@ pub mod measurement;
 pub mod motion;
 pub mod particle;
 pub mod pose;
+pub mod sampling;
 
 pub use angle::normalize_angle;
 pub use data::{

@@ -1,6 +1,7 @@
 //! SE(2) poses: the rigid motions of the plane.
 
 use crate::angle::normalize_angle;
+use crate::detmath;
 use crate::error::{ensure_finite, ModelError};
 use crate::{Matrix3, Point2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -88,7 +89,7 @@ impl Pose2 {
     /// θ = θa + θb (normalised). (Smith, Self & Cheeseman 1990; PR §7.)
     #[inline]
     pub fn compose(&self, b: &Pose2) -> Pose2 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         Pose2::new(
             self.x + c * b.x - s * b.y,
             self.y + s * b.x + c * b.y,
@@ -99,7 +100,7 @@ impl Pose2 {
     /// Inverse a⁻¹, so that a ⊕ a⁻¹ = a⁻¹ ⊕ a = identity.
     #[inline]
     pub fn inverse(&self) -> Pose2 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         Pose2::new(
             -c * self.x - s * self.y,
             s * self.x - c * self.y,
@@ -110,7 +111,7 @@ impl Pose2 {
     /// Relative pose b ⊖ a = a⁻¹ ⊕ b: the pose `b` expressed in the frame of `self` (= a).
     #[inline]
     pub fn between(&self, b: &Pose2) -> Pose2 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         let dx = b.x - self.x;
         let dy = b.y - self.y;
         Pose2::new(c * dx + s * dy, -s * dx + c * dy, b.theta - self.theta)
@@ -119,14 +120,14 @@ impl Pose2 {
     /// Maps a point from this pose's local frame into the parent frame: R(θ)·p + t.
     #[inline]
     pub fn transform_point(&self, p: &Point2) -> Point2 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         Point2::new(self.x + c * p.x - s * p.y, self.y + s * p.x + c * p.y)
     }
 
     /// Maps a point from the parent frame into this pose's local frame: R(θ)ᵀ·(p − t).
     #[inline]
     pub fn inverse_transform_point(&self, p: &Point2) -> Point2 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         let dx = p.x - self.x;
         let dy = p.y - self.y;
         Point2::new(c * dx + s * dy, -s * dx + c * dy)
@@ -135,7 +136,7 @@ impl Pose2 {
     /// Jacobians of a ⊕ b with respect to a and to b (3×3 each), the classic
     /// compounding Jacobians J⊕₁ and J⊕₂ (Smith, Self & Cheeseman 1990).
     pub fn compose_jacobians(&self, b: &Pose2) -> (Matrix3, Matrix3) {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = detmath::sin_cos(self.theta);
         let ja = Matrix3::new(
             1.0,
             0.0,
@@ -165,7 +166,7 @@ impl Pose2 {
     /// Euclidean distance between the positions of two poses, metres.
     #[inline]
     pub fn distance(&self, other: &Pose2) -> f64 {
-        (self.x - other.x).hypot(self.y - other.y)
+        detmath::hypot(self.x - other.x, self.y - other.y)
     }
 }
 

@@ -17,11 +17,23 @@
 //!
 //! **Determinism.** Everything flows from one `u64` seed through `rand_pcg` streams, one per
 //! independent part (world, motion, sensor, clutter, path), single-threaded, and no output
-//! depends on hash-map iteration order; Poisson counts use an exact product-of-uniforms
-//! sampler. The same seed therefore gives bit-identical data wherever the platform's
-//! `sin`/`cos`/`atan2`/`exp` agree (Rust's std defers to the system math library; IEEE-754
-//! arithmetic and `sqrt` are exact everywhere, but libm implementations may differ in the
-//! last bit of a transcendental function).
+//! depends on hash-map iteration order. The same seed gives bit-identical data on any
+//! machine, OS, CPU or thread count. That rests on:
+//!
+//! * IEEE-754 arithmetic and `sqrt`, which are exactly rounded everywhere (Rust never fuses a
+//!   multiply-add on its own);
+//! * [`slam_models::detmath`] for every transcendental function (`sin`, `cos`, `atan2`,
+//!   `exp`, `ln`, `hypot`, …): the pure-Rust `libm` crate at a pinned version, instead of the
+//!   platform's math library, which may differ in the last bit between systems (glibc even
+//!   chooses FMA or non-FMA code per CPU at run time);
+//! * samplers built from uniform draws only ([`slam_models::sampling`]: Marsaglia's polar
+//!   method for normals; Knuth's product of uniforms for Poisson counts) instead of
+//!   `rand_distr`'s, which call the platform's `exp`/`ln`;
+//! * the tidy step of `cargo xtask test-all`, which rejects std transcendental calls,
+//!   `powi` and `rand_distr` in the non-test code of slam-models and slam-sim.
+//!
+//! `tests/reproducibility.rs` holds digests of short runs of each kind of scenario: a
+//! machine that disagrees with them has found a reproducibility bug.
 //!
 //! ```
 //! use slam_sim::{scenario::{generate, ScenarioOptions}, SimOutput};

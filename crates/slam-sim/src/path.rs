@@ -9,6 +9,7 @@
 
 use crate::error::{check_range, SimError};
 use serde::{Deserialize, Serialize};
+use slam_models::detmath;
 use slam_models::{normalize_angle, Point2, Pose2, VelocityControl};
 
 /// A polyline in the world frame (metres), parametrised by arc length.
@@ -111,7 +112,7 @@ impl Path {
         let (i, _) = self.locate(s);
         let a = self.points[i];
         let b = self.points[(i + 1) % self.points.len()];
-        (b.y - a.y).atan2(b.x - a.x)
+        detmath::atan2(b.y - a.y, b.x - a.x)
     }
 
     /// The pose at the start of the path, heading along the first segment.
@@ -143,15 +144,17 @@ impl Path {
             let next = p[(i + 1) % n];
             let d_in = (p[i] - prev).normalize();
             let d_out = (next - p[i]).normalize();
-            let turn = normalize_angle(d_out.y.atan2(d_out.x) - d_in.y.atan2(d_in.x));
+            let turn =
+                normalize_angle(detmath::atan2(d_out.y, d_out.x) - detmath::atan2(d_in.y, d_in.x));
             if turn.abs() < 1e-6 {
                 out.push(p[i]);
                 continue;
             }
             // Tangent length limited to half of each adjacent segment.
             let max_t = 0.5 * (p[i] - prev).norm().min((next - p[i]).norm());
-            let t = (radius * (turn.abs() / 2.0).tan()).min(max_t);
-            let r = t / (turn.abs() / 2.0).tan();
+            let tan_half = detmath::tan(turn.abs() / 2.0);
+            let t = (radius * tan_half).min(max_t);
+            let r = t / tan_half;
             let a = p[i] - d_in * t;
             // Centre on the inside of the turn.
             let normal = if turn > 0.0 {
@@ -162,10 +165,10 @@ impl Path {
             let c = a + normal * r;
             let arc = r * turn.abs();
             let k = (arc / step).ceil().max(1.0) as usize;
-            let a0 = (a - c).y.atan2((a - c).x);
+            let a0 = detmath::atan2((a - c).y, (a - c).x);
             for j in 0..=k {
                 let ang = a0 + turn * j as f64 / k as f64;
-                out.push(c + nalgebra::Vector2::new(r * ang.cos(), r * ang.sin()));
+                out.push(c + nalgebra::Vector2::new(r * detmath::cos(ang), r * detmath::sin(ang)));
             }
         }
         Path::new(out, closed)
@@ -270,7 +273,7 @@ impl<'a> Follower<'a> {
         let target = self.path.point_at(self.s + cfg.lookahead);
         let local = pose.inverse_transform_point(&target);
         let d = local.coords.norm().max(1e-6);
-        let alpha = local.y.atan2(local.x);
+        let alpha = detmath::atan2(local.y, local.x);
         let carrot = self.path.point_at(self.s);
         let lag = (carrot - pose.translation()).norm();
         if alpha.abs() > std::f64::consts::FRAC_PI_3 {
@@ -289,7 +292,7 @@ impl<'a> Follower<'a> {
             } else {
                 (1.0 - lag / cfg.lookahead).max(0.5)
             };
-            let kappa = 2.0 * alpha.sin() / d;
+            let kappa = 2.0 * detmath::sin(alpha) / d;
             let mut v = cfg.speed * factor;
             // Slow down so that v·κ stays within the turn-rate limit.
             if v * kappa.abs() > cfg.max_turn_rate {

@@ -8,6 +8,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64Mcg;
+use slam_models::detmath;
 
 /// Stream tags (fixed forever: changing one changes every simulated dataset).
 pub(crate) mod tag {
@@ -39,9 +40,10 @@ pub(crate) fn stream(seed: u64, tag: u64) -> Pcg64Mcg {
     ))
 }
 
-/// A Poisson(λ) draw by Knuth's product-of-uniforms method (exact; uses only uniforms and
-/// multiplications, so it is bit-reproducible everywhere). Meant for the small rates of
-/// clutter (λ ≲ 30); larger λ is split into halves recursively to avoid underflow of e^(−λ).
+/// A Poisson(λ) draw by Knuth's product-of-uniforms method (exact; uses only uniforms,
+/// multiplications and [`detmath::exp`], so it is bit-reproducible everywhere). Meant for the
+/// small rates of clutter (λ ≲ 30); larger λ is split into halves recursively to avoid
+/// underflow of e^(−λ).
 pub(crate) fn poisson<R: Rng + ?Sized>(lambda: f64, rng: &mut R) -> usize {
     if lambda <= 0.0 || !lambda.is_finite() {
         return 0;
@@ -49,7 +51,7 @@ pub(crate) fn poisson<R: Rng + ?Sized>(lambda: f64, rng: &mut R) -> usize {
     if lambda > 30.0 {
         return poisson(lambda * 0.5, rng) + poisson(lambda * 0.5, rng);
     }
-    let limit = (-lambda).exp();
+    let limit = detmath::exp(-lambda);
     let mut k = 0usize;
     let mut p: f64 = rng.random();
     while p > limit {
@@ -59,10 +61,10 @@ pub(crate) fn poisson<R: Rng + ?Sized>(lambda: f64, rng: &mut R) -> usize {
     k
 }
 
-/// A standard normal draw.
+/// A standard normal draw ([`slam_models::sampling::standard_normal`], bit-reproducible).
 #[inline]
 pub(crate) fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    rng.sample(rand_distr::StandardNormal)
+    slam_models::sampling::standard_normal(rng)
 }
 
 #[cfg(test)]

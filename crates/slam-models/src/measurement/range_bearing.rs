@@ -23,6 +23,7 @@
 
 use crate::angle::normalize_angle;
 use crate::data::RangeBearing;
+use crate::detmath;
 use crate::error::{ensure_finite, ModelError};
 use crate::{Matrix2, Matrix2x3, Point2, Pose2, Vector2};
 use serde::{Deserialize, Serialize};
@@ -85,10 +86,10 @@ impl RangeBearingModel {
     /// Q = diag(σr², σφ²).
     pub fn noise_covariance(&self) -> Matrix2 {
         Matrix2::new(
-            self.sigma_range.powi(2),
+            self.sigma_range * self.sigma_range,
             0.0,
             0.0,
-            self.sigma_bearing.powi(2),
+            self.sigma_bearing * self.sigma_bearing,
         )
     }
 
@@ -111,7 +112,7 @@ impl RangeBearingModel {
                 min_range: self.min_range,
             });
         }
-        let z = Vector2::new(r, normalize_angle(dy.atan2(dx) - pose.theta));
+        let z = Vector2::new(r, normalize_angle(detmath::atan2(dy, dx) - pose.theta));
         let h_pose = Matrix2x3::new(-dx / r, -dy / r, 0.0, dy / q, -dx / q, -1.0);
         let h_landmark = Matrix2::new(dx / r, dy / r, -dy / q, dx / q);
         Ok(PredictedRangeBearing {
@@ -124,7 +125,7 @@ impl RangeBearingModel {
     /// m = h⁻¹(x, z) and its Jacobians w.r.t. the pose and the measurement.
     pub fn inverse(&self, pose: &Pose2, z: &RangeBearing) -> InverseRangeBearing {
         let a = pose.theta + z.bearing;
-        let (s, c) = a.sin_cos();
+        let (s, c) = detmath::sin_cos(a);
         let r = z.range;
         InverseRangeBearing {
             landmark: Point2::new(pose.x + r * c, pose.y + r * s),

@@ -83,16 +83,6 @@ impl MotionModels {
     }
 }
 
-/// Draws from N(0, variance); a zero (or negative, by rounding) variance gives 0.
-#[inline]
-pub(crate) fn sample_normal<R: Rng + ?Sized>(variance: f64, rng: &mut R) -> f64 {
-    if variance <= 0.0 {
-        return 0.0;
-    }
-    let z: f64 = rng.sample(rand_distr::StandardNormal);
-    z * variance.sqrt()
-}
-
 impl From<VelocityControl> for Control {
     fn from(u: VelocityControl) -> Self {
         Control::Velocity(u)

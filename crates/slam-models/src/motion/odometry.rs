@@ -19,9 +19,11 @@
 //! σ²trans = α3·δtrans² + α4·(δrot1² + δrot2²), σ²rot2 = α1·δrot2² + α2·δtrans²;
 //! the three are independent, so M = diag(σ²rot1, σ²trans, σ²rot2) and R = V·M·Vᵀ.
 
-use super::{sample_normal, MotionModel};
+use super::MotionModel;
 use crate::angle::normalize_angle;
 use crate::data::OdometryControl;
+use crate::detmath;
+use crate::sampling;
 use crate::{Matrix3, Pose2};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -70,7 +72,7 @@ impl OdometryModel {
         let dx = to.x - from.x;
         let dy = to.y - from.y;
         let dtheta = normalize_angle(to.theta - from.theta);
-        let trans = dx.hypot(dy);
+        let trans = detmath::hypot(dx, dy);
         if trans < self.min_translation {
             return OdometryControl {
                 rot1: 0.0,
@@ -78,7 +80,7 @@ impl OdometryModel {
                 rot2: dtheta,
             };
         }
-        let mut rot1 = normalize_angle(dy.atan2(dx) - from.theta);
+        let mut rot1 = normalize_angle(detmath::atan2(dy, dx) - from.theta);
         let mut trans = trans;
         if rot1.abs() > std::f64::consts::FRAC_PI_2 {
             rot1 = normalize_angle(rot1 + std::f64::consts::PI);
@@ -93,7 +95,7 @@ impl OdometryModel {
 
     /// V = ∂g/∂(δrot1, δtrans, δrot2) (3×3).
     pub fn jacobian_control(&self, pose: &Pose2, u: &OdometryControl) -> Matrix3 {
-        let (s, c) = (pose.theta + u.rot1).sin_cos();
+        let (s, c) = detmath::sin_cos(pose.theta + u.rot1);
         Matrix3::new(
             -u.trans * s,
             c,
@@ -123,7 +125,7 @@ impl MotionModel for OdometryModel {
     type Control = OdometryControl;
 
     fn predict(&self, pose: &Pose2, u: &OdometryControl) -> Pose2 {
-        let (s, c) = (pose.theta + u.rot1).sin_cos();
+        let (s, c) = detmath::sin_cos(pose.theta + u.rot1);
         Pose2::new(
             pose.x + u.trans * c,
             pose.y + u.trans * s,
@@ -132,7 +134,7 @@ impl MotionModel for OdometryModel {
     }
 
     fn jacobian_state(&self, pose: &Pose2, u: &OdometryControl) -> Matrix3 {
-        let (s, c) = (pose.theta + u.rot1).sin_cos();
+        let (s, c) = detmath::sin_cos(pose.theta + u.rot1);
         Matrix3::new(1.0, 0.0, -u.trans * s, 0.0, 1.0, u.trans * c, 0.0, 0.0, 1.0)
     }
 
@@ -145,9 +147,9 @@ impl MotionModel for OdometryModel {
     fn sample<R: Rng + ?Sized>(&self, pose: &Pose2, u: &OdometryControl, rng: &mut R) -> Pose2 {
         let m = self.control_noise(u);
         let noisy = OdometryControl {
-            rot1: u.rot1 + sample_normal(m[(0, 0)], rng),
-            trans: u.trans + sample_normal(m[(1, 1)], rng),
-            rot2: u.rot2 + sample_normal(m[(2, 2)], rng),
+            rot1: u.rot1 + sampling::normal(m[(0, 0)], rng),
+            trans: u.trans + sampling::normal(m[(1, 1)], rng),
+            rot2: u.rot2 + sampling::normal(m[(2, 2)], rng),
         };
         self.predict(pose, &noisy)
     }

@@ -25,8 +25,10 @@
 //! Linearised (PR table 10.1, line 6): R = V·M·Vᵀ with M = diag(α1v²+α2ω², α3v²+α4ω²);
 //! we add the γ̂ term as R₃₃ += (α5v²+α6ω²)·Δt², which table 10.1 omits.
 
-use super::{sample_normal, MotionModel};
+use super::MotionModel;
 use crate::data::VelocityControl;
+use crate::detmath;
+use crate::sampling;
 use crate::{Matrix3, Matrix3x2, Pose2};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -42,7 +44,7 @@ fn s(phi: f64) -> f64 {
         let p2 = phi * phi;
         1.0 - p2 / 6.0 + p2 * p2 / 120.0
     } else {
-        phi.sin() / phi
+        detmath::sin(phi) / phi
     }
 }
 
@@ -53,7 +55,7 @@ fn c(phi: f64) -> f64 {
         let p2 = phi * phi;
         phi * (0.5 - p2 / 24.0 + p2 * p2 / 720.0)
     } else {
-        (1.0 - phi.cos()) / phi
+        (1.0 - detmath::cos(phi)) / phi
     }
 }
 
@@ -64,7 +66,7 @@ fn ds(phi: f64) -> f64 {
         let p2 = phi * phi;
         phi * (-1.0 / 3.0 + p2 / 30.0)
     } else {
-        (phi * phi.cos() - phi.sin()) / (phi * phi)
+        (phi * detmath::cos(phi) - detmath::sin(phi)) / (phi * phi)
     }
 }
 
@@ -75,7 +77,7 @@ fn dc(phi: f64) -> f64 {
         let p2 = phi * phi;
         0.5 - p2 / 8.0 + p2 * p2 / 144.0
     } else {
-        (phi * phi.sin() - (1.0 - phi.cos())) / (phi * phi)
+        (phi * detmath::sin(phi) - (1.0 - detmath::cos(phi))) / (phi * phi)
     }
 }
 
@@ -107,7 +109,7 @@ impl VelocityModel {
     #[inline]
     fn increment(theta: f64, v: f64, omega: f64, dt: f64) -> (f64, f64, f64) {
         let phi = omega * dt;
-        let (st, ct) = theta.sin_cos();
+        let (st, ct) = detmath::sin_cos(theta);
         let (sp, cp) = (s(phi), c(phi));
         let d = v * dt;
         (d * (ct * sp - st * cp), d * (st * sp + ct * cp), phi)
@@ -117,7 +119,7 @@ impl VelocityModel {
     pub fn jacobian_control(&self, pose: &Pose2, u: &VelocityControl) -> Matrix3x2 {
         let dt = u.dt;
         let phi = u.omega * dt;
-        let (st, ct) = pose.theta.sin_cos();
+        let (st, ct) = detmath::sin_cos(pose.theta);
         let (sp, cp, dsp, dcp) = (s(phi), c(phi), ds(phi), dc(phi));
         // ∂Δx/∂v, ∂Δy/∂v
         let dxv = dt * (ct * sp - st * cp);
@@ -164,9 +166,9 @@ impl MotionModel for VelocityModel {
     fn sample<R: Rng + ?Sized>(&self, pose: &Pose2, u: &VelocityControl, rng: &mut R) -> Pose2 {
         let (v2, w2) = (u.v * u.v, u.omega * u.omega);
         let a = &self.alpha;
-        let v = u.v + sample_normal(a[0] * v2 + a[1] * w2, rng);
-        let w = u.omega + sample_normal(a[2] * v2 + a[3] * w2, rng);
-        let g = sample_normal(a[4] * v2 + a[5] * w2, rng);
+        let v = u.v + sampling::normal(a[0] * v2 + a[1] * w2, rng);
+        let w = u.omega + sampling::normal(a[2] * v2 + a[3] * w2, rng);
+        let g = sampling::normal(a[4] * v2 + a[5] * w2, rng);
         let (dx, dy, dth) = Self::increment(pose.theta, v, w, u.dt);
         Pose2::new(pose.x + dx, pose.y + dy, pose.theta + dth + g * u.dt)
     }

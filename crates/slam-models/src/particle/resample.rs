@@ -81,7 +81,7 @@ impl Resampler {
                 let mut spacings = Vec::with_capacity(n + 1);
                 let mut s = 0.0;
                 for _ in 0..=n {
-                    let e: f64 = rng.sample(rand_distr::Exp1);
+                    let e = crate::sampling::exponential1(rng);
                     s += e;
                     spacings.push(s);
                 }

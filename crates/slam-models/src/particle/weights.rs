@@ -4,6 +4,7 @@
 //! few dozen updates, so filters store ln wᵢ and normalise with log-sum-exp:
 //! ln Σ exp(ℓᵢ) = m + ln Σ exp(ℓᵢ − m), m = max ℓᵢ.
 
+use crate::detmath;
 use crate::error::ModelError;
 
 /// ln Σᵢ exp(ℓᵢ), computed stably. Returns −∞ for an empty slice or all −∞ inputs.
@@ -15,7 +16,7 @@ pub fn log_sum_exp(log_w: &[f64]) -> f64 {
     if m == f64::INFINITY {
         return m;
     }
-    m + log_w.iter().map(|&l| (l - m).exp()).sum::<f64>().ln()
+    m + detmath::ln(log_w.iter().map(|&l| detmath::exp(l - m)).sum::<f64>())
 }
 
 /// Normalises log weights in place so that Σ exp(ℓᵢ) = 1, and returns the log normaliser
@@ -61,7 +62,10 @@ pub fn effective_sample_size_log(log_w: &[f64]) -> f64 {
     if !z.is_finite() {
         return 0.0;
     }
-    1.0 / log_w.iter().map(|l| (2.0 * (l - z)).exp()).sum::<f64>()
+    1.0 / log_w
+        .iter()
+        .map(|l| detmath::exp(2.0 * (l - z)))
+        .sum::<f64>()
 }
 
 #[cfg(test)]

@@ -5,6 +5,7 @@ use crate::error::{check_range, SimError};
 use crate::rng::{normal, poisson};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
+use slam_models::detmath;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::{normalize_angle, Pose2, RangeBearing};
 
@@ -134,7 +135,7 @@ impl RangeBearingSensor {
 
     /// Area of the footprint, m² (the annular sector): fov/2 · (R² − r₀²).
     pub fn footprint_area(&self) -> f64 {
-        0.5 * self.fov * (self.max_range.powi(2) - self.min_range.powi(2))
+        0.5 * self.fov * (self.max_range * self.max_range - self.min_range * self.min_range)
     }
 
     /// One scan from `pose`: appends `(observation, is_clutter)` pairs to `out` (cleared
@@ -159,8 +160,8 @@ impl RangeBearingSensor {
             let (id, m) = world.landmarks()[i];
             let dx = m.x - pose.x;
             let dy = m.y - pose.y;
-            let r = dx.hypot(dy);
-            let b = normalize_angle(dy.atan2(dx) - pose.theta);
+            let r = detmath::hypot(dx, dy);
+            let b = normalize_angle(detmath::atan2(dy, dx) - pose.theta);
             if !self.in_footprint(r, b) {
                 continue;
             }

@@ -7,6 +7,7 @@
 
 use crate::error::{check_range, SimError};
 use serde::{Deserialize, Serialize};
+use slam_models::detmath;
 use slam_models::{GridMap, Point2};
 
 /// A wall: the segment from `a` to `b` (world frame, metres).
@@ -359,7 +360,7 @@ impl World {
     /// the nearest wall, if one is hit within `max_range`. A ray starting exactly on a wall
     /// returns 0.
     pub fn cast(&self, origin: &Point2, angle: f64, max_range: f64) -> Option<f64> {
-        let (dy, dx) = angle.sin_cos();
+        let (dy, dx) = detmath::sin_cos(angle);
         self.cast_dir(origin.x, origin.y, dx, dy, max_range)
     }
 
@@ -464,7 +465,7 @@ impl World {
 
     /// Reference ray cast by testing every wall (O(walls)); for tests and benchmarks.
     pub fn cast_brute_force(&self, origin: &Point2, angle: f64, max_range: f64) -> Option<f64> {
-        let (dy, dx) = angle.sin_cos();
+        let (dy, dx) = detmath::sin_cos(angle);
         let mut best = f64::INFINITY;
         for w in &self.walls {
             let den = dx * w.ey - dy * w.ex;

@@ -9,6 +9,7 @@ use crate::path::{FollowerConfig, Path};
 use crate::rng::{stream, tag};
 use crate::LandmarkSimRun;
 use rand::Rng;
+use slam_models::detmath;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::{LandmarkId, Point2};
 
@@ -68,7 +69,7 @@ fn scatter_along<R: Rng>(
         let off = side * rng.random_range(min_off..max_off);
         let h = path.heading_at(s);
         let c = path.point_at(s);
-        let p = Point2::new(c.x - off * h.sin(), c.y + off * h.cos());
+        let p = Point2::new(c.x - off * detmath::sin(h), c.y + off * detmath::cos(h));
         if distance_to_path(&p, path) < min_off - 1e-9 {
             continue;
         }
@@ -212,7 +213,7 @@ pub fn figure8_path() -> Path {
     let pts: Vec<Point2> = (0..400)
         .map(|k| {
             let t = k as f64 * std::f64::consts::TAU / 400.0;
-            Point2::new(11.0 * t.sin(), 4.5 * (2.0 * t).sin())
+            Point2::new(11.0 * detmath::sin(t), 4.5 * detmath::sin(2.0 * t))
         })
         .collect();
     Path::new(pts, true).expect("constant figure-8 path is valid")
