@@ -358,11 +358,8 @@ fn run_landmark(
         let pose = filter.pose();
         trajectory.push(TimedPose { t: step.t, pose });
         if let Some(truth) = truth_per_step {
-            nees.push(eval::nees_pose(
-                &pose,
-                &filter.pose_covariance(),
-                &truth[k].pose,
-            ));
+            let (mean, cov) = filter.pose_gaussian();
+            nees.push(eval::nees_pose(&mean, &cov, &truth[k].pose));
         }
         progress.set(k + 1);
     }

@@ -324,6 +324,11 @@ impl LandmarkSlam for FastSlam {
         self.mean_pose().1
     }
 
+    /// [`FastSlam::mean_pose`]: the weighted mean and covariance of the particle poses.
+    fn pose_gaussian(&self) -> (Pose2, Matrix3) {
+        self.mean_pose()
+    }
+
     /// The best particle's landmarks, in key order.
     fn landmarks(&self) -> Vec<LandmarkEstimate> {
         estimates(&self.particles[self.best].map)

@@ -99,8 +99,19 @@ pub trait LandmarkSlam: Send {
     /// Current pose estimate (the mean, or the best particle's pose for particle filters).
     fn pose(&self) -> Pose2;
 
-    /// 3×3 covariance of the pose estimate (m², rad²).
+    /// 3×3 pose covariance (m², rad²): the EKF's marginal; for particle filters the weighted
+    /// covariance of the particle poses about their weighted mean (see
+    /// [`pose_gaussian`](LandmarkSlam::pose_gaussian)).
     fn pose_covariance(&self) -> Matrix3;
+
+    /// The Gaussian summary N(μ, Σ) of the pose posterior, the pair a consistency test
+    /// (NEES = eᵀΣ⁻¹e with e = x_true ⊖ μ) must use. Default: (`pose()`, `pose_covariance()`),
+    /// right for the EKF. Particle filters return the weighted mean of the particle poses
+    /// (circular mean for θ) with the covariance about it, which differs from the best
+    /// particle's `pose()`.
+    fn pose_gaussian(&self) -> (Pose2, Matrix3) {
+        (self.pose(), self.pose_covariance())
+    }
 
     /// The current map: every landmark with its id, mean and covariance.
     fn landmarks(&self) -> Vec<LandmarkEstimate>;
