@@ -27,6 +27,7 @@ pub mod scan;
 
 pub use cell::{CellIndex, GridFrame};
 pub use error::GridError;
+pub use grid::distance::{DistanceField, DISTANCE_UNITS_PER_CELL, MAX_DISTANCE_RADIUS};
 pub use grid::sensor_model::InverseSensorModel;
 pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
 pub use grid::{CopyStats, OccupancyGrid};

@@ -1,5 +1,6 @@
 //! The log-odds occupancy grid on copy-on-write tiles.
 
+pub mod distance;
 mod raytrace;
 pub(crate) mod sensor_model;
 pub(crate) mod tiles;
@@ -8,6 +9,7 @@ use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::likelihood::{compute_region, FieldTile, LikelihoodParams};
 use crate::scan::PreparedScan;
+use distance::{DistanceField, IncrementalDistance, MAX_DISTANCE_RADIUS};
 pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
 use slam_models::{GridMap, LaserScan, Point2, Pose2};
@@ -41,6 +43,9 @@ pub struct CopyStats {
 ///   ([`OccupancyGrid::copy_stats`] counts them). Grid FastSLAM's particles share maps so.
 /// * Each grid also caches a likelihood field per tile ([`crate::likelihood`]), computed
 ///   lazily by the matchers and shared between clones in the same way.
+/// * Optionally ([`OccupancyGrid::with_incremental_distance`]) a grid also keeps a
+///   truncated distance field repaired after every integration from the cells whose
+///   obstacle status flipped ([`distance`]), for particle filters that match every scan.
 ///
 /// ```
 /// use slam_grid::{InverseSensorModel, OccupancyGrid};
@@ -63,6 +68,7 @@ pub struct OccupancyGrid {
     tiles: Vec<Option<Arc<Tile>>>,
     fields: Vec<OnceLock<Arc<FieldTile>>>,
     far_field: Arc<FieldTile>,
+    distance: Option<IncrementalDistance>,
     stats: CopyStats,
 }
 
@@ -98,6 +104,7 @@ impl OccupancyGrid {
             tiles: Vec::new(),
             fields: Vec::new(),
             far_field: Arc::new(FieldTile::far(&params)),
+            distance: None,
             stats: CopyStats::default(),
         }
     }
@@ -115,7 +122,58 @@ impl OccupancyGrid {
         self.params = params;
         self.far_field = Arc::new(FieldTile::far(&params));
         self.fields = (0..self.layout.len()).map(|_| OnceLock::new()).collect();
+        // The obstacle threshold may have changed: rebuild the incremental field.
+        if let Some(d) = self.distance.take() {
+            return self.with_incremental_distance(d.radius() as u32);
+        }
         Ok(self)
+    }
+
+    /// This grid with an incrementally repaired truncated distance field of
+    /// `radius_cells` cells (1..=15) switched on (see [`distance`]): built now from the
+    /// grid's obstacles, then repaired after every integration in O(changed cells), shared
+    /// between clones tile by tile. Read it with [`OccupancyGrid::distance_field`].
+    /// Grids without it behave exactly as before.
+    pub fn with_incremental_distance(mut self, radius_cells: u32) -> Result<Self, GridError> {
+        ensure_config(
+            (1..=MAX_DISTANCE_RADIUS).contains(&radius_cells),
+            "incremental distance radius (cells)",
+            radius_cells as f64,
+            "1 to 15 cells",
+        )?;
+        let r = radius_cells as i32;
+        // Keep the table at least `radius` cells beyond every obstacle (see [`distance`]).
+        if let Some((lo, hi)) = self.known_bounds() {
+            self.ensure_covers(
+                CellIndex::new(lo.x - r, lo.y - r),
+                CellIndex::new(hi.x + r, hi.y + r),
+            );
+        }
+        let mut obstacles = Vec::new();
+        let t = TILE_SIZE as i32;
+        for (s, tile) in self.tiles.iter().enumerate() {
+            let Some(tile) = tile else { continue };
+            let (tx, ty) = self.layout.tile_of_slot(s);
+            for (k, &v) in tile.cells.iter().enumerate() {
+                if v > self.params.occupied_threshold {
+                    let (x, y) = ((k % TILE_SIZE) as i32, (k / TILE_SIZE) as i32);
+                    obstacles.push(CellIndex::new(tx * t + x, ty * t + y));
+                }
+            }
+        }
+        let mut d = IncrementalDistance::new(radius_cells, self.layout.len());
+        d.rebuild(&self.layout, &obstacles);
+        self.distance = Some(d);
+        Ok(self)
+    }
+
+    /// The incrementally repaired distance field, when switched on with
+    /// [`OccupancyGrid::with_incremental_distance`].
+    #[inline]
+    pub fn distance_field(&self) -> Option<DistanceField<'_>> {
+        self.distance
+            .as_ref()
+            .map(|d| d.view(self.layout, self.frame))
     }
 
     /// This grid with its origin (world position of cell (0, 0)'s lower-left corner) moved.
@@ -283,6 +341,9 @@ impl OccupancyGrid {
         }
         // Fields next to the old border saw only empty space beyond it, which is still
         // empty: they stay valid.
+        if let Some(d) = &mut self.distance {
+            d.relayout(&old, &new);
+        }
         self.layout = new;
         self.tiles = tiles;
         self.fields = fields;
@@ -378,9 +439,12 @@ impl OccupancyGrid {
                 expected: "within ±2^30 cells of the origin",
             });
         }
+        // With an incremental distance field the table extends `radius` cells beyond
+        // every end point, so that no obstacle's stamp is cut off.
+        let margin = self.distance.as_ref().map_or(0, |d| d.radius());
         self.ensure_covers(
-            CellIndex::new(lo_x.floor() as i32, lo_y.floor() as i32),
-            CellIndex::new(hi_x.floor() as i32, hi_y.floor() as i32),
+            CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
+            CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
         );
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
         // written under one copy-on-write check.
@@ -410,15 +474,43 @@ impl OccupancyGrid {
             }
         }
         let mut changed: Vec<usize> = Vec::new();
-        self.apply(&free, m.l_free, &mut changed);
-        self.apply_hits(&hits, m.l_occ, &mut changed);
+        let mut flips: Vec<(u32, u16)> = Vec::new();
+        self.apply(&free, m.l_free, &mut changed, &mut flips);
+        self.apply_hits(&hits, m.l_occ, &mut changed, &mut flips);
         self.invalidate_fields(changed);
+        if let Some(mut d) = self.distance.take() {
+            let mut cells: Vec<CellIndex> = flips
+                .iter()
+                .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
+                .collect();
+            d.repair(&self.layout, &mut cells, |c| self.is_obstacle(c));
+            self.distance = Some(d);
+        }
         Ok(())
     }
 
+    /// Cell `local` of the tile in `slot`.
+    #[inline]
+    fn cell_of_slot(&self, slot: usize, local: usize) -> CellIndex {
+        let (tx, ty) = self.layout.tile_of_slot(slot);
+        let t = TILE_SIZE as i32;
+        CellIndex::new(
+            tx * t + (local % TILE_SIZE) as i32,
+            ty * t + (local / TILE_SIZE) as i32,
+        )
+    }
+
     /// Adds `delta` to the listed cells (clamped), copying shared tiles on first write and
-    /// recording the slots where some cell changed obstacle status.
-    fn apply(&mut self, updates: &[(u32, u16)], delta: f32, changed: &mut Vec<usize>) {
+    /// recording the slots where some cell changed obstacle status, and (with an
+    /// incremental distance field) those cells in `flips` as (slot, local index).
+    fn apply(
+        &mut self,
+        updates: &[(u32, u16)],
+        delta: f32,
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
         let (lmin, lmax, thr) = (
             self.model.l_min,
             self.model.l_max,
@@ -443,8 +535,12 @@ impl OccupancyGrid {
             for &(_, l) in run {
                 let v = &mut tile.cells[l as usize];
                 let nv = (*v + delta).clamp(lmin, lmax);
-                status_changed |= (*v > thr) != (nv > thr);
+                let flip = (*v > thr) != (nv > thr);
+                status_changed |= flip;
                 *v = nv;
+                if flip && track {
+                    flips.push((slot as u32, l));
+                }
             }
             if status_changed && changed.last() != Some(&slot) {
                 changed.push(slot);
@@ -474,7 +570,14 @@ impl OccupancyGrid {
 
     /// Adds `delta` (= l_occ) to the hit cells and folds each end point into its cell's
     /// mean hit position (running mean over the first [`HIT_CAP`] hits).
-    fn apply_hits(&mut self, updates: &[(u32, u16, i8, i8)], delta: f32, changed: &mut Vec<usize>) {
+    fn apply_hits(
+        &mut self,
+        updates: &[(u32, u16, i8, i8)],
+        delta: f32,
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
         let (lmin, lmax, thr) = (
             self.model.l_min,
             self.model.l_max,
@@ -499,7 +602,11 @@ impl OccupancyGrid {
                 let l = l as usize;
                 let v = tile.cells[l];
                 let nv = (v + delta).clamp(lmin, lmax);
-                field_changed |= (v > thr) != (nv > thr);
+                let flip = (v > thr) != (nv > thr);
+                field_changed |= flip;
+                if flip && track {
+                    flips.push((slot as u32, l as u16));
+                }
                 tile.cells[l] = nv;
                 let n = tile.hits[l];
                 if n < HIT_CAP {
