@@ -2,13 +2,15 @@
 
 use crate::config::{GridFastConfig, Proposal};
 use crate::error::GridFastError;
-use crate::map::{MapParams, Scratch, TileMap};
-use crate::matcher::{grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow};
+use crate::matcher::{
+    field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
+};
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
 use crate::trajectory::Node;
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
+use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
 use slam_models::{
@@ -18,13 +20,43 @@ use slam_models::{
 use std::sync::Arc;
 
 /// One particle: its current corrected pose, its trajectory (a leaf of the shared tree),
-/// its map (copy-on-write tiles) and its log weight.
+/// its map (a slam-grid occupancy grid on copy-on-write tiles, with an incrementally
+/// repaired distance field in the same kind of tiles) and its log weight.
 #[derive(Clone)]
 struct Particle {
     pose: Pose2,
     log_w: f64,
-    map: TileMap,
+    map: OccupancyGrid,
     node: Option<Arc<Node>>,
+}
+
+/// The inverse sensor model of every particle's map (and of [`GridFastSlam::render_map`]):
+/// the configured log-odds; the cells a scan's beams end in are marked once per scan and
+/// not cleared by that scan's other beams (`protect_scan_hits`); hits beyond `max_range`
+/// clear space up to it without marking a hit (GMapping's `maxUrange`); no-return readings
+/// and the space just before a hit are left alone (no `no_return_range`, no `hit_margin`).
+fn sensor_model(config: &GridFastConfig) -> InverseSensorModel {
+    InverseSensorModel {
+        l_occ: config.log_odds_hit,
+        l_free: config.log_odds_miss,
+        l_min: config.log_odds_clamp[0],
+        l_max: config.log_odds_clamp[1],
+        max_range: config.max_range,
+        no_return_range: 0.0,
+        min_range: 0.0,
+        hit_margin: 0.0,
+        protect_scan_hits: true,
+    }
+}
+
+/// An empty particle map: `config.resolution` cells with a truncated distance field of
+/// `field_radius` (validated to 1..=15 cells) for the scan likelihood.
+pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFastError> {
+    let radius = (config.field_radius / config.resolution).round() as u32;
+    Ok(
+        OccupancyGrid::try_new(config.resolution, sensor_model(config))?
+            .with_incremental_distance(radius)?,
+    )
 }
 
 /// Grid-based FastSLAM: a Rao-Blackwellized particle filter whose particles each carry a
@@ -60,7 +92,8 @@ struct Particle {
 pub struct GridFastSlam {
     config: GridFastConfig,
     seed: u64,
-    params: Arc<MapParams>,
+    /// An empty map (the template of every particle's map).
+    empty: OccupancyGrid,
     lk: Likelihood,
     hc: HillClimb,
     offsets: Vec<[f64; 3]>,
@@ -77,6 +110,14 @@ pub struct GridFastSlam {
     acc_linear: f64,
     acc_angular: f64,
     motion_reference: Option<Pose2>,
+}
+
+/// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
+fn numerical(k: usize, e: slam_grid::GridError) -> GridFastError {
+    GridFastError::Numerical {
+        scan: k,
+        reason: e.to_string(),
+    }
 }
 
 /// splitmix64: a bijective 64-bit mixer (Steele, Lea & Flood 2014), used to derive
@@ -99,14 +140,7 @@ impl GridFastSlam {
     pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
         config.validate()?;
         let radius = (config.field_radius / config.resolution).round() as i32;
-        let params = Arc::new(MapParams::new(
-            config.resolution,
-            config.log_odds_hit,
-            config.log_odds_miss,
-            config.log_odds_clamp,
-            radius,
-            config.max_range,
-        ));
+        let empty = new_map(&config)?;
         let lk = Likelihood {
             k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
             radius: radius as f64 * config.resolution,
@@ -122,7 +156,6 @@ impl GridFastSlam {
             config.sample_range_theta,
         );
         let m = config.particles;
-        let empty = TileMap::new(Arc::clone(&params));
         let particles = (0..m)
             .map(|_| Particle {
                 pose: Pose2::IDENTITY,
@@ -134,7 +167,7 @@ impl GridFastSlam {
         Ok(Self {
             config,
             seed,
-            params,
+            empty,
             lk,
             hc,
             offsets,
@@ -182,18 +215,10 @@ impl GridFastSlam {
         if !(resolution > 0.0 && resolution.is_finite()) {
             return GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0);
         }
-        let params = Arc::new(MapParams::new(
-            resolution,
-            self.config.log_odds_hit,
-            self.config.log_odds_miss,
-            self.config.log_odds_clamp,
-            0,
-            self.config.max_range,
-        ));
-        let mut map = TileMap::new(params);
-        let mut scratch = Scratch::default();
+        let mut map = OccupancyGrid::new(resolution, sensor_model(&self.config));
         for (pose, scan) in self.best_path().iter().zip(&self.scans) {
-            map.integrate(pose, scan, &mut scratch);
+            // Every kept scan was validated and every path pose is finite.
+            map.integrate_scan(pose, scan);
         }
         map.to_grid_map()
     }
@@ -288,7 +313,7 @@ impl GridFastSlam {
         };
         let k = self.scans.len();
         let info = if first {
-            self.first_scan(scan, record.odometry)
+            self.first_scan(scan, record.odometry)?
         } else {
             self.update(k, scan)?
         };
@@ -300,21 +325,33 @@ impl GridFastSlam {
         Ok(info)
     }
 
-    fn first_scan(&mut self, scan: &LaserScan, odometry: Pose2) -> ScanUpdateInfo {
+    fn first_scan(
+        &mut self,
+        scan: &LaserScan,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
         let node = Node::child(None, odometry, 0);
         let mut map = self.particles[0].map.clone();
-        map.integrate(&odometry, scan, &mut Scratch::default());
+        let prepared = self.prepare(0, scan)?;
+        map.try_integrate_prepared(&odometry, &prepared.grid)
+            .map_err(|e| numerical(0, e))?;
         for p in &mut self.particles {
             p.pose = odometry;
             p.node = Some(Arc::clone(&node));
             p.map = map.clone();
         }
-        ScanUpdateInfo {
+        Ok(ScanUpdateInfo {
             processed_scan: true,
             n_eff: Some(self.n_eff),
             resampled: false,
             match_failures: 0,
-        }
+        })
+    }
+
+    /// The scan prepared for matching and integration.
+    fn prepare(&self, k: usize, scan: &LaserScan) -> Result<PreparedScan, GridFastError> {
+        PreparedScan::new(scan, self.config.beam_step, self.config.max_range)
+            .map_err(|e| numerical(k, e))
     }
 
     fn update(&mut self, k: usize, scan: &LaserScan) -> Result<ScanUpdateInfo, GridFastError> {
@@ -325,7 +362,7 @@ impl GridFastSlam {
         let u = cfg
             .motion
             .control_from_poses(&self.odometry[r_prev], &odo_now);
-        let prepared = PreparedScan::new(scan, cfg.beam_step, cfg.max_range);
+        let prepared = self.prepare(k, scan)?;
         let min_inliers =
             ((cfg.match_min_inlier_fraction * prepared.points.len() as f64).ceil() as usize).max(1);
         // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
@@ -348,7 +385,11 @@ impl GridFastSlam {
                 information: r.try_inverse().unwrap_or_else(slam_models::Matrix3::zeros),
             };
             predicted.between(&grid_search(
-                &best.map, &prepared, &predicted, &self.lk, &window,
+                &field(&best.map),
+                &prepared,
+                &predicted,
+                &self.lk,
+                &window,
             ))
         } else {
             Pose2::IDENTITY
@@ -374,7 +415,7 @@ impl GridFastSlam {
         let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
             let best = &self.particles[self.best];
             let start = cfg.motion.predict(&best.pose, &u);
-            let matched = hill_climb(&best.map, &prepared, &start, &self.lk, &self.hc);
+            let matched = hill_climb(&field(&best.map), &prepared, &start, &self.lk, &self.hc);
             let s2 = cfg.corrected_odometry_noise_scale.powi(2);
             let a = cfg.motion.alpha;
             let scaled = OdometryModel {
@@ -400,13 +441,14 @@ impl GridFastSlam {
             .enumerate()
             .map(|(i, p)| {
                 let mut rng = stream(seed, k, i as u64);
+                let f = field(&p.map);
                 match proposal {
-                    Proposal::Improved => improved(&p.pose, &p.map, &ctx, &mut rng),
+                    Proposal::Improved => improved(&p.pose, &f, &ctx, &mut rng),
                     Proposal::Odometry => {
-                        motion_and_likelihood(&p.pose, &p.map, &ctx, &ctx.motion, &ctx.u, &mut rng)
+                        motion_and_likelihood(&p.pose, &f, &ctx, &ctx.motion, &ctx.u, &mut rng)
                     }
                     Proposal::ScanMatchedOdometry => {
-                        motion_and_likelihood(&p.pose, &p.map, &ctx, &smo_motion, &smo_u, &mut rng)
+                        motion_and_likelihood(&p.pose, &f, &ctx, &smo_motion, &smo_u, &mut rng)
                     }
                 }
             })
@@ -462,7 +504,7 @@ impl GridFastSlam {
                     Particle {
                         pose: Pose2::IDENTITY,
                         log_w: 0.0,
-                        map: TileMap::new(Arc::clone(&self.params)),
+                        map: self.empty.clone(),
                         node: None,
                     },
                 );
@@ -479,9 +521,8 @@ impl GridFastSlam {
         }
         groups
             .par_iter_mut()
-            .for_each_init(Scratch::default, |s, (p, _)| {
-                p.map.integrate(&p.pose, scan, s);
-            });
+            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid))
+            .map_err(|e| numerical(k, e))?;
         let mut particles = Vec::with_capacity(m);
         for (p, n) in groups {
             for _ in 1..n {

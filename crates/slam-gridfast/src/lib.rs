@@ -24,7 +24,6 @@
 mod config;
 mod error;
 mod filter;
-mod map;
 mod matcher;
 mod proposal;
 mod trajectory;

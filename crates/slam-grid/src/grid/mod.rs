@@ -352,7 +352,8 @@ impl OccupancyGrid {
     /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
     /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
     /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
-    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ.
+    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ (with
+    /// [`InverseSensorModel::protect_scan_hits`]: l_occ, once).
     ///
     /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
     /// [`OccupancyGrid::try_integrate_scan`] reports it instead.
@@ -475,8 +476,22 @@ impl OccupancyGrid {
         }
         let mut changed: Vec<usize> = Vec::new();
         let mut flips: Vec<(u32, u16)> = Vec::new();
-        self.apply(&free, m.l_free, &mut changed, &mut flips);
-        self.apply_hits(&hits, m.l_occ, &mut changed, &mut flips);
+        let protected: &[(u32, u16, i8, i8)] = if m.protect_scan_hits {
+            // Sorted by cell so that a tile's hits are found by binary search and a cell's
+            // repeated hits are adjacent.
+            hits.sort_unstable_by_key(|h| (h.0, h.1));
+            &hits
+        } else {
+            &[]
+        };
+        self.apply(&free, m.l_free, protected, &mut changed, &mut flips);
+        self.apply_hits(
+            &hits,
+            m.l_occ,
+            m.protect_scan_hits,
+            &mut changed,
+            &mut flips,
+        );
         self.invalidate_fields(changed);
         if let Some(mut d) = self.distance.take() {
             let mut cells: Vec<CellIndex> = flips
@@ -500,13 +515,15 @@ impl OccupancyGrid {
         )
     }
 
-    /// Adds `delta` to the listed cells (clamped), copying shared tiles on first write and
-    /// recording the slots where some cell changed obstacle status, and (with an
-    /// incremental distance field) those cells in `flips` as (slot, local index).
+    /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
+    /// (sorted by slot), copying shared tiles on first write and recording the slots where
+    /// some cell changed obstacle status, and (with an incremental distance field) those
+    /// cells in `flips` as (slot, local index).
     fn apply(
         &mut self,
         updates: &[(u32, u16)],
         delta: f32,
+        protected: &[(u32, u16, i8, i8)],
         changed: &mut Vec<usize>,
         flips: &mut Vec<(u32, u16)>,
     ) {
@@ -519,12 +536,14 @@ impl OccupancyGrid {
         // Updates come sorted by tile slot: handle each tile's run at once.
         for run in updates.chunk_by(|a, b| a.0 == b.0) {
             let slot = run[0].0 as usize;
+            let mask = protected_mask(protected, run[0].0);
+            let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
             // Skip the copy entirely when no value in the run would change (saturated cells).
             let needs_write = match &self.tiles[slot] {
-                None => true,
+                None => run.iter().any(|&(_, l)| !skip(l)),
                 Some(t) => run.iter().any(|&(_, l)| {
                     let v = t.cells[l as usize];
-                    (v + delta).clamp(lmin, lmax) != v
+                    !skip(l) && (v + delta).clamp(lmin, lmax) != v
                 }),
             };
             if !needs_write {
@@ -533,6 +552,9 @@ impl OccupancyGrid {
             let tile = self.tile_for_write(slot);
             let mut status_changed = false;
             for &(_, l) in run {
+                if skip(l) {
+                    continue;
+                }
                 let v = &mut tile.cells[l as usize];
                 let nv = (*v + delta).clamp(lmin, lmax);
                 let flip = (*v > thr) != (nv > thr);
@@ -568,12 +590,14 @@ impl OccupancyGrid {
         Arc::make_mut(arc)
     }
 
-    /// Adds `delta` (= l_occ) to the hit cells and folds each end point into its cell's
-    /// mean hit position (running mean over the first [`HIT_CAP`] hits).
+    /// Adds `delta` (= l_occ) to the hit cells (once per cell when `once`, the updates
+    /// then sorted by cell) and folds each end point into its cell's mean hit position
+    /// (running mean over the first [`HIT_CAP`] hits).
     fn apply_hits(
         &mut self,
         updates: &[(u32, u16, i8, i8)],
         delta: f32,
+        once: bool,
         changed: &mut Vec<usize>,
         flips: &mut Vec<(u32, u16)>,
     ) {
@@ -598,10 +622,15 @@ impl OccupancyGrid {
             }
             let tile = self.tile_for_write(slot);
             let mut field_changed = false;
-            for &(_, l, ox, oy) in run {
+            for (i, &(_, l, ox, oy)) in run.iter().enumerate() {
+                let repeat = once && i > 0 && run[i - 1].1 == l;
                 let l = l as usize;
                 let v = tile.cells[l];
-                let nv = (v + delta).clamp(lmin, lmax);
+                let nv = if repeat {
+                    v
+                } else {
+                    (v + delta).clamp(lmin, lmax)
+                };
                 let flip = (v > thr) != (nv > thr);
                 field_changed |= flip;
                 if flip && track {
@@ -919,6 +948,21 @@ impl OccupancyGrid {
         }
         map
     }
+}
+
+/// The cells of tile `slot` among `protected` (sorted by slot) as a 1024-bit mask, or
+/// `None` when it has none.
+#[inline]
+fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; TILE_CELLS / 64]> {
+    let a = protected.partition_point(|h| h.0 < slot);
+    let b = a + protected[a..].partition_point(|h| h.0 == slot);
+    (a < b).then(|| {
+        let mut m = [0u64; TILE_CELLS / 64];
+        for &(_, l, _, _) in &protected[a..b] {
+            m[l as usize >> 6] |= 1 << (l & 63);
+        }
+        m
+    })
 }
 
 /// Catmull-Rom weights of the samples at −1, 0, 1, 2 for a point at t ∈ [0, 1), and
