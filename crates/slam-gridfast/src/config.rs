@@ -66,9 +66,9 @@ pub struct GridFastConfig {
     /// Scan-matched-odometry proposal only: factor on the motion model's standard deviations
     /// around the corrected increment. Default 0.3.
     pub corrected_odometry_noise_scale: f64,
-    /// Usable range, metres: hits beyond it are not matched and only clear free space up
-    /// to it in the maps, without marking a hit (GMapping's `maxUrange`). No-return
-    /// readings (≥ the scan's `max_range`) are never used. Default 50.
+    /// Beams with a range at or above this are not used (neither for mapping nor for
+    /// matching), metres. No-return readings (≥ the scan's `max_range`) are never used.
+    /// Default 50.
     pub max_range: f64,
     /// Use every `beam_step`-th hit (end point within `max_range`) for matching and
     /// weighting (1 = all). Mapping always uses every beam. Default 1.
