@@ -69,10 +69,16 @@ fn usable(scan: &LaserScan, max_range: f64) -> LaserScan {
 /// `field_radius` (validated to 1..=15 cells) for the scan likelihood.
 pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFastError> {
     let radius = (config.field_radius / config.resolution).round() as u32;
-    Ok(
-        OccupancyGrid::try_new(config.resolution, sensor_model(config))?
-            .with_incremental_distance(radius)?,
-    )
+    // slam-grid's lazily computed field is not used: no sub-cell hit statistics (their
+    // 3 KiB per tile would be copied with every tile a particle writes).
+    let lazy_field = slam_grid::LikelihoodParams {
+        subcell: false,
+        ..Default::default()
+    };
+    let grid = OccupancyGrid::try_new(config.resolution, sensor_model(config))?
+        .with_likelihood(lazy_field)?
+        .with_incremental_distance(radius)?;
+    Ok(grid)
 }
 
 /// Grid-based FastSLAM: a Rao-Blackwellized particle filter whose particles each carry a

@@ -271,8 +271,9 @@ impl OccupancyGrid {
             .count()
     }
 
-    /// Bytes held by one tile (log-odds and mean hit positions of its cells).
-    pub const TILE_BYTES: usize = std::mem::size_of::<Tile>();
+    /// Bytes held by one tile (log-odds and mean hit positions of its cells; a grid whose
+    /// [`LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
+    pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
     /// Inclusive range of cells covered by the tile table (`None` while empty).
     pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
@@ -577,12 +578,12 @@ impl OccupancyGrid {
         let arc = match entry {
             None => {
                 self.stats.tiles_created += 1;
-                entry.insert(Arc::new(Tile::unknown()))
+                entry.insert(Arc::new(Tile::unknown(self.params.subcell)))
             }
             Some(a) => {
                 if Arc::strong_count(a) > 1 {
                     self.stats.tiles_copied += 1;
-                    self.stats.bytes_copied += Self::TILE_BYTES as u64;
+                    self.stats.bytes_copied += a.bytes() as u64;
                 }
                 a
             }
@@ -614,7 +615,8 @@ impl OccupancyGrid {
                 None => true,
                 Some(t) => run.iter().any(|&(_, l, _, _)| {
                     let v = t.cells[l as usize];
-                    (v + delta).clamp(lmin, lmax) != v || t.hits[l as usize] < HIT_CAP
+                    (v + delta).clamp(lmin, lmax) != v
+                        || t.hit.as_ref().is_some_and(|h| h.hits[l as usize] < HIT_CAP)
                 }),
             };
             if !needs_write {
@@ -637,18 +639,21 @@ impl OccupancyGrid {
                     flips.push((slot as u32, l as u16));
                 }
                 tile.cells[l] = nv;
-                let n = tile.hits[l];
+                let Some(h) = tile.hit.as_deref_mut() else {
+                    continue;
+                };
+                let n = h.hits[l];
                 if n < HIT_CAP {
                     let mean = |m: i8, o: i8| {
                         let m = m as i32;
                         (m + ((o as i32 - m) as f32 / (n as f32 + 1.0)).round() as i32)
                             .clamp(-128, 127) as i8
                     };
-                    let (mx, my) = (mean(tile.hit_x[l], ox), mean(tile.hit_y[l], oy));
-                    field_changed |= nv > thr && (mx != tile.hit_x[l] || my != tile.hit_y[l]);
-                    tile.hit_x[l] = mx;
-                    tile.hit_y[l] = my;
-                    tile.hits[l] = n + 1;
+                    let (mx, my) = (mean(h.hit_x[l], ox), mean(h.hit_y[l], oy));
+                    field_changed |= nv > thr && (mx != h.hit_x[l] || my != h.hit_y[l]);
+                    h.hit_x[l] = mx;
+                    h.hit_y[l] = my;
+                    h.hits[l] = n + 1;
                 }
             }
             if field_changed && changed.last() != Some(&slot) {
@@ -710,7 +715,9 @@ impl OccupancyGrid {
                         let k = ly * TILE_SIZE + (x - tx * t) as usize;
                         let o = oy + (x - min.x) as usize;
                         out[o] = tile.cells[k] > thr;
-                        offsets[o] = (tile.hit_x[k], tile.hit_y[k], tile.hits[k]);
+                        if let Some(h) = &tile.hit {
+                            offsets[o] = (h.hit_x[k], h.hit_y[k], h.hits[k]);
+                        }
                     }
                 }
             }

@@ -320,3 +320,29 @@ fn protected_scan_hits_are_marked_once_and_not_cleared_by_the_same_scan() {
         assert_eq!(g.log_odds(c(5)), (3.0 * m.l_free).max(m.l_min));
     }
 }
+
+#[test]
+fn without_subcell_fields_tiles_keep_no_hit_statistics() {
+    let params = LikelihoodParams {
+        subcell: false,
+        ..Default::default()
+    };
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_likelihood(params)
+        .unwrap();
+    let s = room_scan(&Pose2::IDENTITY, 1.5, 360);
+    g.integrate_scan(&Pose2::IDENTITY, &s);
+    let mut c = g.clone();
+    c.reset_copy_stats();
+    c.integrate_scan(&Pose2::new(0.2, 0.1, 0.0), &s);
+    let st = c.copy_stats();
+    // Log-odds only: 4 KiB per copied tile.
+    assert!(st.tiles_copied >= 1, "{st:?}");
+    assert_eq!(st.bytes_copied, st.tiles_copied * 4096);
+    // Every obstacle is at its cell centre for the field.
+    let (lo, hi) = g.known_bounds().unwrap();
+    let (w, h) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
+    let (obstacles, offsets) = c.obstacle_mask(lo, w, h);
+    assert!(obstacles.iter().any(|&o| o));
+    assert!(offsets.iter().all(|&o| o == (0, 0, 0)));
+}
