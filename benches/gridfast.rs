@@ -1,18 +1,25 @@
-//! Criterion benches of grid FastSLAM on the simulated loop corridor (≈ 560 records,
-//! ≈ 56 processed scans of 181 beams): a whole run with 30 particles per proposal, on one
-//! thread and on all threads. Whole-Intel figures (wall time, real-time factor, peak RSS)
+//! Criterion benches of grid FastSLAM on slam-sim's `office` (one lap: ≈ 295 scans of 181
+//! beams, ≈ 70 processed): a whole run with 30 particles per proposal, on one thread and on
+//! all threads. Whole-Intel figures (wall time, real-time factor, peak RSS)
 //! come from `cargo run --release --example gridfast_intel`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
 use slam_models::ScanSlam;
-
-#[path = "../crates/slam-gridfast/tests/support/mod.rs"]
-mod support;
+use slam_sim::scenario::{generate, ScenarioOptions};
+use slam_sim::SimOutput;
 
 fn bench(c: &mut Criterion) {
-    let (records, _) = support::simulate(3);
-    let mut g = c.benchmark_group("gridfast_loop_30_particles");
+    let opts = ScenarioOptions {
+        seed: 3,
+        laps: Some(1.0),
+        ..Default::default()
+    };
+    let Ok(SimOutput::Laser(run)) = generate("office", &opts) else {
+        panic!("office scenario did not generate a laser run");
+    };
+    let records = run.dataset.records;
+    let mut g = c.benchmark_group("gridfast_office_30_particles");
     g.sample_size(10);
     for (name, proposal) in [
         ("improved", Proposal::Improved),

@@ -9,6 +9,9 @@
 //! * [`CellIndex`] and [`GridFrame`]: integer cells versus world points, never mixed.
 //! * [`likelihood`]: Thrun's endpoint model (PR §6.4) from an exact linear-time Euclidean
 //!   distance transform (Felzenszwalb & Huttenlocher 2012), computed per tile on demand.
+//! * [`DistanceField`] ([`grid::distance`]): optionally, a truncated distance field repaired
+//!   incrementally after every scan integration from the cells whose obstacle status
+//!   flipped, in copy-on-write tiles like the occupancy (grid FastSLAM's likelihood field).
 //! * [`matcher`]: scan matchers returning pose, score and covariance: GMapping-style hill
 //!   climbing, correlative multi-resolution search (Olson 2009) and Gauss-Newton on the
 //!   bilinearly interpolated field (Hector SLAM).
@@ -27,6 +30,7 @@ pub mod scan;
 
 pub use cell::{CellIndex, GridFrame};
 pub use error::GridError;
+pub use grid::distance::{DistanceField, DISTANCE_UNITS_PER_CELL, MAX_DISTANCE_RADIUS};
 pub use grid::sensor_model::InverseSensorModel;
 pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
 pub use grid::{CopyStats, OccupancyGrid};

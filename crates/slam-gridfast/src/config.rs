@@ -70,8 +70,8 @@ pub struct GridFastConfig {
     /// matching), metres. No-return readings (≥ the scan's `max_range`) are never used.
     /// Default 50.
     pub max_range: f64,
-    /// Use every `beam_step`-th beam for matching and weighting (1 = all beams). Mapping
-    /// always uses every beam. Default 1.
+    /// Use every `beam_step`-th hit (end point within `max_range`) for matching and
+    /// weighting (1 = all). Mapping always uses every beam. Default 1.
     pub beam_step: usize,
     /// Log-odds added to a cell where a beam ended. Default 0.85 (p = 0.7).
     pub log_odds_hit: f32,

@@ -25,6 +25,10 @@ pub enum GridFastError {
         /// Why it was rejected.
         reason: String,
     },
+    /// slam-grid refused the map configuration (resolution, log-odds, field radius);
+    /// [`crate::GridFastConfig::validate`] checks the same ranges first.
+    #[error("particle map: {0}")]
+    Map(#[from] slam_grid::GridError),
     /// The particle weights became invalid (every particle has zero weight, or a NaN).
     #[error("numerical failure at processed scan {scan}: {reason}")]
     Numerical {

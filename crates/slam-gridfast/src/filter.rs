@@ -2,13 +2,15 @@
 
 use crate::config::{GridFastConfig, Proposal};
 use crate::error::GridFastError;
-use crate::map::{MapParams, Scratch, TileMap};
-use crate::matcher::{grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow};
+use crate::matcher::{
+    field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
+};
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
 use crate::trajectory::Node;
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
+use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
 use slam_models::{
@@ -18,13 +20,65 @@ use slam_models::{
 use std::sync::Arc;
 
 /// One particle: its current corrected pose, its trajectory (a leaf of the shared tree),
-/// its map (copy-on-write tiles) and its log weight.
+/// its map (a slam-grid occupancy grid on copy-on-write tiles, with an incrementally
+/// repaired distance field in the same kind of tiles) and its log weight.
 #[derive(Clone)]
 struct Particle {
     pose: Pose2,
     log_w: f64,
-    map: TileMap,
+    map: OccupancyGrid,
     node: Option<Arc<Node>>,
+}
+
+/// The inverse sensor model of every particle's map (and of [`GridFastSlam::render_map`]):
+/// the configured log-odds; the cells a scan's beams end in are marked once per scan and
+/// not cleared by that scan's other beams (`protect_scan_hits`); no-return readings and the
+/// space just before a hit are left alone (no `no_return_range`, no `hit_margin`). Readings
+/// at or beyond [`GridFastConfig::max_range`] arrive as no-returns (see [`usable`]).
+fn sensor_model(config: &GridFastConfig) -> InverseSensorModel {
+    InverseSensorModel {
+        l_occ: config.log_odds_hit,
+        l_free: config.log_odds_miss,
+        l_min: config.log_odds_clamp[0],
+        l_max: config.log_odds_clamp[1],
+        max_range: config.max_range,
+        no_return_range: 0.0,
+        min_range: 0.0,
+        hit_margin: 0.0,
+        protect_scan_hits: true,
+    }
+}
+
+/// The scan as the filter uses it: readings at or beyond `max_range` (but below the scan's
+/// no-return value) turned into no-returns, so that they neither mark nor clear cells and
+/// are not matched. (Clearing space up to `max_range` instead, as GMapping's `maxUrange`
+/// does, made acapulco's maps grow to 290 MB for 30 particles and its ATE worse.)
+fn usable(scan: &LaserScan, max_range: f64) -> LaserScan {
+    let mut s = scan.clone();
+    if max_range < s.max_range {
+        for r in &mut s.ranges {
+            if *r >= max_range {
+                *r = s.max_range;
+            }
+        }
+    }
+    s
+}
+
+/// An empty particle map: `config.resolution` cells with a truncated distance field of
+/// `field_radius` (validated to 1..=15 cells) for the scan likelihood.
+pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFastError> {
+    let radius = (config.field_radius / config.resolution).round() as u32;
+    // slam-grid's lazily computed field is not used: no sub-cell hit statistics (their
+    // 3 KiB per tile would be copied with every tile a particle writes).
+    let lazy_field = slam_grid::LikelihoodParams {
+        subcell: false,
+        ..Default::default()
+    };
+    let grid = OccupancyGrid::try_new(config.resolution, sensor_model(config))?
+        .with_likelihood(lazy_field)?
+        .with_incremental_distance(radius)?;
+    Ok(grid)
 }
 
 /// Grid-based FastSLAM: a Rao-Blackwellized particle filter whose particles each carry a
@@ -60,7 +114,8 @@ struct Particle {
 pub struct GridFastSlam {
     config: GridFastConfig,
     seed: u64,
-    params: Arc<MapParams>,
+    /// An empty map (the template of every particle's map).
+    empty: OccupancyGrid,
     lk: Likelihood,
     hc: HillClimb,
     offsets: Vec<[f64; 3]>,
@@ -77,6 +132,14 @@ pub struct GridFastSlam {
     acc_linear: f64,
     acc_angular: f64,
     motion_reference: Option<Pose2>,
+}
+
+/// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
+fn numerical(k: usize, e: slam_grid::GridError) -> GridFastError {
+    GridFastError::Numerical {
+        scan: k,
+        reason: e.to_string(),
+    }
 }
 
 /// splitmix64: a bijective 64-bit mixer (Steele, Lea & Flood 2014), used to derive
@@ -99,14 +162,7 @@ impl GridFastSlam {
     pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
         config.validate()?;
         let radius = (config.field_radius / config.resolution).round() as i32;
-        let params = Arc::new(MapParams::new(
-            config.resolution,
-            config.log_odds_hit,
-            config.log_odds_miss,
-            config.log_odds_clamp,
-            radius,
-            config.max_range,
-        ));
+        let empty = new_map(&config)?;
         let lk = Likelihood {
             k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
             radius: radius as f64 * config.resolution,
@@ -122,7 +178,6 @@ impl GridFastSlam {
             config.sample_range_theta,
         );
         let m = config.particles;
-        let empty = TileMap::new(Arc::clone(&params));
         let particles = (0..m)
             .map(|_| Particle {
                 pose: Pose2::IDENTITY,
@@ -134,7 +189,7 @@ impl GridFastSlam {
         Ok(Self {
             config,
             seed,
-            params,
+            empty,
             lk,
             hc,
             offsets,
@@ -182,18 +237,10 @@ impl GridFastSlam {
         if !(resolution > 0.0 && resolution.is_finite()) {
             return GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0);
         }
-        let params = Arc::new(MapParams::new(
-            resolution,
-            self.config.log_odds_hit,
-            self.config.log_odds_miss,
-            self.config.log_odds_clamp,
-            0,
-            self.config.max_range,
-        ));
-        let mut map = TileMap::new(params);
-        let mut scratch = Scratch::default();
+        let mut map = OccupancyGrid::new(resolution, sensor_model(&self.config));
         for (pose, scan) in self.best_path().iter().zip(&self.scans) {
-            map.integrate(pose, scan, &mut scratch);
+            // Every kept scan was validated and every path pose is finite.
+            map.integrate_scan(pose, scan);
         }
         map.to_grid_map()
     }
@@ -274,7 +321,7 @@ impl GridFastSlam {
             None => false,
         };
         let scan = match (&record.scan, update) {
-            (Some(s), true) => s,
+            (Some(s), true) => usable(s, self.config.max_range),
             _ => {
                 let last = self.last_scan_of_record.last().copied().unwrap_or(u32::MAX);
                 self.last_scan_of_record.push(last);
@@ -288,33 +335,45 @@ impl GridFastSlam {
         };
         let k = self.scans.len();
         let info = if first {
-            self.first_scan(scan, record.odometry)
+            self.first_scan(&scan, record.odometry)?
         } else {
-            self.update(k, scan)?
+            self.update(k, &scan)?
         };
         self.scan_records.push(self.times.len() - 1);
-        self.scans.push(scan.clone());
+        self.scans.push(scan);
         self.last_scan_of_record.push(k as u32);
         self.acc_linear = 0.0;
         self.acc_angular = 0.0;
         Ok(info)
     }
 
-    fn first_scan(&mut self, scan: &LaserScan, odometry: Pose2) -> ScanUpdateInfo {
+    fn first_scan(
+        &mut self,
+        scan: &LaserScan,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
         let node = Node::child(None, odometry, 0);
         let mut map = self.particles[0].map.clone();
-        map.integrate(&odometry, scan, &mut Scratch::default());
+        let prepared = self.prepare(0, scan)?;
+        map.try_integrate_prepared(&odometry, &prepared.grid)
+            .map_err(|e| numerical(0, e))?;
         for p in &mut self.particles {
             p.pose = odometry;
             p.node = Some(Arc::clone(&node));
             p.map = map.clone();
         }
-        ScanUpdateInfo {
+        Ok(ScanUpdateInfo {
             processed_scan: true,
             n_eff: Some(self.n_eff),
             resampled: false,
             match_failures: 0,
-        }
+        })
+    }
+
+    /// The scan prepared for matching and integration.
+    fn prepare(&self, k: usize, scan: &LaserScan) -> Result<PreparedScan, GridFastError> {
+        PreparedScan::new(scan, self.config.beam_step, self.config.max_range)
+            .map_err(|e| numerical(k, e))
     }
 
     fn update(&mut self, k: usize, scan: &LaserScan) -> Result<ScanUpdateInfo, GridFastError> {
@@ -325,7 +384,7 @@ impl GridFastSlam {
         let u = cfg
             .motion
             .control_from_poses(&self.odometry[r_prev], &odo_now);
-        let prepared = PreparedScan::new(scan, cfg.beam_step, cfg.max_range);
+        let prepared = self.prepare(k, scan)?;
         let min_inliers =
             ((cfg.match_min_inlier_fraction * prepared.points.len() as f64).ceil() as usize).max(1);
         // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
@@ -348,7 +407,11 @@ impl GridFastSlam {
                 information: r.try_inverse().unwrap_or_else(slam_models::Matrix3::zeros),
             };
             predicted.between(&grid_search(
-                &best.map, &prepared, &predicted, &self.lk, &window,
+                &field(&best.map),
+                &prepared,
+                &predicted,
+                &self.lk,
+                &window,
             ))
         } else {
             Pose2::IDENTITY
@@ -374,7 +437,7 @@ impl GridFastSlam {
         let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
             let best = &self.particles[self.best];
             let start = cfg.motion.predict(&best.pose, &u);
-            let matched = hill_climb(&best.map, &prepared, &start, &self.lk, &self.hc);
+            let matched = hill_climb(&field(&best.map), &prepared, &start, &self.lk, &self.hc);
             let s2 = cfg.corrected_odometry_noise_scale.powi(2);
             let a = cfg.motion.alpha;
             let scaled = OdometryModel {
@@ -400,13 +463,14 @@ impl GridFastSlam {
             .enumerate()
             .map(|(i, p)| {
                 let mut rng = stream(seed, k, i as u64);
+                let f = field(&p.map);
                 match proposal {
-                    Proposal::Improved => improved(&p.pose, &p.map, &ctx, &mut rng),
+                    Proposal::Improved => improved(&p.pose, &f, &ctx, &mut rng),
                     Proposal::Odometry => {
-                        motion_and_likelihood(&p.pose, &p.map, &ctx, &ctx.motion, &ctx.u, &mut rng)
+                        motion_and_likelihood(&p.pose, &f, &ctx, &ctx.motion, &ctx.u, &mut rng)
                     }
                     Proposal::ScanMatchedOdometry => {
-                        motion_and_likelihood(&p.pose, &p.map, &ctx, &smo_motion, &smo_u, &mut rng)
+                        motion_and_likelihood(&p.pose, &f, &ctx, &smo_motion, &smo_u, &mut rng)
                     }
                 }
             })
@@ -462,7 +526,7 @@ impl GridFastSlam {
                     Particle {
                         pose: Pose2::IDENTITY,
                         log_w: 0.0,
-                        map: TileMap::new(Arc::clone(&self.params)),
+                        map: self.empty.clone(),
                         node: None,
                     },
                 );
@@ -479,9 +543,8 @@ impl GridFastSlam {
         }
         groups
             .par_iter_mut()
-            .for_each_init(Scratch::default, |s, (p, _)| {
-                p.map.integrate(&p.pose, scan, s);
-            });
+            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid))
+            .map_err(|e| numerical(k, e))?;
         let mut particles = Vec::with_capacity(m);
         for (p, n) in groups {
             for _ in 1..n {
@@ -647,6 +710,34 @@ mod tests {
         assert!((w - 1.0).abs() < 1e-9);
         // The room is square: the matched pose stays within a few cm of the truth.
         assert!(corrected[1].pose.distance(&path[5].odometry) < 0.05);
+    }
+
+    #[test]
+    fn readings_beyond_max_range_are_neither_mapped_nor_matched() {
+        let config = GridFastConfig {
+            particles: 2,
+            max_range: 2.0,
+            ..Default::default()
+        };
+        let mut f = GridFastSlam::new(config, 1).unwrap();
+        // The room's walls are 3 m away straight ahead: beyond max_range.
+        let pose = Pose2::new(0.0, 0.0, 0.0);
+        f.process(&rec(0.0, pose, true)).unwrap();
+        let scan = &f.scans[0];
+        let raw = room_scan(&pose);
+        for (r, r0) in scan.ranges.iter().zip(&raw.ranges) {
+            assert!(if *r0 >= 2.0 {
+                *r == raw.max_range
+            } else {
+                r == r0
+            });
+        }
+        // Nothing is marked or cleared along the +x axis up to and at the wall.
+        let map = &f.particles[0].map;
+        for x in [0.5, 1.5, 2.5, 3.0] {
+            let c = map.world_to_cell(&slam_models::Point2::new(x, 0.01));
+            assert_eq!(map.log_odds(c), 0.0, "x = {x}");
+        }
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! A Rao-Blackwellized particle filter on occupancy grids (Murphy 2000; Hähnel, Burgard,
 //! Fox & Thrun, IROS 2003; Grisetti, Stachniss & Burgard, ICRA 2005 / T-RO 2007). Each
 //! particle holds a pose, a trajectory (a leaf of one shared tree of poses), a log-odds
-//! occupancy grid made of copy-on-write tiles, and a log weight.
+//! occupancy grid ([`slam_grid::OccupancyGrid`]: copy-on-write tiles shared between
+//! particles) and a log weight.
 //!
 //! * [`GridFastSlam`]: the filter; implements [`slam_models::ScanSlam`] (name
 //!   `"gridfast"`), and [`GridFastSlam::render_map`] re-renders the best particle's map at
@@ -11,11 +12,17 @@
 //! * [`GridFastConfig`]: every parameter with a documented default; [`Proposal`] selects
 //!   the proposal distribution (`odometry`, `scan-matched-odometry`, `improved`).
 //!
+//! The maps are slam-grid's: scan integration (exact traversal, inverse sensor model with
+//! `protect_scan_hits`) and the likelihood field, a truncated distance field that slam-grid
+//! repairs incrementally after each integration from the cells whose occupancy flipped
+//! ([`slam_grid::OccupancyGrid::with_incremental_distance`]), stored in copy-on-write tiles
+//! like the occupancy. This crate adds the filter, the proposals and a GMapping-style scorer
+//! and hill climber on that field (the scan's log-likelihood, which the weights need).
+//!
 //! Speed comes from work done once instead of per particle or per beam: beam end points
-//! are computed once per scan; each map carries its likelihood field (a truncated distance
-//! field) maintained incrementally in the same copy-on-write tiles, so matching costs one
-//! bilinear look-up per beam and never recomputes a field; after resampling, copies of a
-//! particle integrate the scan once and share the result.
+//! are computed once per scan; the field is never recomputed, so matching costs one
+//! bilinear look-up per beam; after resampling, copies of a particle integrate the scan
+//! once and share the result.
 //!
 //! Units: metres, radians, seconds; θ counter-clockwise, normalised to (−π, π].
 
@@ -24,7 +31,6 @@
 mod config;
 mod error;
 mod filter;
-mod map;
 mod matcher;
 mod proposal;
 mod trajectory;

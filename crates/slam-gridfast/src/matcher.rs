@@ -1,48 +1,63 @@
 //! Scan likelihood and hill-climbing scan matching against one particle's map.
 //!
 //! The beam end points are computed once per scan in the robot frame
-//! ([`PreparedScan`]); every pose evaluation is then one rotation and translation per beam
-//! and a bilinear look-up in the map's incremental distance field, with no trigonometry
-//! per beam (GMapping recomputes sin/cos and rounding for every beam of every
+//! ([`PreparedScan`], from slam-grid's prepared scan); every pose evaluation is then one
+//! rotation and translation per beam and a bilinear look-up in the particle map's
+//! incrementally repaired distance field ([`slam_grid::DistanceField`]), with no
+//! trigonometry per beam (GMapping recomputes sin/cos and rounding for every beam of every
 //! evaluation).
+//!
+//! Why a scorer of its own and not slam-grid's matchers: the improved proposal needs the
+//! scan's log-likelihood under the truncated Gaussian endpoint model on the incremental
+//! field (weights, the Gaussian fit of eqs. 14–16), evaluated ~100 times per particle and
+//! scan; slam-grid's matchers score the mean of its lazily computed likelihood field.
 //!
 //! Endpoint model (PR §6.4, "likelihood field"): a beam ending at distance d from the
 //! nearest occupied cell contributes ln p = −min(d, r)²/(2σ²) (r the field radius; the
 //! truncation is the outlier floor). The scan's log-likelihood is Σ ln p divided by the
 //! gain g (GMapping's `ogain`).
 
-use crate::map::{TileMap, DIST_SCALE};
+use slam_grid::{CellIndex, DistanceField, GridError};
 use slam_models::{LaserScan, Pose2};
 
-/// A scan reduced to what matching needs: the end points of the used beams in the robot
-/// frame (metres).
+/// A scan prepared once per update: slam-grid's prepared scan (beam directions, for
+/// integrating it into every particle's map) and the end points used for matching in the
+/// robot frame (metres).
 #[derive(Debug, Clone)]
 pub(crate) struct PreparedScan {
+    pub grid: slam_grid::PreparedScan,
     pub points: Vec<[f64; 2]>,
     /// Every 4th of `points`: the coarse phase of hill climbing evaluates these only.
     pub coarse: Vec<[f64; 2]>,
 }
 
 impl PreparedScan {
-    /// End points of every `step`-th beam that hit within `max_range` (the scan's
+    /// Every `step`-th end point of the hits with 0 < r ≤ `max_range` (the scan's
     /// `sensor_pose` applied).
-    pub fn new(scan: &LaserScan, step: usize, max_range: f64) -> Self {
-        let max_range = max_range.min(scan.max_range);
-        let points = (0..scan.len())
+    pub fn new(scan: &LaserScan, step: usize, max_range: f64) -> Result<Self, GridError> {
+        let grid = slam_grid::PreparedScan::with_limits(scan, f64::MIN_POSITIVE, max_range)?;
+        let points: Vec<[f64; 2]> = grid
+            .points()
+            .iter()
             .step_by(step.max(1))
-            .filter(|&k| scan.ranges[k] > 0.0 && scan.ranges[k] < max_range)
-            .map(|k| {
-                let a = scan.beam_angle(k);
-                let r = scan.ranges[k];
-                let p = scan
-                    .sensor_pose
-                    .transform_point(&slam_models::Point2::new(r * a.cos(), r * a.sin()));
-                [p.x, p.y]
-            })
-            .collect::<Vec<_>>();
+            .map(|p| [p.x, p.y])
+            .collect();
         let coarse = points.iter().step_by(4).copied().collect();
-        Self { points, coarse }
+        Ok(Self {
+            grid,
+            points,
+            coarse,
+        })
     }
+}
+
+/// The particle map's distance field. Every map of the filter is created with
+/// [`slam_grid::OccupancyGrid::with_incremental_distance`] (see
+/// [`crate::filter::new_map`]), so it is always there.
+#[inline]
+pub(crate) fn field(map: &slam_grid::OccupancyGrid) -> DistanceField<'_> {
+    map.distance_field()
+        .expect("every gridfast map is created with an incremental distance field")
 }
 
 /// The endpoint-model parameters of one filter.
@@ -64,18 +79,31 @@ pub(crate) struct Score {
 /// Evaluates the scan log-likelihood at `pose` (bilinear interpolation of the distance
 /// field between the four cell centres around each end point).
 #[inline]
-pub(crate) fn score(map: &TileMap, scan: &PreparedScan, pose: &Pose2, lk: &Likelihood) -> Score {
-    score_points(map, &scan.points, pose, lk)
+pub(crate) fn score(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    pose: &Pose2,
+    lk: &Likelihood,
+) -> Score {
+    score_points(field, &scan.points, pose, lk)
 }
 
 /// [`score`] over an explicit set of robot-frame end points.
 #[inline]
-fn score_points(map: &TileMap, points: &[[f64; 2]], pose: &Pose2, lk: &Likelihood) -> Score {
-    let res = map.params().resolution;
-    let inv = 1.0 / res;
-    let unit = res / DIST_SCALE;
+fn score_points(
+    field: &DistanceField<'_>,
+    points: &[[f64; 2]],
+    pose: &Pose2,
+    lk: &Likelihood,
+) -> Score {
+    let frame = field.frame();
+    let inv = 1.0 / frame.resolution;
+    let unit = field.metres_per_unit();
     let (s, c) = pose.theta.sin_cos();
-    let (tx, ty) = (pose.x * inv - 0.5, pose.y * inv - 0.5);
+    let (tx, ty) = (
+        (pose.x - frame.origin.x) * inv - 0.5,
+        (pose.y - frame.origin.y) * inv - 0.5,
+    );
     let (s, c) = (s * inv, c * inv);
     let mut sum = 0.0;
     let mut inliers = 0;
@@ -86,7 +114,7 @@ fn score_points(map: &TileMap, points: &[[f64; 2]], pose: &Pose2, lk: &Likelihoo
         let v = s * p[0] + c * p[1] + ty;
         let (iu, iv) = (fast_floor(u), fast_floor(v));
         let (au, av) = (u - iu as f64, v - iv as f64);
-        let d = map.dist4(iu, iv);
+        let d = field.dist4(CellIndex::new(iu, iv));
         let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
         let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
         let dm = (d0 + av * (d1 - d0)) * unit;
@@ -130,7 +158,7 @@ pub(crate) struct HillClimb {
 /// −½ eᵀR⁻¹e: the mode of likelihood × motion model on the grid. Returns the best pose (the
 /// initial pose wins ties).
 pub(crate) fn grid_search(
-    map: &TileMap,
+    field: &DistanceField<'_>,
     scan: &PreparedScan,
     initial: &Pose2,
     lk: &Likelihood,
@@ -143,7 +171,7 @@ pub(crate) fn grid_search(
     };
     let mut best = *initial;
     let scale = scan.points.len() as f64 / points.len().max(1) as f64;
-    let mut top = scale * score_points(map, points, initial, lk).log_likelihood;
+    let mut top = scale * score_points(field, points, initial, lk).log_likelihood;
     let nxy = (window.range_xy / window.step_xy).floor() as i32;
     let nth = (window.range_theta / window.step_theta).floor() as i32;
     for it in -nth..=nth {
@@ -163,7 +191,7 @@ pub(crate) fn grid_search(
                 let e =
                     slam_models::Vector3::new(cand.x - initial.x, cand.y - initial.y, delta.theta);
                 let prior = 0.5 * e.dot(&(window.information * e));
-                let s = scale * score_points(map, points, &cand, lk).log_likelihood - prior;
+                let s = scale * score_points(field, points, &cand, lk).log_likelihood - prior;
                 if s > top {
                     top = s;
                     best = cand;
@@ -187,7 +215,7 @@ pub(crate) struct SearchWindow {
 
 /// The coarse-beam score of a pose (for choosing between starting points).
 pub(crate) fn coarse_score(
-    map: &TileMap,
+    field: &DistanceField<'_>,
     scan: &PreparedScan,
     pose: &Pose2,
     lk: &Likelihood,
@@ -197,14 +225,14 @@ pub(crate) fn coarse_score(
     } else {
         &scan.points
     };
-    score_points(map, points, pose, lk).log_likelihood
+    score_points(field, points, pose, lk).log_likelihood
 }
 
 /// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
 /// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
 /// the score, otherwise halve both steps, `refinements` times.
 pub(crate) fn hill_climb(
-    map: &TileMap,
+    field: &DistanceField<'_>,
     scan: &PreparedScan,
     initial: &Pose2,
     lk: &Likelihood,
@@ -228,7 +256,7 @@ pub(crate) fn hill_climb(
         } else {
             (&scan.points[..], hc.refinements + 1)
         };
-        let mut best_score = score_points(map, points, &best, lk);
+        let mut best_score = score_points(field, points, &best, lk);
         while halvings < last && budget > 0 {
             budget -= 1;
             let moves = [
@@ -242,7 +270,7 @@ pub(crate) fn hill_climb(
             let mut improved = None;
             let mut top = best_score.log_likelihood;
             for m in moves {
-                let s = score_points(map, points, &m, lk);
+                let s = score_points(field, points, &m, lk);
                 if s.log_likelihood > top {
                     top = s.log_likelihood;
                     improved = Some((m, s));
@@ -269,17 +297,32 @@ pub(crate) fn hill_climb(
     }
     MatchOutcome {
         pose: best,
-        score: score(map, scan, &best, lk),
+        score: score(field, scan, &best, lk),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::map::{MapParams, Scratch};
-    use std::sync::Arc;
+    use slam_grid::{InverseSensorModel, OccupancyGrid};
 
-    /// A closed room 8 m × 5 m with a pillar, scanned with 361 beams over 360°.
+    fn empty_map() -> OccupancyGrid {
+        let model = InverseSensorModel {
+            l_free: -0.4,
+            no_return_range: 0.0,
+            hit_margin: 0.0,
+            protect_scan_hits: true,
+            ..Default::default()
+        };
+        OccupancyGrid::new(0.05, model)
+            .with_incremental_distance(4)
+            .unwrap()
+    }
+
+    /// A closed room ≈ 8 m × 5 m with a pillar, scanned with 361 beams over 360°. The walls
+    /// run through cell centres (x = ±4.025, y = ±2.525 on the 5 cm grid): a wall on a cell
+    /// boundary puts its hits on either side by floating-point rounding, which moves the
+    /// mapped wall by up to half a cell and the best match with it.
     fn room_scan(pose: &Pose2) -> LaserScan {
         let n = 361;
         let inc = 2.0 * std::f64::consts::PI / n as f64;
@@ -289,10 +332,10 @@ mod tests {
                 let (dx, dy) = (a.cos(), a.sin());
                 let mut t = f64::INFINITY;
                 for (wall, dir, coord) in [
-                    (4.0, dx, pose.x),
-                    (-4.0, dx, pose.x),
-                    (2.5, dy, pose.y),
-                    (-2.5, dy, pose.y),
+                    (4.025, dx, pose.x),
+                    (-4.025, dx, pose.x),
+                    (2.525, dy, pose.y),
+                    (-2.525, dy, pose.y),
                 ] {
                     if dir != 0.0 {
                         let tt = (wall - coord) / dir;
@@ -322,18 +365,16 @@ mod tests {
 
     #[test]
     fn hill_climbing_recovers_an_offset_pose() {
-        let params = Arc::new(MapParams::new(0.05, 0.85, -0.4, [-2.0, 3.5], 4, 50.0));
-        let mut map = TileMap::new(params);
-        let mut s = Scratch::default();
+        let mut map = empty_map();
         for p in [
             Pose2::new(0.0, 0.0, 0.0),
             Pose2::new(-1.0, -0.5, 1.0),
             Pose2::new(1.0, -1.0, -2.0),
         ] {
-            map.integrate(&p, &room_scan(&p), &mut s);
+            map.integrate_scan(&p, &room_scan(&p));
         }
         let truth = Pose2::new(0.3, 0.4, 0.3);
-        let scan = PreparedScan::new(&room_scan(&truth), 1, 50.0);
+        let scan = PreparedScan::new(&room_scan(&truth), 1, 50.0).unwrap();
         let lk = Likelihood {
             k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
             radius: 0.2,
@@ -349,7 +390,7 @@ mod tests {
             Pose2::new(0.0, 0.15, 0.0),
         ] {
             let init = Pose2::new(truth.x + off.x, truth.y + off.y, truth.theta + off.theta);
-            let m = hill_climb(&map, &scan, &init, &lk, &hc);
+            let m = hill_climb(&field(&map), &scan, &init, &lk, &hc);
             assert!(
                 m.pose.distance(&truth) < 0.02,
                 "{:?} from {:?}",
@@ -360,14 +401,7 @@ mod tests {
             assert!(m.score.inliers as f64 > 0.9 * scan.points.len() as f64);
         }
         // An empty map has no inliers.
-        let empty = TileMap::new(Arc::new(MapParams::new(
-            0.05,
-            0.85,
-            -0.4,
-            [-2.0, 3.5],
-            4,
-            50.0,
-        )));
-        assert_eq!(score(&empty, &scan, &truth, &lk).inliers, 0);
+        let empty = empty_map();
+        assert_eq!(score(&field(&empty), &scan, &truth, &lk).inliers, 0);
     }
 }

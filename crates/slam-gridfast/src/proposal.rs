@@ -1,10 +1,10 @@
 //! The three proposal distributions: how one particle draws its pose at a processed scan
 //! and by how much its weight changes.
 
-use crate::map::TileMap;
 use crate::matcher::{coarse_score, hill_climb, score, HillClimb, Likelihood, PreparedScan};
 use nalgebra::Cholesky;
 use rand::Rng;
+use slam_grid::DistanceField;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 
@@ -37,7 +37,7 @@ pub(crate) struct Drawn {
 /// Sample the motion model and weight by the scan likelihood (FastSLAM 1.0 on grids).
 pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
     pose: &Pose2,
-    map: &TileMap,
+    field: &DistanceField<'_>,
     ctx: &StepContext<'_>,
     motion: &OdometryModel,
     u: &OdometryControl,
@@ -46,7 +46,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
     let x = motion.sample(pose, u, rng);
     Drawn {
         pose: x,
-        log_weight: score(map, ctx.scan, &x, &ctx.lk).log_likelihood,
+        log_weight: score(field, ctx.scan, &x, &ctx.lk).log_likelihood,
         match_failed: false,
     }
 }
@@ -66,7 +66,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// [`motion_and_likelihood`] and the failure is reported.
 pub(crate) fn improved<R: Rng + ?Sized>(
     pose: &Pose2,
-    map: &TileMap,
+    field: &DistanceField<'_>,
     ctx: &StepContext<'_>,
     rng: &mut R,
 ) -> Drawn {
@@ -75,19 +75,19 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     // correction, whichever fits this particle's map better.
     let shifted = predicted.compose(&ctx.correction);
     let start = if ctx.correction != Pose2::IDENTITY
-        && coarse_score(map, ctx.scan, &shifted, &ctx.lk)
-            > coarse_score(map, ctx.scan, &predicted, &ctx.lk)
+        && coarse_score(field, ctx.scan, &shifted, &ctx.lk)
+            > coarse_score(field, ctx.scan, &predicted, &ctx.lk)
     {
         shifted
     } else {
         predicted
     };
-    let m = hill_climb(map, ctx.scan, &start, &ctx.lk, &ctx.hc);
+    let m = hill_climb(field, ctx.scan, &start, &ctx.lk, &ctx.hc);
     let covariance =
         ctx.motion.noise_covariance(pose, &ctx.u) + Matrix3::from_diagonal(&ctx.min_var);
     let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
     let (Some(chol), true) = (chol, m.score.inliers >= ctx.min_inliers) else {
-        let mut d = motion_and_likelihood(pose, map, ctx, &ctx.motion, &ctx.u, rng);
+        let mut d = motion_and_likelihood(pose, field, ctx, &ctx.motion, &ctx.u, rng);
         d.match_failed = true;
         return d;
     };
@@ -96,7 +96,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     let k = ctx.offsets.len();
     for (j, o) in ctx.offsets.iter().enumerate() {
         let xj = Pose2::new(m.pose.x + o[0], m.pose.y + o[1], m.pose.theta + o[2]);
-        let l = score(map, ctx.scan, &xj, &ctx.lk).log_likelihood;
+        let l = score(field, ctx.scan, &xj, &ctx.lk).log_likelihood;
         let e = Vector3::new(
             xj.x - predicted.x,
             xj.y - predicted.y,

@@ -1,5 +1,6 @@
 //! The log-odds occupancy grid on copy-on-write tiles.
 
+pub mod distance;
 mod raytrace;
 pub(crate) mod sensor_model;
 pub(crate) mod tiles;
@@ -8,6 +9,7 @@ use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::likelihood::{compute_region, FieldTile, LikelihoodParams};
 use crate::scan::PreparedScan;
+use distance::{DistanceField, IncrementalDistance, MAX_DISTANCE_RADIUS};
 pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
 use slam_models::{GridMap, LaserScan, Point2, Pose2};
@@ -41,6 +43,9 @@ pub struct CopyStats {
 ///   ([`OccupancyGrid::copy_stats`] counts them). Grid FastSLAM's particles share maps so.
 /// * Each grid also caches a likelihood field per tile ([`crate::likelihood`]), computed
 ///   lazily by the matchers and shared between clones in the same way.
+/// * Optionally ([`OccupancyGrid::with_incremental_distance`]) a grid also keeps a
+///   truncated distance field repaired after every integration from the cells whose
+///   obstacle status flipped ([`distance`]), for particle filters that match every scan.
 ///
 /// ```
 /// use slam_grid::{InverseSensorModel, OccupancyGrid};
@@ -63,6 +68,7 @@ pub struct OccupancyGrid {
     tiles: Vec<Option<Arc<Tile>>>,
     fields: Vec<OnceLock<Arc<FieldTile>>>,
     far_field: Arc<FieldTile>,
+    distance: Option<IncrementalDistance>,
     stats: CopyStats,
 }
 
@@ -98,6 +104,7 @@ impl OccupancyGrid {
             tiles: Vec::new(),
             fields: Vec::new(),
             far_field: Arc::new(FieldTile::far(&params)),
+            distance: None,
             stats: CopyStats::default(),
         }
     }
@@ -115,7 +122,58 @@ impl OccupancyGrid {
         self.params = params;
         self.far_field = Arc::new(FieldTile::far(&params));
         self.fields = (0..self.layout.len()).map(|_| OnceLock::new()).collect();
+        // The obstacle threshold may have changed: rebuild the incremental field.
+        if let Some(d) = self.distance.take() {
+            return self.with_incremental_distance(d.radius() as u32);
+        }
         Ok(self)
+    }
+
+    /// This grid with an incrementally repaired truncated distance field of
+    /// `radius_cells` cells (1..=15) switched on (see [`distance`]): built now from the
+    /// grid's obstacles, then repaired after every integration in O(changed cells), shared
+    /// between clones tile by tile. Read it with [`OccupancyGrid::distance_field`].
+    /// Grids without it behave exactly as before.
+    pub fn with_incremental_distance(mut self, radius_cells: u32) -> Result<Self, GridError> {
+        ensure_config(
+            (1..=MAX_DISTANCE_RADIUS).contains(&radius_cells),
+            "incremental distance radius (cells)",
+            radius_cells as f64,
+            "1 to 15 cells",
+        )?;
+        let r = radius_cells as i32;
+        // Keep the table at least `radius` cells beyond every obstacle (see [`distance`]).
+        if let Some((lo, hi)) = self.known_bounds() {
+            self.ensure_covers(
+                CellIndex::new(lo.x - r, lo.y - r),
+                CellIndex::new(hi.x + r, hi.y + r),
+            );
+        }
+        let mut obstacles = Vec::new();
+        let t = TILE_SIZE as i32;
+        for (s, tile) in self.tiles.iter().enumerate() {
+            let Some(tile) = tile else { continue };
+            let (tx, ty) = self.layout.tile_of_slot(s);
+            for (k, &v) in tile.cells.iter().enumerate() {
+                if v > self.params.occupied_threshold {
+                    let (x, y) = ((k % TILE_SIZE) as i32, (k / TILE_SIZE) as i32);
+                    obstacles.push(CellIndex::new(tx * t + x, ty * t + y));
+                }
+            }
+        }
+        let mut d = IncrementalDistance::new(radius_cells, self.layout.len());
+        d.rebuild(&self.layout, &obstacles);
+        self.distance = Some(d);
+        Ok(self)
+    }
+
+    /// The incrementally repaired distance field, when switched on with
+    /// [`OccupancyGrid::with_incremental_distance`].
+    #[inline]
+    pub fn distance_field(&self) -> Option<DistanceField<'_>> {
+        self.distance
+            .as_ref()
+            .map(|d| d.view(self.layout, self.frame))
     }
 
     /// This grid with its origin (world position of cell (0, 0)'s lower-left corner) moved.
@@ -213,8 +271,9 @@ impl OccupancyGrid {
             .count()
     }
 
-    /// Bytes held by one tile (log-odds and mean hit positions of its cells).
-    pub const TILE_BYTES: usize = std::mem::size_of::<Tile>();
+    /// Bytes held by one tile (log-odds and mean hit positions of its cells; a grid whose
+    /// [`LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
+    pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
     /// Inclusive range of cells covered by the tile table (`None` while empty).
     pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
@@ -283,6 +342,9 @@ impl OccupancyGrid {
         }
         // Fields next to the old border saw only empty space beyond it, which is still
         // empty: they stay valid.
+        if let Some(d) = &mut self.distance {
+            d.relayout(&old, &new);
+        }
         self.layout = new;
         self.tiles = tiles;
         self.fields = fields;
@@ -291,7 +353,8 @@ impl OccupancyGrid {
     /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
     /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
     /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
-    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ.
+    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ (with
+    /// [`InverseSensorModel::protect_scan_hits`]: l_occ, once).
     ///
     /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
     /// [`OccupancyGrid::try_integrate_scan`] reports it instead.
@@ -378,9 +441,12 @@ impl OccupancyGrid {
                 expected: "within ±2^30 cells of the origin",
             });
         }
+        // With an incremental distance field the table extends `radius` cells beyond
+        // every end point, so that no obstacle's stamp is cut off.
+        let margin = self.distance.as_ref().map_or(0, |d| d.radius());
         self.ensure_covers(
-            CellIndex::new(lo_x.floor() as i32, lo_y.floor() as i32),
-            CellIndex::new(hi_x.floor() as i32, hi_y.floor() as i32),
+            CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
+            CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
         );
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
         // written under one copy-on-write check.
@@ -410,15 +476,59 @@ impl OccupancyGrid {
             }
         }
         let mut changed: Vec<usize> = Vec::new();
-        self.apply(&free, m.l_free, &mut changed);
-        self.apply_hits(&hits, m.l_occ, &mut changed);
+        let mut flips: Vec<(u32, u16)> = Vec::new();
+        let protected: &[(u32, u16, i8, i8)] = if m.protect_scan_hits {
+            // Sorted by cell so that a tile's hits are found by binary search and a cell's
+            // repeated hits are adjacent.
+            hits.sort_unstable_by_key(|h| (h.0, h.1));
+            &hits
+        } else {
+            &[]
+        };
+        self.apply(&free, m.l_free, protected, &mut changed, &mut flips);
+        self.apply_hits(
+            &hits,
+            m.l_occ,
+            m.protect_scan_hits,
+            &mut changed,
+            &mut flips,
+        );
         self.invalidate_fields(changed);
+        if let Some(mut d) = self.distance.take() {
+            let mut cells: Vec<CellIndex> = flips
+                .iter()
+                .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
+                .collect();
+            d.repair(&self.layout, &mut cells, |c| self.is_obstacle(c));
+            self.distance = Some(d);
+        }
         Ok(())
     }
 
-    /// Adds `delta` to the listed cells (clamped), copying shared tiles on first write and
-    /// recording the slots where some cell changed obstacle status.
-    fn apply(&mut self, updates: &[(u32, u16)], delta: f32, changed: &mut Vec<usize>) {
+    /// Cell `local` of the tile in `slot`.
+    #[inline]
+    fn cell_of_slot(&self, slot: usize, local: usize) -> CellIndex {
+        let (tx, ty) = self.layout.tile_of_slot(slot);
+        let t = TILE_SIZE as i32;
+        CellIndex::new(
+            tx * t + (local % TILE_SIZE) as i32,
+            ty * t + (local / TILE_SIZE) as i32,
+        )
+    }
+
+    /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
+    /// (sorted by slot), copying shared tiles on first write and recording the slots where
+    /// some cell changed obstacle status, and (with an incremental distance field) those
+    /// cells in `flips` as (slot, local index).
+    fn apply(
+        &mut self,
+        updates: &[(u32, u16)],
+        delta: f32,
+        protected: &[(u32, u16, i8, i8)],
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
         let (lmin, lmax, thr) = (
             self.model.l_min,
             self.model.l_max,
@@ -427,12 +537,14 @@ impl OccupancyGrid {
         // Updates come sorted by tile slot: handle each tile's run at once.
         for run in updates.chunk_by(|a, b| a.0 == b.0) {
             let slot = run[0].0 as usize;
+            let mask = protected_mask(protected, run[0].0);
+            let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
             // Skip the copy entirely when no value in the run would change (saturated cells).
             let needs_write = match &self.tiles[slot] {
-                None => true,
+                None => run.iter().any(|&(_, l)| !skip(l)),
                 Some(t) => run.iter().any(|&(_, l)| {
                     let v = t.cells[l as usize];
-                    (v + delta).clamp(lmin, lmax) != v
+                    !skip(l) && (v + delta).clamp(lmin, lmax) != v
                 }),
             };
             if !needs_write {
@@ -441,10 +553,17 @@ impl OccupancyGrid {
             let tile = self.tile_for_write(slot);
             let mut status_changed = false;
             for &(_, l) in run {
+                if skip(l) {
+                    continue;
+                }
                 let v = &mut tile.cells[l as usize];
                 let nv = (*v + delta).clamp(lmin, lmax);
-                status_changed |= (*v > thr) != (nv > thr);
+                let flip = (*v > thr) != (nv > thr);
+                status_changed |= flip;
                 *v = nv;
+                if flip && track {
+                    flips.push((slot as u32, l));
+                }
             }
             if status_changed && changed.last() != Some(&slot) {
                 changed.push(slot);
@@ -459,12 +578,12 @@ impl OccupancyGrid {
         let arc = match entry {
             None => {
                 self.stats.tiles_created += 1;
-                entry.insert(Arc::new(Tile::unknown()))
+                entry.insert(Arc::new(Tile::unknown(self.params.subcell)))
             }
             Some(a) => {
                 if Arc::strong_count(a) > 1 {
                     self.stats.tiles_copied += 1;
-                    self.stats.bytes_copied += Self::TILE_BYTES as u64;
+                    self.stats.bytes_copied += a.bytes() as u64;
                 }
                 a
             }
@@ -472,9 +591,18 @@ impl OccupancyGrid {
         Arc::make_mut(arc)
     }
 
-    /// Adds `delta` (= l_occ) to the hit cells and folds each end point into its cell's
-    /// mean hit position (running mean over the first [`HIT_CAP`] hits).
-    fn apply_hits(&mut self, updates: &[(u32, u16, i8, i8)], delta: f32, changed: &mut Vec<usize>) {
+    /// Adds `delta` (= l_occ) to the hit cells (once per cell when `once`, the updates
+    /// then sorted by cell) and folds each end point into its cell's mean hit position
+    /// (running mean over the first [`HIT_CAP`] hits).
+    fn apply_hits(
+        &mut self,
+        updates: &[(u32, u16, i8, i8)],
+        delta: f32,
+        once: bool,
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
         let (lmin, lmax, thr) = (
             self.model.l_min,
             self.model.l_max,
@@ -487,7 +615,8 @@ impl OccupancyGrid {
                 None => true,
                 Some(t) => run.iter().any(|&(_, l, _, _)| {
                     let v = t.cells[l as usize];
-                    (v + delta).clamp(lmin, lmax) != v || t.hits[l as usize] < HIT_CAP
+                    (v + delta).clamp(lmin, lmax) != v
+                        || t.hit.as_ref().is_some_and(|h| h.hits[l as usize] < HIT_CAP)
                 }),
             };
             if !needs_write {
@@ -495,24 +624,36 @@ impl OccupancyGrid {
             }
             let tile = self.tile_for_write(slot);
             let mut field_changed = false;
-            for &(_, l, ox, oy) in run {
+            for (i, &(_, l, ox, oy)) in run.iter().enumerate() {
+                let repeat = once && i > 0 && run[i - 1].1 == l;
                 let l = l as usize;
                 let v = tile.cells[l];
-                let nv = (v + delta).clamp(lmin, lmax);
-                field_changed |= (v > thr) != (nv > thr);
+                let nv = if repeat {
+                    v
+                } else {
+                    (v + delta).clamp(lmin, lmax)
+                };
+                let flip = (v > thr) != (nv > thr);
+                field_changed |= flip;
+                if flip && track {
+                    flips.push((slot as u32, l as u16));
+                }
                 tile.cells[l] = nv;
-                let n = tile.hits[l];
+                let Some(h) = tile.hit.as_deref_mut() else {
+                    continue;
+                };
+                let n = h.hits[l];
                 if n < HIT_CAP {
                     let mean = |m: i8, o: i8| {
                         let m = m as i32;
                         (m + ((o as i32 - m) as f32 / (n as f32 + 1.0)).round() as i32)
                             .clamp(-128, 127) as i8
                     };
-                    let (mx, my) = (mean(tile.hit_x[l], ox), mean(tile.hit_y[l], oy));
-                    field_changed |= nv > thr && (mx != tile.hit_x[l] || my != tile.hit_y[l]);
-                    tile.hit_x[l] = mx;
-                    tile.hit_y[l] = my;
-                    tile.hits[l] = n + 1;
+                    let (mx, my) = (mean(h.hit_x[l], ox), mean(h.hit_y[l], oy));
+                    field_changed |= nv > thr && (mx != h.hit_x[l] || my != h.hit_y[l]);
+                    h.hit_x[l] = mx;
+                    h.hit_y[l] = my;
+                    h.hits[l] = n + 1;
                 }
             }
             if field_changed && changed.last() != Some(&slot) {
@@ -574,7 +715,9 @@ impl OccupancyGrid {
                         let k = ly * TILE_SIZE + (x - tx * t) as usize;
                         let o = oy + (x - min.x) as usize;
                         out[o] = tile.cells[k] > thr;
-                        offsets[o] = (tile.hit_x[k], tile.hit_y[k], tile.hits[k]);
+                        if let Some(h) = &tile.hit {
+                            offsets[o] = (h.hit_x[k], h.hit_y[k], h.hits[k]);
+                        }
                     }
                 }
             }
@@ -812,6 +955,21 @@ impl OccupancyGrid {
         }
         map
     }
+}
+
+/// The cells of tile `slot` among `protected` (sorted by slot) as a 1024-bit mask, or
+/// `None` when it has none.
+#[inline]
+fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; TILE_CELLS / 64]> {
+    let a = protected.partition_point(|h| h.0 < slot);
+    let b = a + protected[a..].partition_point(|h| h.0 == slot);
+    (a < b).then(|| {
+        let mut m = [0u64; TILE_CELLS / 64];
+        for &(_, l, _, _) in &protected[a..b] {
+            m[l as usize >> 6] |= 1 << (l & 63);
+        }
+        m
+    })
 }
 
 /// Catmull-Rom weights of the samples at −1, 0, 1, 2 for a point at t ∈ [0, 1), and

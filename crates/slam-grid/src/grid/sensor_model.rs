@@ -38,6 +38,13 @@ pub struct InverseSensorModel {
     /// so the mapped surface drifts behind the true one. Default 0.05 m (≈ 5σ of a SICK
     /// LMS range error).
     pub hit_margin: f64,
+    /// Treat the cells the beams of one scan end in as that scan's evidence of an
+    /// obstacle: each gets `l_occ` once per scan however many beams end in it, and the
+    /// other beams of the same scan do not clear it. On a grid, the beams that see a wall
+    /// at a grazing angle cross the cells where their neighbours end on it; without this
+    /// they erase it. Off (every crossing and every end point counts) by default; grid
+    /// FastSLAM (slam-gridfast) turns it on.
+    pub protect_scan_hits: bool,
 }
 
 impl Default for InverseSensorModel {
@@ -51,6 +58,7 @@ impl Default for InverseSensorModel {
             no_return_range: 5.0,
             min_range: 0.05,
             hit_margin: 0.05,
+            protect_scan_hits: false,
         }
     }
 }

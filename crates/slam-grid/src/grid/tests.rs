@@ -288,3 +288,61 @@ fn subcell_field_measures_to_mean_hit_positions() {
         .unwrap();
     assert!((best - 1.013).abs() < 0.002, "peak at {best}");
 }
+
+#[test]
+fn protected_scan_hits_are_marked_once_and_not_cleared_by_the_same_scan() {
+    // Along +x from the centre of cell (0, 0) on a 10 cm grid: beams 0 and 2 end in cell
+    // (10, 0), beam 1 crosses it and ends in cell (20, 0).
+    let s = scan(vec![1.0, 2.0, 1.01], 0.0, 0.0);
+    let pose = Pose2::new(0.05, 0.05, 0.0);
+    let m = InverseSensorModel {
+        hit_margin: 0.0,
+        ..Default::default()
+    };
+    let mut every = OccupancyGrid::new(0.1, m);
+    every.integrate_scan(&pose, &s);
+    let mut once = OccupancyGrid::new(
+        0.1,
+        InverseSensorModel {
+            protect_scan_hits: true,
+            ..m
+        },
+    );
+    once.integrate_scan(&pose, &s);
+    let c = |x| CellIndex::new(x, 0);
+    // Every beam counts: crossed once, hit twice.
+    assert_eq!(every.log_odds(c(10)), m.l_free + 2.0 * m.l_occ);
+    // Protected: one l_occ, and beam 1 does not clear it.
+    assert_eq!(once.log_odds(c(10)), m.l_occ);
+    for g in [&every, &once] {
+        assert_eq!(g.log_odds(c(20)), m.l_occ);
+        assert_eq!(g.log_odds(c(15)), m.l_free);
+        assert_eq!(g.log_odds(c(5)), (3.0 * m.l_free).max(m.l_min));
+    }
+}
+
+#[test]
+fn without_subcell_fields_tiles_keep_no_hit_statistics() {
+    let params = LikelihoodParams {
+        subcell: false,
+        ..Default::default()
+    };
+    let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_likelihood(params)
+        .unwrap();
+    let s = room_scan(&Pose2::IDENTITY, 1.5, 360);
+    g.integrate_scan(&Pose2::IDENTITY, &s);
+    let mut c = g.clone();
+    c.reset_copy_stats();
+    c.integrate_scan(&Pose2::new(0.2, 0.1, 0.0), &s);
+    let st = c.copy_stats();
+    // Log-odds only: 4 KiB per copied tile.
+    assert!(st.tiles_copied >= 1, "{st:?}");
+    assert_eq!(st.bytes_copied, st.tiles_copied * 4096);
+    // Every obstacle is at its cell centre for the field.
+    let (lo, hi) = g.known_bounds().unwrap();
+    let (w, h) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
+    let (obstacles, offsets) = c.obstacle_mask(lo, w, h);
+    assert!(obstacles.iter().any(|&o| o));
+    assert!(offsets.iter().all(|&o| o == (0, 0, 0)));
+}

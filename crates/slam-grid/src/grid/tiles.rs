@@ -19,26 +19,49 @@ const TILE_MASK: i32 = (TILE_SIZE as i32) - 1;
 /// leaves a shared tile shared).
 pub(crate) const HIT_CAP: u8 = 16;
 
-/// One tile, row-major (index = ly·TILE_SIZE + lx): log-odds values, and per cell the mean
-/// position of the beam end points that hit it (GMapping keeps the same statistic), as an
-/// offset from the cell centre in 1/256 cell, with the number of hits averaged (≤
-/// [`HIT_CAP`]).
+/// One tile, row-major (index = ly·TILE_SIZE + lx): log-odds values, and, for grids whose
+/// likelihood field measures to sub-cell hit positions, the hit statistics of its cells.
 #[derive(Clone)]
 pub(crate) struct Tile {
     pub(crate) cells: [f32; TILE_CELLS],
+    pub(crate) hit: Option<Box<HitStats>>,
+}
+
+/// Per cell the mean position of the beam end points that hit it (GMapping keeps the same
+/// statistic), as an offset from the cell centre in 1/256 cell, with the number of hits
+/// averaged (≤ [`HIT_CAP`]).
+#[derive(Clone)]
+pub(crate) struct HitStats {
     pub(crate) hit_x: [i8; TILE_CELLS],
     pub(crate) hit_y: [i8; TILE_CELLS],
     pub(crate) hits: [u8; TILE_CELLS],
 }
 
+/// Bytes of a tile's data with hit statistics (log-odds + mean hit positions + counts).
+pub(crate) const TILE_BYTES_WITH_HITS: usize =
+    std::mem::size_of::<[f32; TILE_CELLS]>() + std::mem::size_of::<HitStats>();
+
 impl Tile {
-    /// An all-unknown tile (log-odds 0, no hits).
-    pub(crate) fn unknown() -> Self {
+    /// An all-unknown tile (log-odds 0, no hits), with hit statistics when `with_hits`.
+    pub(crate) fn unknown(with_hits: bool) -> Self {
         Self {
             cells: [0.0; TILE_CELLS],
-            hit_x: [0; TILE_CELLS],
-            hit_y: [0; TILE_CELLS],
-            hits: [0; TILE_CELLS],
+            hit: with_hits.then(|| {
+                Box::new(HitStats {
+                    hit_x: [0; TILE_CELLS],
+                    hit_y: [0; TILE_CELLS],
+                    hits: [0; TILE_CELLS],
+                })
+            }),
+        }
+    }
+
+    /// Bytes of this tile's data.
+    pub(crate) fn bytes(&self) -> usize {
+        if self.hit.is_some() {
+            TILE_BYTES_WITH_HITS
+        } else {
+            std::mem::size_of::<[f32; TILE_CELLS]>()
         }
     }
 }

@@ -1,0 +1,453 @@
+//! An incrementally repaired truncated distance field, stored per tile beside the occupancy.
+//!
+//! A grid built with [`crate::OccupancyGrid::with_incremental_distance`] keeps, for every
+//! cell, the Euclidean distance from its centre to the nearest obstacle cell centre
+//! (obstacle: log-odds > `occupied_threshold`, see [`crate::OccupancyGrid::is_obstacle`]),
+//! truncated at `radius` cells and stored as a `u8` in 1/[`DISTANCE_UNITS_PER_CELL`] cell.
+//! It is the likelihood field of the endpoint model (Probabilistic Robotics §6.4) in the
+//! form a particle filter needs:
+//!
+//! * **shared like the occupancy**: one 32×32 `u8` tile per occupancy tile slot behind
+//!   `Arc`, so grid clones share it and a write copies only the tiles it changes;
+//! * **repaired in O(changed cells)**: scan integration reports the cells whose obstacle
+//!   status flipped; around a cell that became an obstacle the distance kernel is stamped
+//!   (dist ← min(dist, kernel)); around a cell that stopped being one, the window of
+//!   `radius` cells is recomputed from the obstacles within 2·`radius`.
+//!
+//! The lazily computed field of [`crate::likelihood`] (exact EDT per tile, sub-cell hit
+//! positions, recomputed after any change) is independent of this one and stays what the
+//! standalone matchers use.
+//!
+//! Invariant (checked by the tests against a brute-force recomputation): after every
+//! integration, every cell's value equals min(16·√(dx² + dy²), 16·radius) rounded, over the
+//! obstacle cells at offset (dx, dy). The tile table of such a grid always extends at least
+//! `radius` cells beyond every obstacle, so no stamp is ever cut off at the table's border.
+
+use super::tiles::{split, TileLayout, TILE_BITS, TILE_CELLS, TILE_SIZE};
+use crate::cell::{CellIndex, GridFrame};
+use std::sync::Arc;
+
+/// Distance units per cell: a stored value v means v / 16 cells.
+pub const DISTANCE_UNITS_PER_CELL: f64 = 16.0;
+/// Largest truncation radius, cells (16 · 15 = 240 fits a `u8`).
+pub const MAX_DISTANCE_RADIUS: u32 = 15;
+
+const TILE_MASK: i32 = TILE_SIZE as i32 - 1;
+
+/// One tile of truncated distances, row-major like the occupancy tile.
+#[derive(Debug, Clone)]
+pub(crate) struct DistanceTile {
+    dist: [u8; TILE_CELLS],
+}
+
+/// The precomputed stamp: min(16·√(dx² + dy²), 16·radius) for |dx|, |dy| ≤ radius.
+#[derive(Debug)]
+struct Kernel {
+    radius: i32,
+    /// 16·radius: the truncated value (also the value of a missing tile).
+    max: u8,
+    values: Vec<u8>,
+}
+
+impl Kernel {
+    fn new(radius: i32) -> Self {
+        let mut values = Vec::with_capacity(((2 * radius + 1) * (2 * radius + 1)) as usize);
+        for dy in -radius..=radius {
+            for dx in -radius..=radius {
+                let d = ((dx * dx + dy * dy) as f64).sqrt().min(radius as f64);
+                values.push((d * DISTANCE_UNITS_PER_CELL).round() as u8);
+            }
+        }
+        Self {
+            radius,
+            max: (radius as f64 * DISTANCE_UNITS_PER_CELL).round() as u8,
+            values,
+        }
+    }
+
+    #[inline]
+    fn at(&self, dx: i32, dy: i32) -> u8 {
+        let w = 2 * self.radius + 1;
+        self.values[((dy + self.radius) * w + dx + self.radius) as usize]
+    }
+}
+
+/// The distance tiles of one grid, one slot per occupancy tile slot (same layout).
+#[derive(Debug, Clone)]
+pub(crate) struct IncrementalDistance {
+    kernel: Arc<Kernel>,
+    tiles: Vec<Option<Arc<DistanceTile>>>,
+}
+
+impl IncrementalDistance {
+    /// An all-far field of `slots` tiles, truncated at `radius` cells (1..=15).
+    pub(crate) fn new(radius: u32, slots: usize) -> Self {
+        Self {
+            kernel: Arc::new(Kernel::new(radius.clamp(1, MAX_DISTANCE_RADIUS) as i32)),
+            tiles: vec![None; slots],
+        }
+    }
+
+    /// The truncation radius, cells.
+    #[inline]
+    pub(crate) fn radius(&self) -> i32 {
+        self.kernel.radius
+    }
+
+    /// Moves the tiles from the `old` table layout to the `new` one (which contains it).
+    pub(crate) fn relayout(&mut self, old: &TileLayout, new: &TileLayout) {
+        let mut tiles = vec![None; new.len()];
+        for (s, t) in self.tiles.iter_mut().enumerate() {
+            let (tx, ty) = old.tile_of_slot(s);
+            if let Some(ns) = new.slot(tx, ty) {
+                tiles[ns] = t.take();
+            }
+        }
+        self.tiles = tiles;
+    }
+
+    /// A read-only view for matching.
+    pub(crate) fn view(&self, layout: TileLayout, frame: GridFrame) -> DistanceField<'_> {
+        DistanceField {
+            frame,
+            layout,
+            tiles: &self.tiles,
+            radius: self.kernel.radius,
+            max: self.kernel.max,
+        }
+    }
+
+    /// Forgets every value and stamps the given obstacle cells (a full rebuild).
+    pub(crate) fn rebuild(&mut self, layout: &TileLayout, obstacles: &[CellIndex]) {
+        self.tiles.iter_mut().for_each(|t| *t = None);
+        for &c in obstacles {
+            self.stamp(layout, c, None);
+        }
+    }
+
+    /// Restores the invariant after the cells in `flips` changed obstacle status
+    /// (`is_obstacle` gives the status now). `flips` is sorted and deduplicated in place.
+    pub(crate) fn repair(
+        &mut self,
+        layout: &TileLayout,
+        flips: &mut Vec<CellIndex>,
+        is_obstacle: impl Fn(CellIndex) -> bool,
+    ) {
+        flips.sort_unstable();
+        flips.dedup();
+        // Cells that are no longer obstacles: recompute their neighbourhood from scratch
+        // (this also re-stamps every obstacle near them, new ones included).
+        for &c in flips.iter() {
+            if !is_obstacle(c) {
+                self.recompute_window(layout, c, &is_obstacle);
+            }
+        }
+        // Cells that became obstacles: dist ← min(dist, kernel) around them.
+        for &c in flips.iter() {
+            if is_obstacle(c) {
+                self.stamp(layout, c, None);
+            }
+        }
+    }
+
+    /// The tile of `slot`, private to this grid (created all-far, or copied if shared).
+    #[inline]
+    fn tile_mut(&mut self, slot: usize) -> &mut DistanceTile {
+        let max = self.kernel.max;
+        let t = self.tiles[slot].get_or_insert_with(|| {
+            Arc::new(DistanceTile {
+                dist: [max; TILE_CELLS],
+            })
+        });
+        Arc::make_mut(t)
+    }
+
+    #[inline]
+    fn get(&self, layout: &TileLayout, c: CellIndex) -> Option<(usize, usize, u8)> {
+        let ((tx, ty), local) = split(c);
+        let slot = layout.slot(tx, ty)?;
+        let v = match &self.tiles[slot] {
+            Some(t) => t.dist[local],
+            None => self.kernel.max,
+        };
+        Some((slot, local, v))
+    }
+
+    /// dist ← min(dist, kernel) around obstacle cell `c`, optionally only inside the
+    /// inclusive window `clip` = (min, max). Shared tiles are copied only where a value
+    /// actually decreases.
+    fn stamp(&mut self, layout: &TileLayout, c: CellIndex, clip: Option<(CellIndex, CellIndex)>) {
+        let kernel = Arc::clone(&self.kernel);
+        let rad = kernel.radius;
+        let (mut x0, mut y0, mut x1, mut y1) = (c.x - rad, c.y - rad, c.x + rad, c.y + rad);
+        if let Some((lo, hi)) = clip {
+            x0 = x0.max(lo.x);
+            y0 = y0.max(lo.y);
+            x1 = x1.min(hi.x);
+            y1 = y1.min(hi.y);
+        }
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let k = kernel.at(x - c.x, y - c.y);
+                if k >= kernel.max {
+                    continue;
+                }
+                if let Some((slot, local, cur)) = self.get(layout, CellIndex::new(x, y)) {
+                    if k < cur {
+                        self.tile_mut(slot).dist[local] = k;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Recomputes the window of `radius` around `c` exactly from the obstacles within
+    /// 2·`radius` of `c`.
+    fn recompute_window(
+        &mut self,
+        layout: &TileLayout,
+        c: CellIndex,
+        is_obstacle: &impl Fn(CellIndex) -> bool,
+    ) {
+        let rad = self.kernel.radius;
+        let max = self.kernel.max;
+        for y in c.y - rad..=c.y + rad {
+            for x in c.x - rad..=c.x + rad {
+                if let Some((slot, local, cur)) = self.get(layout, CellIndex::new(x, y)) {
+                    if cur != max {
+                        self.tile_mut(slot).dist[local] = max;
+                    }
+                }
+            }
+        }
+        let clip = (
+            CellIndex::new(c.x - rad, c.y - rad),
+            CellIndex::new(c.x + rad, c.y + rad),
+        );
+        for y in c.y - 2 * rad..=c.y + 2 * rad {
+            for x in c.x - 2 * rad..=c.x + 2 * rad {
+                let o = CellIndex::new(x, y);
+                if is_obstacle(o) {
+                    self.stamp(layout, o, Some(clip));
+                }
+            }
+        }
+    }
+}
+
+/// A read-only view of a grid's incrementally repaired truncated distance field (see the
+/// [module documentation](self)), from [`crate::OccupancyGrid::distance_field`].
+///
+/// Values are in 1/[`DISTANCE_UNITS_PER_CELL`] cell, from the cell centre to the nearest
+/// obstacle cell centre, truncated at [`DistanceField::max_units`]; cells outside the
+/// grid's table read as truncated.
+#[derive(Debug, Clone, Copy)]
+pub struct DistanceField<'a> {
+    frame: GridFrame,
+    layout: TileLayout,
+    tiles: &'a [Option<Arc<DistanceTile>>],
+    radius: i32,
+    max: u8,
+}
+
+impl DistanceField<'_> {
+    /// The grid's world ↔ cell frame.
+    #[inline]
+    pub fn frame(&self) -> GridFrame {
+        self.frame
+    }
+
+    /// The truncation radius, cells.
+    #[inline]
+    pub fn radius_cells(&self) -> u32 {
+        self.radius as u32
+    }
+
+    /// The truncated value, 16·radius (distance units).
+    #[inline]
+    pub fn max_units(&self) -> u8 {
+        self.max
+    }
+
+    /// Metres per distance unit (resolution / 16).
+    #[inline]
+    pub fn metres_per_unit(&self) -> f64 {
+        self.frame.resolution / DISTANCE_UNITS_PER_CELL
+    }
+
+    /// Truncated distance of cell `c` to the nearest obstacle, distance units.
+    #[inline]
+    pub fn dist(&self, c: CellIndex) -> u8 {
+        let ((tx, ty), local) = split(c);
+        match self
+            .layout
+            .slot(tx, ty)
+            .and_then(|s| self.tiles[s].as_deref())
+        {
+            Some(t) => t.dist[local],
+            None => self.max,
+        }
+    }
+
+    /// The four distances [d(i, j), d(i+1, j), d(i, j+1), d(i+1, j+1)] around `c` = (i, j),
+    /// the corners of a bilinear interpolation between cell centres; one tile look-up when
+    /// all four lie in one tile.
+    #[inline]
+    pub fn dist4(&self, c: CellIndex) -> [u8; 4] {
+        if (c.x & TILE_MASK) != TILE_MASK && (c.y & TILE_MASK) != TILE_MASK {
+            let (tx, ty) = (c.x >> TILE_BITS, c.y >> TILE_BITS);
+            match self
+                .layout
+                .slot(tx, ty)
+                .and_then(|s| self.tiles[s].as_deref())
+            {
+                Some(t) => {
+                    let ((_, _), i) = split(c);
+                    [
+                        t.dist[i],
+                        t.dist[i + 1],
+                        t.dist[i + TILE_SIZE],
+                        t.dist[i + TILE_SIZE + 1],
+                    ]
+                }
+                None => [self.max; 4],
+            }
+        } else {
+            [
+                self.dist(c),
+                self.dist(CellIndex::new(c.x + 1, c.y)),
+                self.dist(CellIndex::new(c.x, c.y + 1)),
+                self.dist(CellIndex::new(c.x + 1, c.y + 1)),
+            ]
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::grid::sensor_model::InverseSensorModel;
+    use crate::{CellIndex, OccupancyGrid};
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64Mcg;
+    use slam_models::{LaserScan, Point2, Pose2};
+
+    use super::DISTANCE_UNITS_PER_CELL;
+
+    fn grid(radius: u32) -> OccupancyGrid {
+        let model = InverseSensorModel {
+            l_free: -0.4,
+            hit_margin: 0.0,
+            no_return_range: 0.0,
+            ..Default::default()
+        };
+        OccupancyGrid::new(0.05, model)
+            .with_incremental_distance(radius)
+            .unwrap()
+    }
+
+    fn scan(ranges: Vec<f64>) -> LaserScan {
+        let (a, inc) = LaserScan::flaser_geometry(ranges.len());
+        LaserScan {
+            angle_min: a,
+            angle_increment: inc,
+            ranges,
+            max_range: 80.0,
+            sensor_pose: Pose2::IDENTITY,
+        }
+    }
+
+    /// Brute force: the truncated distance from every cell of the window to the nearest
+    /// obstacle cell, against the incrementally repaired field.
+    fn check_field(g: &OccupancyGrid, x0: i32, y0: i32, x1: i32, y1: i32) {
+        let f = g.distance_field().unwrap();
+        let rad = f.radius_cells() as i32;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let mut best = f.max_units();
+                for dy in -rad..=rad {
+                    for dx in -rad..=rad {
+                        if g.is_obstacle(CellIndex::new(x + dx, y + dy)) {
+                            let d = ((dx * dx + dy * dy) as f64).sqrt().min(rad as f64);
+                            best = best.min((d * DISTANCE_UNITS_PER_CELL).round() as u8);
+                        }
+                    }
+                }
+                assert_eq!(f.dist(CellIndex::new(x, y)), best, "cell ({x}, {y})");
+                let d4 = f.dist4(CellIndex::new(x, y));
+                assert_eq!(d4[3], f.dist(CellIndex::new(x + 1, y + 1)));
+            }
+        }
+    }
+
+    #[test]
+    fn incremental_field_equals_brute_force_after_random_scans() {
+        let mut g = grid(4);
+        let mut rng = Pcg64Mcg::seed_from_u64(5);
+        for i in 0..40 {
+            let pose = Pose2::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-3.0..3.0),
+            );
+            // A room-ish scan with random ranges so that cells flip both ways.
+            let ranges = (0..90).map(|_| rng.random_range(0.3..2.5)).collect();
+            g.integrate_scan(&pose, &scan(ranges));
+            if i % 10 == 9 {
+                check_field(&g, -70, -70, 70, 70);
+            }
+        }
+    }
+
+    #[test]
+    fn enabling_on_a_filled_grid_and_changing_the_threshold_rebuild_the_field() {
+        let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default());
+        let mut rng = Pcg64Mcg::seed_from_u64(9);
+        for _ in 0..5 {
+            let ranges = (0..90).map(|_| rng.random_range(0.3..2.0)).collect();
+            g.integrate_scan(&Pose2::new(0.01, 0.02, 0.3), &scan(ranges));
+        }
+        let g = g.with_incremental_distance(3).unwrap();
+        check_field(&g, -50, -50, 50, 50);
+        let params = crate::LikelihoodParams {
+            occupied_threshold: 1.0,
+            ..g.likelihood_params()
+        };
+        let g = g.with_likelihood(params).unwrap();
+        check_field(&g, -50, -50, 50, 50);
+        assert!(OccupancyGrid::new(0.05, InverseSensorModel::default())
+            .with_incremental_distance(0)
+            .is_err());
+        assert!(OccupancyGrid::new(0.05, InverseSensorModel::default())
+            .with_incremental_distance(16)
+            .is_err());
+    }
+
+    #[test]
+    fn clones_share_untouched_distance_tiles() {
+        let mut a = grid(4);
+        a.integrate_scan(&Pose2::new(0.012, 0.013, 0.0), &scan(vec![3.02; 181]));
+        let mut b = a.clone();
+        // A short scan far away changes a few tiles of b only.
+        b.integrate_scan(&Pose2::new(2.5, 0.0, 0.0), &scan(vec![0.2; 181]));
+        let (fa, fb) = (a.distance_field().unwrap(), b.distance_field().unwrap());
+        let shared = fa
+            .tiles
+            .iter()
+            .zip(fb.tiles)
+            .filter(|(x, y)| match (x, y) {
+                (Some(x), Some(y)) => std::sync::Arc::ptr_eq(x, y),
+                _ => false,
+            })
+            .count();
+        let own = fb.tiles.iter().flatten().count() - shared;
+        assert!(
+            shared > 0 && (1..=6).contains(&own),
+            "{shared} shared, {own} own"
+        );
+        // a is unchanged by b's writes: its wall straight ahead is still at distance 0.
+        let wall = a.world_to_cell(&Point2::new(3.032, 0.013));
+        assert!(a.is_obstacle(wall));
+        assert_eq!(fa.dist(wall), 0);
+        check_field(&b, -20, -70, 110, 70);
+    }
+}
