@@ -58,11 +58,21 @@ fn dead_reckoning(records: &[ScanRecord]) -> Vec<TimedPose> {
 /// Runs the filter (seed 42) over `records` on a pool of `threads` threads: its trajectory
 /// and the number of processed scans.
 fn run(records: &[ScanRecord], config: GridFastConfig, threads: usize) -> (Vec<TimedPose>, usize) {
+    run_seeded(records, config, threads, 42)
+}
+
+/// [`run`] with the filter's seed given.
+fn run_seeded(
+    records: &[ScanRecord],
+    config: GridFastConfig,
+    threads: usize,
+    seed: u64,
+) -> (Vec<TimedPose>, usize) {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap();
-    let mut slam = GridFastSlam::new(config, 42).unwrap();
+    let mut slam = GridFastSlam::new(config, seed).unwrap();
     let mut processed = 0;
     pool.install(|| {
         for r in records {
@@ -70,6 +80,12 @@ fn run(records: &[ScanRecord], config: GridFastConfig, threads: usize) -> (Vec<T
         }
     });
     (slam.trajectory(), processed)
+}
+
+/// The median of a few values.
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }
 
 #[test]
@@ -102,18 +118,24 @@ fn office_loop_closes_and_output_is_thread_count_independent() {
     assert!(err < LOOP_CLOSED_RMSE, "gridfast RMSE {err} m");
 }
 
+/// Every proposal beats dead reckoning, judged on the median over five filter seeds (one run
+/// of a particle filter is a lottery: on office seeds 1–4 single runs of the odometry
+/// proposal with 100 particles scored 0.09–0.58 of dead reckoning, of scan-matched odometry
+/// with 10 particles 0.05–0.59, and of the improved proposal with 10 particles 0.01–0.22).
+/// The odometry proposal needs many particles in the office's long corridors; scan-matched
+/// odometry corrects each increment but has no loop closure of its own; the improved
+/// proposal closes the loop.
 #[test]
 fn every_proposal_beats_dead_reckoning_in_the_office() {
-    let (records, truth) = office(5);
+    let (records, truth) = office(3);
     let odo_err = rmse(&dead_reckoning(&records), &truth);
     eprintln!("dead reckoning: RMSE {odo_err:.3} m");
-    // The odometry proposal needs many particles in the office's long corridors (with
-    // 10 it does worse than dead reckoning on 4 of seeds 1–7; with 100 it scores 0.06–0.51
-    // of dead reckoning). Scan-matched odometry corrects each increment but has no loop
-    // closure of its own (0.02–0.34 of dead reckoning on seeds 1–7); the improved
-    // proposal closes the loop.
+    assert!(
+        odo_err > 1.0,
+        "the odometry must be bad for the test to mean anything"
+    );
     for (proposal, particles, bound) in [
-        (Proposal::Odometry, 100, 0.8 * odo_err),
+        (Proposal::Odometry, 100, 0.5 * odo_err),
         (Proposal::ScanMatchedOdometry, 10, 0.5 * odo_err),
         (Proposal::Improved, 10, LOOP_CLOSED_RMSE),
     ] {
@@ -122,10 +144,15 @@ fn every_proposal_beats_dead_reckoning_in_the_office() {
             proposal,
             ..Default::default()
         };
-        let (traj, _) = run(&records, config, 2);
-        let err = rmse(&traj, &truth);
-        eprintln!("{proposal:?} with {particles} particles: RMSE {err:.3} m");
-        assert!(err < bound, "{proposal:?}: RMSE {err} m, bound {bound} m");
+        let errs: Vec<f64> = (1..=5)
+            .map(|seed| rmse(&run_seeded(&records, config.clone(), 2, seed).0, &truth))
+            .collect();
+        eprintln!("{proposal:?} with {particles} particles: RMSE {errs:.3?} m");
+        let med = median(errs);
+        assert!(
+            med < bound,
+            "{proposal:?}: median RMSE {med} m, bound {bound} m"
+        );
     }
 }
 
