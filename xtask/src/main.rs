@@ -113,7 +113,8 @@ fn test_all() -> Result<(), String> {
             .args(["doc", "--workspace", "--no-deps"])
             .env("RUSTDOCFLAGS", "-D warnings"),
     )?;
-    let (passed, failed, ignored) = run_tests(cargo().args(["test", "--workspace", "--release"]))?;
+    let (passed, failed, ignored) =
+        run_tests(cargo().args(["test", "--workspace", "--release", "--no-fail-fast"]))?;
     println!("test-all took {:.0} s", t.elapsed().as_secs_f64());
     println!("test-all: {passed} passed, {failed} failed, {ignored} skipped");
     if failed > 0 {
