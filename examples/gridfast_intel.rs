@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release --example gridfast_intel -- \
-//!     [--particles 30] [--proposal improved|odometry|scan-matched-odometry] [--threads 1] \
+//!     [--particles 30] [--proposal improved|odometry|scan-matched-odometry] [--threads 1 (0: all)] \
 //!     [--seed 1] [--config file.json] [--log PATH] [--relations PATH] [--pgm map.pgm]
 //! ```
 //!
@@ -71,6 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
+    let threads = pool.current_num_threads();
     let (proposal, particles) = (config.proposal, config.particles);
     let mut slam = GridFastSlam::new(config, seed)?;
     let start = Instant::now();

@@ -342,7 +342,53 @@ fn bench(name: Option<&str>) -> Result<(), String> {
     if benches.is_empty() {
         cmd.arg("--benches");
     }
-    run("bench", &mut cmd)
+    run("bench", &mut cmd)?;
+    if matches!(name, None | Some("gridfast")) {
+        gridfast_intel()?;
+    }
+    Ok(())
+}
+
+/// Issue 8's speed figures on the whole Intel benchmark input, one process per run so each
+/// peak RSS is the run's own: `examples/gridfast_intel` with 30 particles on one thread and
+/// on all threads (wall time, CPU time, real-time factor, time per particle per processed
+/// scan, peak RSS). Skipped with a message when the dataset is missing.
+fn gridfast_intel() -> Result<(), String> {
+    let data = std::env::var_os("SLAM_DATASETS")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/datasets"));
+    if !data.join("bench/intel.log").exists() {
+        println!(
+            "xtask: SKIPPED the whole-Intel gridfast run: {} not found",
+            data.join("bench/intel.log").display()
+        );
+        return Ok(());
+    }
+    for threads in ["1", "0"] {
+        let label = if threads == "1" {
+            "1 thread"
+        } else {
+            "all threads"
+        };
+        println!("xtask: gridfast on intel.log, 30 particles, {label}");
+        run(
+            "gridfast_intel",
+            cargo().args([
+                "run",
+                "--release",
+                "-p",
+                "slam",
+                "--example",
+                "gridfast_intel",
+                "--",
+                "--particles",
+                "30",
+                "--threads",
+                threads,
+            ]),
+        )?;
+    }
+    Ok(())
 }
 
 fn eval(extra: &[String]) -> Result<(), String> {
