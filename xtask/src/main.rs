@@ -129,46 +129,32 @@ fn test_all() -> Result<(), String> {
 fn tidy() -> Result<(), String> {
     eprintln!("xtask: == tidy");
     let mut problems = Vec::new();
-    let mut stack = vec![std::path::PathBuf::from("crates")];
-    while let Some(dir) = stack.pop() {
-        let entries = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        for entry in entries.flatten() {
-            let path = entry.path();
-            if path.is_dir() {
-                stack.push(path);
-                continue;
+    for_each_rs_file(std::path::Path::new("crates"), |path, text| {
+        let in_src = path.components().any(|c| c.as_os_str() == "src");
+        let first = text
+            .lines()
+            .map(str::trim)
+            .find(|l| !l.is_empty())
+            .unwrap_or("");
+        if in_src && !first.starts_with("//!") {
+            problems.push(format!(
+                "{}: no module doc comment (`//! ...`) at the top",
+                path.display()
+            ));
+        }
+        for (i, line) in text.lines().enumerate() {
+            if line.contains("dbg!(") {
+                problems.push(format!("{}:{}: dbg! left in", path.display(), i + 1));
             }
-            if path.extension().and_then(|e| e.to_str()) != Some("rs") {
-                continue;
-            }
-            let text =
-                std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            let in_src = path.components().any(|c| c.as_os_str() == "src");
-            let first = text
-                .lines()
-                .map(str::trim)
-                .find(|l| !l.is_empty())
-                .unwrap_or("");
-            if in_src && !first.starts_with("//!") {
+            if line.contains("#[should_panic") {
                 problems.push(format!(
-                    "{}: no module doc comment (`//! ...`) at the top",
-                    path.display()
+                    "{}:{}: #[should_panic]: return an error type instead",
+                    path.display(),
+                    i + 1
                 ));
             }
-            for (i, line) in text.lines().enumerate() {
-                if line.contains("dbg!(") {
-                    problems.push(format!("{}:{}: dbg! left in", path.display(), i + 1));
-                }
-                if line.contains("#[should_panic") {
-                    problems.push(format!(
-                        "{}:{}: #[should_panic]: return an error type instead",
-                        path.display(),
-                        i + 1
-                    ));
-                }
-            }
         }
-    }
+    })?;
     for dir in DETERMINISTIC_DIRS {
         deterministic_math(std::path::Path::new(dir), &mut problems)?;
     }
@@ -199,7 +185,37 @@ const NON_DETERMINISTIC_MATH: &[&str] = &[
 /// test code (the item after a `#[cfg(test)]` is skipped; comments, doc examples included,
 /// are ignored). Such code must use `slam_models::detmath` and `slam_models::sampling`.
 fn deterministic_math(dir: &std::path::Path, problems: &mut Vec<String>) -> Result<(), String> {
-    let mut stack = vec![dir.to_path_buf()];
+    for_each_rs_file(dir, |path, text| {
+        for (line, code) in non_test_code(text) {
+            for f in NON_DETERMINISTIC_MATH {
+                if code.contains(&format!(".{f}("))
+                    || code.contains(&format!("f64::{f}("))
+                    || code.contains(&format!("f32::{f}("))
+                {
+                    problems.push(format!(
+                        "{}:{line}: `{f}` may differ in the last bit between machines; use \
+                     slam_models::detmath (or write a `powi` out as products)",
+                        path.display()
+                    ));
+                }
+            }
+            if code.contains("rand_distr") {
+                problems.push(format!(
+                    "{}:{line}: rand_distr (its samplers call the platform's exp/ln); use \
+                 slam_models::sampling",
+                    path.display()
+                ));
+            }
+        }
+    })
+}
+
+/// Calls `f(path, text)` for every `.rs` file below `root`.
+fn for_each_rs_file(
+    root: &std::path::Path,
+    mut f: impl FnMut(&std::path::Path, &str),
+) -> Result<(), String> {
+    let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         let entries = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         for entry in entries.flatten() {
@@ -213,27 +229,7 @@ fn deterministic_math(dir: &std::path::Path, problems: &mut Vec<String>) -> Resu
             }
             let text =
                 std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            for (line, code) in non_test_code(&text) {
-                for f in NON_DETERMINISTIC_MATH {
-                    if code.contains(&format!(".{f}("))
-                        || code.contains(&format!("f64::{f}("))
-                        || code.contains(&format!("f32::{f}("))
-                    {
-                        problems.push(format!(
-                            "{}:{line}: `{f}` may differ in the last bit between machines; use \
-                             slam_models::detmath (or write a `powi` out as products)",
-                            path.display()
-                        ));
-                    }
-                }
-                if code.contains("rand_distr") {
-                    problems.push(format!(
-                        "{}:{line}: rand_distr (its samplers call the platform's exp/ln); use \
-                         slam_models::sampling",
-                        path.display()
-                    ));
-                }
-            }
+            f(&path, &text);
         }
     }
     Ok(())
