@@ -35,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let data = std::env::var_os("SLAM_DATASETS")
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets")
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/datasets")
         });
     let mut log = data.join("bench/intel.log");
     let mut relations = data.join("slam-benchmark-relations/intel.relations");
