@@ -34,9 +34,7 @@ fn cpu_seconds() -> Option<f64> {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let data = std::env::var_os("SLAM_DATASETS")
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/datasets")
-        });
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/datasets"));
     let mut log = data.join("bench/intel.log");
     let mut relations = data.join("slam-benchmark-relations/intel.relations");
     let mut config = GridFastConfig::default();
