@@ -66,10 +66,21 @@ pub struct OccupancyGrid {
     params: LikelihoodParams,
     layout: TileLayout,
     tiles: Vec<Option<Arc<Tile>>>,
-    fields: Vec<OnceLock<Arc<FieldTile>>>,
+    /// The lazy likelihood field's cache, one cell per tile slot; the table itself is
+    /// allocated on the first field read, so grids that never read the lazy field (grid
+    /// FastSLAM's, which use the incremental one) have one table less to clone.
+    fields: OnceLock<FieldCache>,
     far_field: Arc<FieldTile>,
     distance: Option<IncrementalDistance>,
     stats: CopyStats,
+}
+
+/// Lazily computed field tiles, one cell per tile slot.
+type FieldCache = Vec<OnceLock<Arc<FieldTile>>>;
+
+/// A field cache of `n` empty cells.
+fn empty_field_cache(n: usize) -> FieldCache {
+    (0..n).map(|_| OnceLock::new()).collect()
 }
 
 impl std::fmt::Debug for OccupancyGrid {
@@ -102,7 +113,7 @@ impl OccupancyGrid {
             params,
             layout: TileLayout::default(),
             tiles: Vec::new(),
-            fields: Vec::new(),
+            fields: OnceLock::new(),
             far_field: Arc::new(FieldTile::far(&params)),
             distance: None,
             stats: CopyStats::default(),
@@ -121,7 +132,7 @@ impl OccupancyGrid {
         params.validate()?;
         self.params = params;
         self.far_field = Arc::new(FieldTile::far(&params));
-        self.fields = (0..self.layout.len()).map(|_| OnceLock::new()).collect();
+        self.fields = OnceLock::new();
         // The obstacle threshold may have changed: rebuild the incremental field.
         if let Some(d) = self.distance.take() {
             return self.with_incremental_distance(d.radius() as u32);
@@ -331,13 +342,15 @@ impl OccupancyGrid {
             th: y1 - y0 + 1,
         };
         let mut tiles: Vec<Option<Arc<Tile>>> = vec![None; new.len()];
-        let mut fields: Vec<OnceLock<Arc<FieldTile>>> =
-            (0..new.len()).map(|_| OnceLock::new()).collect();
+        let mut old_fields = self.fields.take();
+        let mut fields = old_fields.as_ref().map(|_| empty_field_cache(new.len()));
         for s in 0..old.len() {
             let (tx, ty) = old.tile_of_slot(s);
             if let Some(ns) = new.slot(tx, ty) {
                 tiles[ns] = self.tiles[s].take();
-                fields[ns] = std::mem::take(&mut self.fields[s]);
+                if let (Some(new_f), Some(old_f)) = (&mut fields, &mut old_fields) {
+                    new_f[ns] = std::mem::take(&mut old_f[s]);
+                }
             }
         }
         // Fields next to the old border saw only empty space beyond it, which is still
@@ -347,7 +360,7 @@ impl OccupancyGrid {
         }
         self.layout = new;
         self.tiles = tiles;
-        self.fields = fields;
+        self.fields = fields.map(OnceLock::from).unwrap_or_default();
     }
 
     /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
@@ -665,6 +678,9 @@ impl OccupancyGrid {
     /// Drops the cached fields of the given slots and their 8 neighbours (the obstacle
     /// margin never exceeds one tile).
     fn invalidate_fields(&mut self, mut changed: Vec<usize>) {
+        let Some(fields) = self.fields.get_mut() else {
+            return; // no field read yet: nothing cached
+        };
         changed.sort_unstable();
         changed.dedup();
         for s in changed {
@@ -672,7 +688,7 @@ impl OccupancyGrid {
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     if let Some(n) = self.layout.slot(tx + dx, ty + dy) {
-                        self.fields[n] = OnceLock::new();
+                        fields[n] = OnceLock::new();
                     }
                 }
             }
@@ -728,7 +744,10 @@ impl OccupancyGrid {
     /// The cached field tile of a slot, computed on first use.
     #[inline]
     fn field_tile(&self, slot: usize) -> &FieldTile {
-        self.fields[slot].get_or_init(|| {
+        let fields = self
+            .fields
+            .get_or_init(|| empty_field_cache(self.layout.len()));
+        fields[slot].get_or_init(|| {
             let (tx, ty) = self.layout.tile_of_slot(slot);
             let t = TILE_SIZE as i32;
             let margin = crate::likelihood::margin_cells_clamped(&self.params, self.resolution());
