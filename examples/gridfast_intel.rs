@@ -3,7 +3,7 @@
 //! ```text
 //! cargo run --release --example gridfast_intel -- \
 //!     [--particles 30] [--proposal improved|odometry|scan-matched-odometry] [--threads 1 (0: all)] \
-//!     [--seed 1] [--config file.json] [--log PATH] [--relations PATH] [--pgm map.pgm]
+//!     [--seed 1] [--config file.json] [--log PATH] [--relations PATH] [--map DIR]
 //! ```
 //!
 //! Defaults read `../shared/datasets/bench/intel.log` and
@@ -38,7 +38,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut log = data.join("bench/intel.log");
     let mut relations = data.join("slam-benchmark-relations/intel.relations");
     let mut config = GridFastConfig::default();
-    let (mut threads, mut seed, mut png) = (1usize, 1u64, None::<PathBuf>);
+    let (mut threads, mut seed, mut map_dir) = (1usize, 1u64, None::<PathBuf>);
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut val = || args.next().ok_or_else(|| format!("{a} needs a value"));
@@ -51,7 +51,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--seed" => seed = val()?.parse()?,
             "--log" => log = val()?.into(),
             "--relations" => relations = val()?.into(),
-            "--pgm" => png = Some(val()?.into()),
+            "--map" => map_dir = Some(val()?.into()),
             "--config" => {
                 let text = std::fs::read_to_string(val()?)?;
                 let particles = config.particles;
@@ -107,24 +107,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         1e3 * wall / (processed.max(1) * particles) as f64,
         peak_rss_mb().unwrap_or(f64::NAN)
     );
-    if let Some(p) = png {
-        write_pgm(&slam.render_map(0.05), &p)?;
+    if let Some(dir) = map_dir {
+        // The best particle's map rendered at 5 cm, as a ROS map_server PGM + YAML.
+        std::fs::create_dir_all(&dir)?;
+        slam_io::ros_map::write_ros_map(&dir, "map", &slam.render_map(0.05))?;
     }
     Ok(())
-}
-
-/// Writes a GridMap as a binary PGM (unknown grey, free white, occupied black), top row first.
-fn write_pgm(m: &slam_models::GridMap, path: &std::path::Path) -> std::io::Result<()> {
-    let mut out = format!("P5\n{} {}\n255\n", m.width, m.height).into_bytes();
-    for iy in (0..m.height).rev() {
-        for ix in 0..m.width {
-            let v = m.cells[iy * m.width + ix];
-            out.push(if v < 0 {
-                205
-            } else {
-                (255.0 * (1.0 - v as f64 / 100.0)) as u8
-            });
-        }
-    }
-    std::fs::write(path, out)
 }

@@ -41,6 +41,19 @@ pub fn align_se2(a: &[Point2], b: &[Point2]) -> Pose2 {
     Pose2::new(t.x, t.y, theta)
 }
 
+/// Position errors of paired points (estimate aᵢ, truth bᵢ), as is (‖aᵢ − bᵢ‖) and after
+/// [`align_se2`] of a onto b (‖T·aᵢ − bᵢ‖), with that alignment T: the two figures every
+/// map and trajectory metric reports.
+pub(crate) fn errors_as_is_and_aligned(a: &[Point2], b: &[Point2]) -> (Vec<f64>, Vec<f64>, Pose2) {
+    let t = align_se2(a, b);
+    let (as_is, aligned) = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| ((p - q).norm(), (t.transform_point(p) - q).norm()))
+        .unzip();
+    (as_is, aligned, t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

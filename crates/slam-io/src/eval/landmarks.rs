@@ -1,6 +1,6 @@
 //! Landmark map error: estimated against true landmark positions.
 
-use super::{align_se2, rms};
+use super::{errors_as_is_and_aligned, rms};
 use serde::Serialize;
 use slam_models::{LandmarkEstimate, LandmarkId, Point2};
 
@@ -55,7 +55,7 @@ pub fn landmark_error(
 
 /// Pairs estimates with true landmarks (see [`LandmarkMatching`]; by id, a duplicated
 /// estimated id counts the later ones as spurious), then computes the RMSE of the position
-/// errors as is and after [`align_se2`] of the matched estimates onto the truth.
+/// errors as is and after [`align_se2`](super::align_se2) of the matched estimates onto the truth.
 /// Non-finite estimates are counted as spurious.
 pub fn landmark_error_with(
     est: &[LandmarkEstimate],
@@ -103,13 +103,7 @@ pub fn landmark_error_with(
     }
     let a: Vec<Point2> = pairs.iter().map(|p| p.0).collect();
     let b: Vec<Point2> = pairs.iter().map(|p| p.1).collect();
-    let err: Vec<f64> = a.iter().zip(&b).map(|(p, q)| (p - q).norm()).collect();
-    let t = align_se2(&a, &b);
-    let err_al: Vec<f64> = a
-        .iter()
-        .zip(&b)
-        .map(|(p, q)| (t.transform_point(p) - q).norm())
-        .collect();
+    let (err, err_al, _) = errors_as_is_and_aligned(&a, &b);
     LandmarkErrorResult {
         rmse: rms(&err),
         rmse_aligned: rms(&err_al),

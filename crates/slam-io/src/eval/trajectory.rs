@@ -1,7 +1,7 @@
 //! Absolute trajectory error (ATE) and relative pose error (RPE) (Sturm et al., IROS 2012,
 //! the TUM RGB-D benchmark definitions, restricted to SE(2)).
 
-use super::{align_se2, lookup, mean_std, rms, sorted_by_time, DEFAULT_MAX_DT};
+use super::{errors_as_is_and_aligned, lookup, mean_std, rms, sorted_by_time, DEFAULT_MAX_DT};
 use crate::error::IoError;
 use serde::Serialize;
 use slam_models::{Point2, Pose2, TimedPose};
@@ -64,7 +64,7 @@ pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
 
 /// ATE: for every ground-truth pose, the estimate at its time (within `max_dt`), then
 /// RMSE = √(1/n Σ‖p_est,i − p_gt,i‖²) as is and after aligning the estimate's positions
-/// onto the ground truth's with [`align_se2`] (Umeyama without scale). Errors when no
+/// onto the ground truth's with [`align_se2`](super::align_se2) (Umeyama without scale). Errors when no
 /// ground-truth pose finds an estimate, or values are not finite.
 ///
 /// # Example
@@ -91,13 +91,7 @@ pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteR
     }
     let a: Vec<Point2> = pairs.iter().map(|(e, _)| e.translation()).collect();
     let b: Vec<Point2> = pairs.iter().map(|(_, g)| g.translation()).collect();
-    let err: Vec<f64> = a.iter().zip(&b).map(|(p, q)| (p - q).norm()).collect();
-    let t = align_se2(&a, &b);
-    let err_al: Vec<f64> = a
-        .iter()
-        .zip(&b)
-        .map(|(p, q)| (t.transform_point(p) - q).norm())
-        .collect();
+    let (err, err_al, t) = errors_as_is_and_aligned(&a, &b);
     Ok(AteResult {
         rmse: rms(&err),
         rmse_aligned: rms(&err_al),
