@@ -132,14 +132,16 @@ fn mrclam_robot1_ate_beats_dead_reckoning() {
     assert!(e.rmse < 0.4, "landmark RMSE {}", e.rmse);
 }
 
-/// Pose NEES averaged over 50 Monte Carlo runs of `loop` (known ids, the simulator's own
-/// noise models): inside the two-sided 95 % band of χ²(150)/50 over the first lap.
-#[test]
-fn loop_nees_is_consistent_over_the_first_lap() {
-    let runs = 50;
+/// The loop path is ≈ 60.6 m, driven at 0.2 m per step: its first lap in steps.
+const FIRST_LAP_STEPS: usize = (60.6 / 0.2) as usize;
+
+/// Pose NEES at every step averaged over `runs` Monte Carlo runs of `loop` (seeds
+/// `first_seed..first_seed + runs`, options `opts`), the EKF using the simulator's own noise
+/// models.
+fn loop_mean_nees(runs: u64, first_seed: u64, opts: &ScenarioOptions) -> Vec<f64> {
     let mut sum: Vec<f64> = Vec::new();
-    for seed in 0..runs {
-        let r = loop_run(seed, ScenarioOptions::default());
+    for seed in first_seed..first_seed + runs {
+        let r = loop_run(seed, opts.clone());
         let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose).unwrap();
         for (k, s) in r.dataset.steps.iter().enumerate() {
             ekf.predict(&s.control).unwrap();
@@ -151,14 +153,18 @@ fn loop_nees_is_consistent_over_the_first_lap() {
             sum[k] += e / runs as f64;
         }
     }
+    sum
+}
+
+/// Asserts that the averaged NEES of the first lap is consistent: its mean inside the
+/// two-sided 95 % band of χ²(3·runs)/runs, and at least 90 % of the steps inside it.
+fn assert_first_lap_consistent(label: &str, sum: &[f64], runs: u64) {
     let (lo, hi) = chi2_band(3, runs as usize, 0.95);
-    // The loop path is ≈ 60.6 m, driven at 0.2 m per step.
-    let lap = (60.6f64 / 0.2) as usize;
-    let first = &sum[..lap.min(sum.len())];
+    let first = &sum[..FIRST_LAP_STEPS.min(sum.len())];
     let inside = first.iter().filter(|&&e| e >= lo && e <= hi).count();
     let mean = first.iter().sum::<f64>() / first.len() as f64;
     println!(
-        "loop NEES over {runs} runs: band [{lo:.3}, {hi:.3}], first lap {inside}/{} steps inside, \
+        "{label} NEES over {runs} runs: band [{lo:.3}, {hi:.3}], first lap {inside}/{} steps inside, \
          mean {mean:.3}, max {:.3}; whole run mean {:.3}",
         first.len(),
         first.iter().cloned().fold(0.0, f64::max),
@@ -170,6 +176,14 @@ fn loop_nees_is_consistent_over_the_first_lap() {
         "{inside} of {}",
         first.len()
     );
+}
+
+/// Pose NEES averaged over 50 Monte Carlo runs of `loop` (known ids, the simulator's own
+/// noise models): inside the two-sided 95 % band of χ²(150)/50 over the first lap.
+#[test]
+fn loop_nees_is_consistent_over_the_first_lap() {
+    let sum = loop_mean_nees(50, 0, &ScenarioOptions::default());
+    assert_first_lap_consistent("loop", &sum, 50);
 }
 
 /// Σ stays exactly symmetric and positive definite over a long run (5 laps of `loop`).
@@ -293,44 +307,17 @@ fn clutter_with_jcbb_finds_landmarks_without_false_merges() {
 /// The same NEES check with velocity controls (the velocity motion model, PR table 5.3).
 #[test]
 fn loop_nees_with_velocity_controls() {
-    let runs = 50;
-    let mut sum: Vec<f64> = Vec::new();
-    for seed in 0..runs {
-        let opts = ScenarioOptions {
-            velocity: true,
-            ..ScenarioOptions::default()
-        };
-        let r = loop_run(1000 + seed, opts);
-        assert!(matches!(
-            r.dataset.steps[0].control,
-            slam_models::Control::Velocity(_)
-        ));
-        let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose).unwrap();
-        for (k, s) in r.dataset.steps.iter().enumerate() {
-            ekf.predict(&s.control).unwrap();
-            ekf.update(&s.observations).unwrap();
-            let e = nees_pose(&ekf.pose(), &ekf.pose_covariance(), &r.true_poses[k]);
-            if sum.len() <= k {
-                sum.push(0.0);
-            }
-            sum[k] += e / runs as f64;
-        }
-    }
-    let (lo, hi) = chi2_band(3, runs as usize, 0.95);
-    let lap = ((60.6f64 / 0.2) as usize).min(sum.len());
-    let first = &sum[..lap];
-    let inside = first.iter().filter(|&&e| e >= lo && e <= hi).count();
-    let mean = first.iter().sum::<f64>() / first.len() as f64;
-    println!(
-        "loop (velocity controls) NEES over {runs} runs: first lap {inside}/{} inside [{lo:.3}, {hi:.3}], mean {mean:.3}",
-        first.len()
-    );
-    assert!(mean > lo && mean < hi);
-    assert!(
-        inside as f64 >= 0.9 * first.len() as f64,
-        "{inside} of {}",
-        first.len()
-    );
+    let opts = ScenarioOptions {
+        velocity: true,
+        ..ScenarioOptions::default()
+    };
+    let r = loop_run(1000, opts.clone());
+    assert!(matches!(
+        r.dataset.steps[0].control,
+        slam_models::Control::Velocity(_)
+    ));
+    let sum = loop_mean_nees(50, 1000, &opts);
+    assert_first_lap_consistent("loop (velocity controls)", &sum, 50);
 }
 
 /// Ids ignored by the filter (no clutter), maximum-likelihood nearest neighbour: every observation that
