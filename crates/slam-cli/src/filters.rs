@@ -142,14 +142,27 @@ fn unavailable(info: &FilterInfo) -> CliError {
     }
 }
 
-fn check_particles(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
+/// The checks every filter build starts with: `--particles` only for particle filters, and
+/// the filter must be available in this build.
+fn check_buildable(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
     if setup.particles.is_some() && !info.particle_filter {
         return Err(CliError::InvalidArgument(format!(
             "--particles applies to particle filters (fastslam1, fastslam2, gridfast); `{}` has none",
             info.name
         )));
     }
+    if info.unavailable.is_some() {
+        return Err(unavailable(info));
+    }
     Ok(())
+}
+
+/// A filter's constructor rejected its configuration.
+fn config_error(info: &FilterInfo, e: &dyn std::fmt::Display) -> CliError {
+    CliError::FilterConfig {
+        filter: info.name.to_string(),
+        message: e.to_string(),
+    }
 }
 
 /// On simulated data, a filter uses the simulator's own noise models (its "true" model),
@@ -177,14 +190,8 @@ pub(crate) fn build_landmark(
     info: &FilterInfo,
     setup: &Setup<'_>,
 ) -> Result<Built<dyn LandmarkSlam>, CliError> {
-    check_particles(info, setup)?;
-    if info.unavailable.is_some() {
-        return Err(unavailable(info));
-    }
-    let invalid = |e: &dyn std::fmt::Display| CliError::FilterConfig {
-        filter: info.name.to_string(),
-        message: e.to_string(),
-    };
+    check_buildable(info, setup)?;
+    let invalid = |e: &dyn std::fmt::Display| config_error(info, e);
     match info.name {
         "ekf" => {
             use slam_ekf::{EkfConfig, EkfSlam};
@@ -235,14 +242,8 @@ pub(crate) fn build_scan(
     info: &FilterInfo,
     setup: &Setup<'_>,
 ) -> Result<Built<dyn ScanSlam>, CliError> {
-    check_particles(info, setup)?;
-    if info.unavailable.is_some() {
-        return Err(unavailable(info));
-    }
-    let invalid = |e: &dyn std::fmt::Display| CliError::FilterConfig {
-        filter: info.name.to_string(),
-        message: e.to_string(),
-    };
+    check_buildable(info, setup)?;
+    let invalid = |e: &dyn std::fmt::Display| config_error(info, e);
     match info.name {
         "scanmatch" => {
             use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
