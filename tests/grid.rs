@@ -164,19 +164,6 @@ fn perturbed(site: &str, seed: u64) -> Option<(slam::models::ScanDataset, Vec<Ti
     Some((data, gt))
 }
 
-/// ATE and RPE after anchoring an estimate (which starts at the identity) at the first
-/// ground-truth pose.
-fn anchored(est: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
-    let first = gt[0].pose;
-    let e0 = est[0].pose;
-    est.iter()
-        .map(|p| TimedPose {
-            t: p.t,
-            pose: first.compose(&e0.between(&p.pose)),
-        })
-        .collect()
-}
-
 #[test]
 fn scanmatch_beats_odometry_on_perturbed_intel() {
     let Some((data, gt)) = perturbed("intel", 7) else {
@@ -197,12 +184,18 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
             .map(|(p, _)| *p)
             .collect()
     };
-    let est = anchored(&at_scans(&all), &gt);
-    let odo = anchored(&at_scans(&slam::io::odometry_trajectory(&data)), &gt);
-    let ate_sm = slam::io::eval::ate(&est, &gt).expect("ate");
-    let rpe_sm = slam::io::eval::rpe(&est, &gt).expect("rpe");
-    let ate_od = slam::io::eval::ate(&odo, &gt).expect("ate");
-    let rpe_od = slam::io::eval::rpe(&odo, &gt).expect("rpe");
+    // Both start in their own frame: the ground truth is anchored on each one's first pose.
+    use slam::io::eval::{anchor_at_first_match, ate, rpe};
+    let est = at_scans(&all);
+    let odo = at_scans(&slam::io::odometry_trajectory(&data));
+    let (gt_sm, gt_od) = (
+        anchor_at_first_match(&est, &gt),
+        anchor_at_first_match(&odo, &gt),
+    );
+    let ate_sm = ate(&est, &gt_sm).expect("ate");
+    let rpe_sm = rpe(&est, &gt_sm).expect("rpe");
+    let ate_od = ate(&odo, &gt_od).expect("ate");
+    let rpe_od = rpe(&odo, &gt_od).expect("rpe");
     println!(
         "intel (perturbed, seed 7), {} records, {} match failures:\n  scanmatch: ATE {:.3} m \
          (aligned {:.3} m), RPE {:.4} m / {:.3}°\n  odometry:  ATE {:.3} m (aligned {:.3} m), \
