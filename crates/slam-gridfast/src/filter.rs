@@ -11,6 +11,7 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use slam_grid::{InverseSensorModel, OccupancyGrid};
+use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
 use slam_models::{
@@ -94,8 +95,9 @@ pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFast
 /// draws every particle's pose from the configured [`Proposal`], updates the weights,
 /// resamples when N_eff < `resample_threshold`·M, and integrates the scan into every
 /// surviving particle's map. Between updates a pose is the last corrected pose ⊕ the
-/// odometry increment since (a record with the same time stamp as the next processed
-/// scan takes that scan's corrected pose).
+/// odometry increment since; a record with both the time stamp and the odometry of the
+/// next processed scan is that scan's instant and takes its corrected pose (GMapping's
+/// convention, [`slam_models::keyframes`]).
 ///
 /// The world frame is the odometry frame of the first record. Particles run in parallel
 /// (rayon); each particle draws from its own random stream derived from `(seed, processed
@@ -252,26 +254,19 @@ impl GridFastSlam {
         }
     }
 
-    /// The pose of record `i`: the corrected pose of the processed scan it refers to ⊕ the
-    /// odometry between the two. A record refers to the last processed scan at or before
-    /// it, except that a record sharing its time stamp with the next processed scan (CARMEN
-    /// logs write an ODOM line and the FLASER line at the same instant) takes that scan's
-    /// corrected pose: both describe the robot at the same moment.
+    /// The pose of record `i` by [`slam_models::keyframes::pose_at_record`]: the last
+    /// corrected pose ⊕ the odometry since, except at a processed scan's own instant.
     fn pose_at_record(&self, i: usize, path: &[Pose2]) -> Pose2 {
-        let next = match self.last_scan_of_record[i] {
-            u32::MAX => 0,
-            k => k as usize + 1,
+        let keyframe = |k: usize| Keyframe {
+            record: self.scan_records[k],
+            pose: path[k],
         };
-        let k = if next < path.len() && self.times[self.scan_records[next]] == self.times[i] {
-            next
-        } else {
-            match self.last_scan_of_record[i] {
-                u32::MAX => return self.odometry[i],
-                k => k as usize,
-            }
+        let (previous, next) = match self.last_scan_of_record[i] {
+            u32::MAX => (None, 0),
+            k => (Some(keyframe(k as usize)), k as usize + 1),
         };
-        let r = self.scan_records[k];
-        path[k].compose(&self.odometry[r].between(&self.odometry[i]))
+        let next = (next < path.len()).then(|| keyframe(next));
+        keyframes::pose_at_record(&self.times, &self.odometry, i, previous, next)
     }
 
     fn check_record(&self, record: &ScanRecord) -> Result<(), GridFastError> {
@@ -680,6 +675,9 @@ mod tests {
             rec(0.0, Pose2::new(0.0, 0.0, 0.0), true),
             rec(1.0, Pose2::new(0.3, 0.0, 0.0), false),
             rec(1.5, Pose2::new(0.4, 0.0, 0.0), true), // 0.4 m: not processed
+            // An earlier reading printed with the scan's time stamp, then the scan's own
+            // ODOM line (same time, same odometry), then the scan.
+            rec(2.0, Pose2::new(0.55, 0.08, 0.05), false),
             rec(2.0, Pose2::new(0.6, 0.1, 0.1), false),
             rec(2.0, Pose2::new(0.6, 0.1, 0.1), true), // processed
             rec(3.0, Pose2::new(0.8, 0.1, 0.1), false),
@@ -688,28 +686,35 @@ mod tests {
             .iter()
             .map(|r| f.process(r).unwrap().processed_scan)
             .collect();
-        assert_eq!(processed, [false, true, false, false, false, true, false]);
+        assert_eq!(
+            processed,
+            [false, true, false, false, false, false, true, false]
+        );
         let traj = f.trajectory();
         assert_eq!(traj.len(), path.len());
-        // Before the second update: the odometry itself (world = odometry frame).
-        for i in 0..4 {
+        // Before the second update: the odometry itself (world = odometry frame), the
+        // earlier reading with the scan's time stamp included.
+        for i in 0..5 {
             assert!(traj[i].pose.approx_eq(&path[i].odometry, 1e-12));
         }
         // The ODOM line at the scan's instant takes the scan's corrected pose.
-        assert_eq!(traj[4].pose, traj[5].pose);
+        assert_eq!(traj[5].pose, traj[6].pose);
         let corrected = f.corrected_poses();
         assert_eq!(corrected.len(), 2);
-        assert_eq!(corrected[1].pose, traj[5].pose);
+        assert_eq!(corrected[1].pose, traj[6].pose);
+        // The scan was matched, so its corrected pose is not the odometry: the earlier
+        // reading really did keep the previous correction.
+        assert!(!traj[6].pose.approx_eq(&path[6].odometry, 1e-9));
         // Afterwards: corrected pose ⊕ odometry since.
-        let expect = traj[5]
+        let expect = traj[6]
             .pose
-            .compose(&path[5].odometry.between(&path[6].odometry));
-        assert!(traj[6].pose.approx_eq(&expect, 1e-12));
+            .compose(&path[6].odometry.between(&path[7].odometry));
+        assert!(traj[7].pose.approx_eq(&expect, 1e-12));
         assert!(f.pose().approx_eq(&expect, 1e-12));
         let w: f64 = f.particles().unwrap().iter().map(|p| p.weight).sum();
         assert!((w - 1.0).abs() < 1e-9);
         // The room is square: the matched pose stays within a few cm of the truth.
-        assert!(corrected[1].pose.distance(&path[5].odometry) < 0.05);
+        assert!(corrected[1].pose.distance(&path[6].odometry) < 0.05);
     }
 
     #[test]

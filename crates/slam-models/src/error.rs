@@ -56,6 +56,14 @@ pub enum ModelError {
         /// What was expected, in words.
         expected: &'static str,
     },
+    /// Inputs that belong together do not fit each other (lengths, order, indices).
+    #[error("{what}: {reason}")]
+    Mismatch {
+        /// Which input.
+        what: &'static str,
+        /// What does not fit, with the offending values.
+        reason: String,
+    },
 }
 
 /// Returns `Err(ModelError::NonFinite)` unless `value` is finite.

@@ -17,6 +17,8 @@
 //! * [`detmath`] and [`sampling`]: transcendental functions and normal/exponential samplers
 //!   that give the same bits on every machine (pure-Rust `libm`, no platform math library);
 //!   everything in this crate uses them, so the simulator built on it is reproducible.
+//! * [`keyframes`]: a keyframe filter's pose at every record of a log (last corrected
+//!   pose ⊕ odometry since, GMapping's convention).
 //! * [`filter`]: the traits [`LandmarkSlam`] and [`ScanSlam`] that downstream code swaps
 //!   filters behind.
 //!
@@ -37,6 +39,7 @@ pub mod error;
 pub mod filter;
 pub mod gaussian;
 pub mod grid_map;
+pub mod keyframes;
 pub mod measurement;
 pub mod motion;
 pub mod particle;
