@@ -1,8 +1,9 @@
 //! Poses at every record of a log from the corrected poses of its keyframes.
 //!
-//! A keyframe-based scan SLAM filter (GMapping and [slam-gridfast]) corrects the robot's
-//! pose only at the scans it processes. Its estimate at any other record is the last
-//! corrected pose composed with the odometry since, x(i) = x(k) ⊕ (o(k) ⊖ o(i)), the
+//! A keyframe-based scan SLAM filter (GMapping, slam-rs's `slam-gridfast`) corrects the
+//! robot's pose only at the scans it processes. Its estimate at any other record i is the
+//! last corrected pose composed with the odometry since, x(i) = x(k) ⊕ (o(k)⁻¹ ⊕ o(i)) with
+//! k the last keyframe at or before i and o the odometry readings (`Pose2::between`), the
 //! `map → odom → base_link` chain of a ROS node; before the first keyframe it is the
 //! odometry itself (the world frame is the odometry frame). A record that carries both
 //! the time stamp and the odometry of the *next* keyframe is that keyframe's own instant
@@ -14,8 +15,6 @@
 //! digits put several readings on one time stamp. This is GMapping's own convention; it
 //! reproduces its trajectory file of the Intel benchmark input at every record (tested in
 //! the workspace's `tests/gridfast.rs`).
-//!
-//! [slam-gridfast]: https://docs.rs/slam-gridfast
 
 use crate::error::ModelError;
 use crate::pose::Pose2;
