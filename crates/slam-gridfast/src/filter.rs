@@ -267,6 +267,7 @@ impl GridFastSlam {
         };
         let next = (next < path.len()).then(|| keyframe(next));
         keyframes::pose_at_record(&self.times, &self.odometry, i, previous, next)
+            .expect("record and scan indices are the filter's own and always in range")
     }
 
     fn check_record(&self, record: &ScanRecord) -> Result<(), GridFastError> {

@@ -32,25 +32,26 @@ pub struct Keyframe {
 /// The pose of record `i` given the keyframes around it: `previous`, the last keyframe at
 /// or before `i`, and `next`, the first one after `i` (see the module doc for the rule).
 ///
-/// `times` and `odometry` hold one entry per record of the log; the indices in `i`,
-/// `previous` and `next` must lie inside them (checked by [`poses_at_records`], which is
-/// the entry point for whole logs; this function panics on an index outside the slices).
+/// `times` and `odometry` hold one entry per record of the log. Returns `None` when `i`
+/// or a keyframe's record index lies outside them ([`poses_at_records`], the entry point
+/// for whole logs, checks its inputs and says what is wrong).
 pub fn pose_at_record(
     times: &[f64],
     odometry: &[Pose2],
     i: usize,
     previous: Option<Keyframe>,
     next: Option<Keyframe>,
-) -> Pose2 {
+) -> Option<Pose2> {
+    let (t, o) = (*times.get(i)?, *odometry.get(i)?);
     if let Some(n) = next {
-        if times[n.record] == times[i] && odometry[n.record] == odometry[i] {
-            return n.pose;
+        if *times.get(n.record)? == t && *odometry.get(n.record)? == o {
+            return Some(n.pose);
         }
     }
-    match previous {
-        Some(k) => k.pose.compose(&odometry[k.record].between(&odometry[i])),
-        None => odometry[i],
-    }
+    Some(match previous {
+        Some(k) => k.pose.compose(&odometry.get(k.record)?.between(&o)),
+        None => o,
+    })
 }
 
 /// The pose at every record of a log (see the module doc for the rule), in one pass.
@@ -94,7 +95,14 @@ pub fn poses_at_records(
         }
         let previous = j.checked_sub(1).map(|p| keyframes[p]);
         let next = keyframes.get(j).copied();
-        out.push(pose_at_record(times, odometry, i, previous, next));
+        // Every index was checked above, so this is always `Some`.
+        let pose = pose_at_record(times, odometry, i, previous, next).ok_or_else(|| {
+            ModelError::Mismatch {
+                what: "keyframes",
+                reason: format!("record {i} or its keyframes lie outside the log"),
+            }
+        })?;
+        out.push(pose);
     }
     Ok(out)
 }
@@ -158,5 +166,13 @@ mod tests {
         assert!(poses_at_records(&t, &o, &[k(1), k(1)]).is_err());
         assert!(poses_at_records(&t, &o, &[k(1), k(0)]).is_err());
         assert_eq!(poses_at_records(&t, &o, &[k(0), k(1)]).unwrap().len(), 2);
+        // The single-record form answers None instead of indexing out of bounds.
+        assert_eq!(pose_at_record(&t, &o, 2, None, None), None);
+        assert_eq!(pose_at_record(&t, &o, 0, Some(k(5)), None), None);
+        assert_eq!(pose_at_record(&t, &o, 0, None, Some(k(5))), None);
+        assert_eq!(
+            pose_at_record(&t, &o, 1, Some(k(0)), None),
+            Some(Pose2::IDENTITY)
+        );
     }
 }
