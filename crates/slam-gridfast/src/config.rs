@@ -67,7 +67,8 @@ pub struct GridFastConfig {
     /// around the corrected increment. Default 0.3.
     pub corrected_odometry_noise_scale: f64,
     /// Beams with a range at or above this are not used (neither for mapping nor for
-    /// matching), metres. No-return readings (≥ the scan's `max_range`) are never used.
+    /// matching: slam-grid's sensor model with `far_hits_clear` off), metres. No-return
+    /// readings (≥ the scan's `max_range`) are never used.
     /// Default 50.
     pub max_range: f64,
     /// Use every `beam_step`-th hit (end point within `max_range`) for matching and

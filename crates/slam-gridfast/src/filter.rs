@@ -33,9 +33,12 @@ struct Particle {
 
 /// The inverse sensor model of every particle's map (and of [`GridFastSlam::render_map`]):
 /// the configured log-odds; the cells a scan's beams end in are marked once per scan and
-/// not cleared by that scan's other beams (`protect_scan_hits`); no-return readings and the
-/// space just before a hit are left alone (no `no_return_range`, no `hit_margin`). Readings
-/// at or beyond [`GridFastConfig::max_range`] arrive as no-returns (see [`usable`]).
+/// not cleared by that scan's other beams (`protect_scan_hits`); readings at or beyond
+/// [`GridFastConfig::max_range`] count as no returns (`far_hits_clear` off: they neither
+/// mark nor clear cells; clearing space up to `max_range` instead, as GMapping's
+/// `maxUrange` does, made acapulco's maps grow to 290 MB for 30 particles and its ATE
+/// worse); no-return readings and the space just before a hit are left alone (no
+/// `no_return_range`, no `hit_margin`).
 fn sensor_model(config: &GridFastConfig) -> InverseSensorModel {
     InverseSensorModel {
         l_occ: config.log_odds_hit,
@@ -47,23 +50,8 @@ fn sensor_model(config: &GridFastConfig) -> InverseSensorModel {
         min_range: 0.0,
         hit_margin: 0.0,
         protect_scan_hits: true,
+        far_hits_clear: false,
     }
-}
-
-/// The scan as the filter uses it: readings at or beyond `max_range` (but below the scan's
-/// no-return value) turned into no-returns, so that they neither mark nor clear cells and
-/// are not matched. (Clearing space up to `max_range` instead, as GMapping's `maxUrange`
-/// does, made acapulco's maps grow to 290 MB for 30 particles and its ATE worse.)
-fn usable(scan: &LaserScan, max_range: f64) -> LaserScan {
-    let mut s = scan.clone();
-    if max_range < s.max_range {
-        for r in &mut s.ranges {
-            if *r >= max_range {
-                *r = s.max_range;
-            }
-        }
-    }
-    s
 }
 
 /// An empty particle map: `config.resolution` cells with a truncated distance field of
@@ -317,7 +305,7 @@ impl GridFastSlam {
             None => false,
         };
         let scan = match (&record.scan, update) {
-            (Some(s), true) => usable(s, self.config.max_range),
+            (Some(s), true) => s,
             _ => {
                 let last = self.last_scan_of_record.last().copied().unwrap_or(u32::MAX);
                 self.last_scan_of_record.push(last);
@@ -331,12 +319,12 @@ impl GridFastSlam {
         };
         let k = self.scans.len();
         let info = if first {
-            self.first_scan(&scan, record.odometry)?
+            self.first_scan(scan, record.odometry)?
         } else {
-            self.update(k, &scan)?
+            self.update(k, scan)?
         };
         self.scan_records.push(self.times.len() - 1);
-        self.scans.push(scan);
+        self.scans.push(scan.clone());
         self.last_scan_of_record.push(k as u32);
         self.acc_linear = 0.0;
         self.acc_angular = 0.0;
@@ -729,15 +717,15 @@ mod tests {
         // The room's walls are 3 m away straight ahead: beyond max_range.
         let pose = Pose2::new(0.0, 0.0, 0.0);
         f.process(&rec(0.0, pose, true)).unwrap();
-        let scan = &f.scans[0];
-        let raw = room_scan(&pose);
-        for (r, r0) in scan.ranges.iter().zip(&raw.ranges) {
-            assert!(if *r0 >= 2.0 {
-                *r == raw.max_range
-            } else {
-                r == r0
-            });
-        }
+        // Matching uses only readings below max_range: the limit itself, a reading beyond
+        // it and a no return are all left out.
+        let scan = LaserScan {
+            angle_min: 0.0,
+            ranges: vec![1.0, 2.0, 2.5, 30.0],
+            ..room_scan(&pose)
+        };
+        let prepared = f.prepare(1, &scan).unwrap();
+        assert_eq!(prepared.points, vec![[1.0, 0.0]]);
         // Nothing is marked or cleared along the +x axis up to and at the wall.
         let map = &f.particles[0].map;
         for x in [0.5, 1.5, 2.5, 3.0] {

@@ -31,11 +31,18 @@ pub(crate) struct PreparedScan {
     pub coarse: Vec<[f64; 2]>,
 }
 
+/// The largest f64 below `x`, for a positive finite `x` (the config validates
+/// `max_range > 0`): `f64::next_down`, which is newer than this workspace's MSRV 1.85.
+fn below(x: f64) -> f64 {
+    f64::from_bits(x.to_bits() - 1)
+}
+
 impl PreparedScan {
-    /// Every `step`-th end point of the hits with 0 < r ≤ `max_range` (the scan's
-    /// `sensor_pose` applied).
+    /// Every `step`-th end point of the hits with 0 < r < `max_range` (the scan's
+    /// `sensor_pose` applied): a reading at `max_range` itself is a no return for the
+    /// filter's sensor model (`far_hits_clear` off), so it is not matched either.
     pub fn new(scan: &LaserScan, step: usize, max_range: f64) -> Result<Self, GridError> {
-        let grid = slam_grid::PreparedScan::with_limits(scan, f64::MIN_POSITIVE, max_range)?;
+        let grid = slam_grid::PreparedScan::with_limits(scan, f64::MIN_POSITIVE, below(max_range))?;
         let points: Vec<[f64; 2]> = grid
             .points()
             .iter()

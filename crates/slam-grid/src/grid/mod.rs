@@ -410,12 +410,17 @@ impl OccupancyGrid {
             if b.range < m.min_range {
                 continue;
             }
-            let (len, hit) = if b.hit {
-                if b.range <= m.max_range {
-                    (b.range, true)
+            // A hit beyond max_range (at or beyond it when far hits do not clear).
+            let far = b.hit
+                && if m.far_hits_clear {
+                    b.range > m.max_range
                 } else {
-                    (m.max_range, false)
-                }
+                    b.range >= m.max_range
+                };
+            let (len, hit) = if b.hit && !far {
+                (b.range, true)
+            } else if far && m.far_hits_clear {
+                (m.max_range, false)
             } else {
                 (m.no_return_range.min(b.range), false)
             };

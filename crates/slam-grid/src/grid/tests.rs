@@ -58,6 +58,37 @@ fn single_beam_marks_free_then_occupied() {
 }
 
 #[test]
+fn far_hits_that_do_not_clear_count_as_no_returns() {
+    let model = InverseSensorModel {
+        no_return_range: 0.0,
+        max_range: 2.0,
+        hit_margin: 0.0,
+        far_hits_clear: false,
+        ..Default::default()
+    };
+    let mut g = OccupancyGrid::new(0.1, model);
+    // Beam 0 along +x: a hit at 1 m; beam 1 along +y: a hit at exactly max_range; both
+    // along the axes from the centre of cell (0, 0).
+    let s = scan(vec![1.0, 2.0], 0.0, std::f64::consts::FRAC_PI_2);
+    g.integrate_scan(&Pose2::new(0.05, 0.05, 0.0), &s);
+    assert_eq!(g.log_odds(CellIndex::new(10, 0)), model.l_occ);
+    assert_eq!(g.log_odds(CellIndex::new(5, 0)), model.l_free);
+    // The reading at the limit neither marks its end cell nor clears the way to it.
+    assert!((1..=25).all(|j| g.log_odds(CellIndex::new(0, j)) == 0.0));
+    // With the default (far hits clear), the same reading is a hit at the limit.
+    let mut d = OccupancyGrid::new(
+        0.1,
+        InverseSensorModel {
+            far_hits_clear: true,
+            ..model
+        },
+    );
+    d.integrate_scan(&Pose2::new(0.05, 0.05, 0.0), &s);
+    assert_eq!(d.log_odds(CellIndex::new(0, 20)), model.l_occ);
+    assert_eq!(d.log_odds(CellIndex::new(0, 10)), model.l_free);
+}
+
+#[test]
 fn no_return_and_far_hits_only_clear() {
     let model = InverseSensorModel {
         no_return_range: 0.5,
