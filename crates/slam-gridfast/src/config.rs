@@ -90,9 +90,11 @@ pub struct GridFastConfig {
     /// farther from any occupied cell counts as an outlier with the constant penalty
     /// −r²/(2σ²)), metres; at most 15 cells. Default 0.2.
     pub field_radius: f64,
-    /// The summed beam log-likelihood is divided by this before it enters weights and the
-    /// proposal (GMapping's `ogain`: a smoothing of the over-confident independent-beam
-    /// model). Default 3.
+    /// The summed beam log-likelihood is divided by this in the particle weights (every
+    /// proposal) and in the coarse search's trade-off against the motion prior: a
+    /// smoothing of the over-confident independent-beam model, GMapping's `ogain`, which
+    /// enters its weight normalisation only. The improved proposal's Gaussian N(μ, Σ) is
+    /// fitted to the untempered likelihood (see the proposal's docs for why). Default 3.
     pub likelihood_gain: f64,
     /// Hill-climbing matcher: initial translation step, metres. Default 0.1 (twice
     /// GMapping's: the wider first steps widen the capture range at the cost of a few

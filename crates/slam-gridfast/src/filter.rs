@@ -156,6 +156,7 @@ impl GridFastSlam {
         let lk = Likelihood {
             k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
             radius: radius as f64 * config.resolution,
+            gain: config.likelihood_gain,
         };
         let hc = HillClimb {
             linear_step: config.match_linear_step,

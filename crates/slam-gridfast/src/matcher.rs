@@ -74,6 +74,8 @@ pub(crate) struct Likelihood {
     pub k: f64,
     /// Field radius r, metres.
     pub radius: f64,
+    /// The gain g itself: `g ·` a [`Score::log_likelihood`] is the untempered Σ ln p.
+    pub gain: f64,
 }
 
 /// The score of one pose: Σ ln p / g, and how many beams ended within the field radius.
@@ -309,11 +311,11 @@ pub(crate) fn hill_climb(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use slam_grid::{InverseSensorModel, OccupancyGrid};
 
-    fn empty_map() -> OccupancyGrid {
+    pub(crate) fn empty_map() -> OccupancyGrid {
         let model = InverseSensorModel {
             l_free: -0.4,
             no_return_range: 0.0,
@@ -330,7 +332,7 @@ mod tests {
     /// run through cell centres (x = ±4.025, y = ±2.525 on the 5 cm grid): a wall on a cell
     /// boundary puts its hits on either side by floating-point rounding, which moves the
     /// mapped wall by up to half a cell and the best match with it.
-    fn room_scan(pose: &Pose2) -> LaserScan {
+    pub(crate) fn room_scan(pose: &Pose2) -> LaserScan {
         let n = 361;
         let inc = 2.0 * std::f64::consts::PI / n as f64;
         let ranges = (0..n)
@@ -385,6 +387,7 @@ mod tests {
         let lk = Likelihood {
             k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
             radius: 0.2,
+            gain: 3.0,
         };
         let hc = HillClimb {
             linear_step: 0.05,
