@@ -81,6 +81,11 @@ pub struct RunArgs {
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
 
+    /// Laser filters: write the map re-rendered at this cell size in metres (e.g. 0.01)
+    /// from the best trajectory and every scan, instead of the filter's own grid (gridfast).
+    #[arg(long, value_name = "METRES", value_parser = positive_metres)]
+    pub map_resolution: Option<f64>,
+
     /// Worker threads for the parallel parts of a filter (results do not depend on it).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
     pub threads: Option<u64>,
@@ -127,4 +132,17 @@ pub struct EvalArgs {
     /// Kümmerle et al. relations file: gives the relations metric.
     #[arg(long, value_name = "FILE")]
     pub relations: Option<PathBuf>,
+}
+
+/// A cell size in metres: a finite number > 0 (and ≥ 1 mm, so that a map stays a
+/// reasonable size).
+fn positive_metres(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of metres"))?;
+    if v.is_finite() && v >= 0.001 {
+        Ok(v)
+    } else {
+        Err(format!("`{s}`: expected a cell size of at least 0.001 m"))
+    }
 }

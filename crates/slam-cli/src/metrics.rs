@@ -49,7 +49,9 @@ pub struct Metrics {
     /// Mean NEES of the 3-dof pose over all steps (consistent filter: ≈ 3); needs a
     /// ground-truth pose at every step.
     pub nees_pose_mean: Option<f64>,
-    /// Peak resident memory of the process (VmHWM), MiB; null where /proc is unavailable.
+    /// Peak resident memory of the process (VmHWM) at the end of the filter run, before
+    /// outputs are written (a `--map-resolution` re-rendering is not counted), MiB; null
+    /// where /proc is unavailable.
     pub peak_rss_mb: Option<f64>,
 }
 

@@ -88,6 +88,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             reason: why.to_string(),
         });
     }
+    if args.map_resolution.is_some() && info.kind != DataKind::Laser {
+        return Err(CliError::InvalidArgument(format!(
+            "--map-resolution applies to laser filters (gridfast); `{}` maps landmarks",
+            info.name
+        )));
+    }
     // Fail on a missing config file before loading a possibly large dataset.
     if let Some(c) = &args.config {
         if !c.is_file() {
@@ -462,6 +468,16 @@ fn run_scan(
         },
     )?;
     let mut filter = built.filter;
+    // Ask before the run whether the filter can re-render its map at all.
+    let cannot_render = || {
+        CliError::InvalidArgument(format!(
+            "--map-resolution: filter `{}` keeps no scans to re-render its map from (gridfast does)",
+            info.name
+        ))
+    };
+    if let Some(res) = ctx.args.map_resolution {
+        filter.render_map(res).ok_or_else(cannot_render)?;
+    }
     let records = &dataset.records;
     let mut progress = Progress::new(records.len(), ctx.args.quiet);
     let start = Instant::now();
@@ -480,6 +496,12 @@ fn run_scan(
     let map = filter.map();
     let wall = start.elapsed().as_secs_f64();
     progress.finish();
+    // Re-rendering is output, not filtering: outside the timed run and the memory peak.
+    let peak_rss_mb = metrics::peak_rss_mb();
+    let map = match ctx.args.map_resolution {
+        Some(res) => filter.render_map(res).ok_or_else(cannot_render)?,
+        None => map,
+    };
     let particles = filter.particles();
     if trajectory.len() != records.len() {
         eprintln!(
@@ -509,7 +531,7 @@ fn run_scan(
     if let Some(rel) = &ctx.relations {
         notes.push(relations_metrics(&mut m, &trajectory, rel));
     }
-    m.peak_rss_mb = metrics::peak_rss_mb();
+    m.peak_rss_mb = peak_rss_mb;
 
     let dir = ctx.out_dir;
     let mut files = Vec::new();

@@ -741,3 +741,109 @@ fn laser_sim_round_trip_and_replay() {
     assert!(r.err().unwrap().to_string().contains("replay:<map.yaml>"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--map-resolution` writes gridfast's map re-rendered at the given cell size over the same
+/// area, leaves the filter's run (trajectory) untouched, and is refused, with one clear
+/// error, for filters that cannot re-render (scanmatch keeps no scans; landmark filters
+/// have no grid) and for cell sizes that are not positive.
+#[test]
+fn map_resolution_rerenders_gridfast_maps_and_is_refused_elsewhere() {
+    if !available(filters::DataKind::Laser).contains(&"gridfast") {
+        eprintln!("SKIPPED: gridfast not available");
+        return;
+    }
+    let run = |dir: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "--filter",
+            "gridfast",
+            "--sim",
+            "office",
+            "--steps",
+            "80",
+            "--particles",
+            "3",
+            "--quiet",
+            "--out",
+        ];
+        args.push(dir.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let (r, out) = slam(&args);
+        assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{out}");
+    };
+    let (coarse, fine) = (scratch("mapres-coarse"), scratch("mapres-fine"));
+    run(&coarse, &[]);
+    run(&fine, &["--map-resolution", "0.02"]);
+    let a = slam_io::ros_map::read_ros_map(&coarse.join("map.yaml")).unwrap();
+    let b = slam_io::ros_map::read_ros_map(&fine.join("map.yaml")).unwrap();
+    assert_eq!(a.resolution, 0.05);
+    assert_eq!(b.resolution, 0.02);
+    // The same area of the world: extents agree to within a coarse cell on each side.
+    for (ea, eb) in [
+        (a.width as f64 * a.resolution, b.width as f64 * b.resolution),
+        (
+            a.height as f64 * a.resolution,
+            b.height as f64 * b.resolution,
+        ),
+    ] {
+        assert!((ea - eb).abs() <= 2.0 * a.resolution, "{ea} m vs {eb} m");
+    }
+    assert!(
+        b.cells.iter().any(|&c| c > 50),
+        "the fine map has occupied cells"
+    );
+    let tum = |d: &Path| std::fs::read_to_string(d.join("trajectory.tum")).unwrap();
+    assert_eq!(
+        tum(&coarse),
+        tum(&fine),
+        "re-rendering must not change the run"
+    );
+    for d in [&coarse, &fine] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+
+    let dir = scratch("mapres-refused");
+    let d = dir.to_str().unwrap();
+    for (filter, input) in [("scanmatch", "office"), ("ekf", "loop")] {
+        let (r, _) = slam(&[
+            "run",
+            "--filter",
+            filter,
+            "--sim",
+            input,
+            "--steps",
+            "20",
+            "--quiet",
+            "--out",
+            d,
+            "--map-resolution",
+            "0.02",
+        ]);
+        match r {
+            Err(CliError::InvalidArgument(msg)) => {
+                assert!(
+                    msg.contains("--map-resolution") && msg.contains(filter),
+                    "{msg}"
+                )
+            }
+            other => panic!("{filter}: {other:?}"),
+        }
+    }
+    let (code, _, err) = slam_bin(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--sim",
+        "office",
+        "--out",
+        d,
+        "--map-resolution",
+        "0",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--map-resolution") && err.lines().count() == 1,
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -589,6 +589,13 @@ impl ScanSlam for GridFastSlam {
         self.particles[self.best].map.to_grid_map()
     }
 
+    /// [`GridFastSlam::render_map`]: every processed scan integrated at the best
+    /// particle's corrected trajectory on a grid of `resolution` metres.
+    fn render_map(&self, resolution: f64) -> Option<GridMap> {
+        (resolution > 0.0 && resolution.is_finite())
+            .then(|| GridFastSlam::render_map(self, resolution))
+    }
+
     fn particles(&self) -> Option<Vec<WeightedPose>> {
         let mut lw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
         normalize_log_weights(&mut lw).ok()?;

@@ -157,6 +157,15 @@ pub trait ScanSlam: Send {
     /// The current best map.
     fn map(&self) -> GridMap;
 
+    /// The current best map re-rendered at `resolution` metres per cell (e.g. 0.01 m for a
+    /// filter that matches on 0.05 m cells) from the best trajectory and every scan the
+    /// filter kept, or `None` when the filter keeps no scans to re-render from, or when
+    /// `resolution` is not positive and finite. Default: `None`.
+    fn render_map(&self, resolution: f64) -> Option<GridMap> {
+        let _ = resolution;
+        None
+    }
+
     /// The particle cloud, for particle filters; `None` otherwise.
     fn particles(&self) -> Option<Vec<WeightedPose>> {
         None
