@@ -351,21 +351,69 @@ fn ellipse(img: &mut RgbImage, view: &View, l: &LandmarkEstimate) {
     }
 }
 
+/// Paints the map under the other layers. Where a pixel is at least two cells wide (a 1 cm
+/// map in a 1000 px picture of a 40 m building), the pixel pools the cells whose centres
+/// fall inside it ([`pooled_value`]: occupied if any is, else their mean), so that
+/// one-cell-thick walls and the free space between sparse beams stay visible; coarser maps
+/// are sampled at each pixel's centre.
 fn draw_map(img: &mut RgbImage, view: &View, m: &GridMap) {
+    let grey = |v: i8| {
+        let g = if v < 0 {
+            205
+        } else {
+            255 - (v.min(100) as u32 * 255 / 100) as u8
+        };
+        image::Rgb([g, g, g])
+    };
+    let pixel = 1.0 / view.scale;
+    let pooled = m.resolution > 0.0 && 2.0 * m.resolution <= pixel;
     for py in 0..view.h {
         for px in 0..view.w {
-            let p = view.world(px as f64 + 0.5, py as f64 + 0.5);
-            if let Some((ix, iy)) = m.cell_of(&p) {
-                let v = m.cells.get(iy * m.width + ix).copied().unwrap_or(-1);
-                let g = if v < 0 {
-                    205
-                } else {
-                    255 - (v.min(100) as u32 * 255 / 100) as u8
-                };
-                img.put_pixel(px, py, image::Rgb([g, g, g]));
+            let v = if pooled {
+                pooled_value(m, view.world(px as f64, py as f64 + 1.0), pixel)
+            } else {
+                let p = view.world(px as f64 + 0.5, py as f64 + 0.5);
+                m.cell_of(&p)
+                    .map(|(ix, iy)| m.cells.get(iy * m.width + ix).copied().unwrap_or(-1))
+            };
+            if let Some(v) = v {
+                img.put_pixel(px, py, grey(v));
             }
         }
     }
+}
+
+/// The value a pixel shows for the cells of `m` whose centres lie in the square of side
+/// `side` with lower-left corner `corner` (world metres): the most occupied value when any
+/// cell is occupied (≥ 65, map_server's `occupied_thresh`), otherwise the mean of the known
+/// cells; −1 when all are unknown; `None` when no cell centre lies inside.
+fn pooled_value(m: &GridMap, corner: Point2, side: f64) -> Option<i8> {
+    // Cell i has its centre at origin + (i + ½)·res: the ones in [c, c + side).
+    let first = |c: f64, o: f64| ((c - o) / m.resolution - 0.5).ceil().max(0.0);
+    let (fx, fy) = (first(corner.x, m.origin.x), first(corner.y, m.origin.y));
+    let (lx, ly) = (
+        first(corner.x + side, m.origin.x).min(m.width as f64),
+        first(corner.y + side, m.origin.y).min(m.height as f64),
+    );
+    if !(fx < lx && fy < ly) {
+        return None;
+    }
+    let (mut most, mut sum, mut known) = (-1i8, 0i64, 0i64);
+    for iy in fy as usize..ly as usize {
+        let row = &m.cells[iy * m.width..(iy + 1) * m.width];
+        for &v in &row[fx as usize..lx as usize] {
+            if v >= 0 {
+                most = most.max(v);
+                sum += v as i64;
+                known += 1;
+            }
+        }
+    }
+    Some(match known {
+        0 => -1,
+        _ if most >= 65 => most,
+        _ => (sum / known) as i8,
+    })
 }
 
 /// The 1-2-5 step giving about `target` intervals over `span`.
@@ -678,6 +726,34 @@ mod tests {
         let wy = (max_y - min_y) as f64 / scale;
         assert!((wx - 2.0 * CHI2_2_95.sqrt()).abs() < 0.1, "{wx}");
         assert!((wy - 0.2 * CHI2_2_95.sqrt()).abs() < 0.1, "{wy}");
+    }
+
+    /// A 1 cm map drawn into 100 px (≈ 10 cm per pixel): a one-cell-thick wall is dark in
+    /// every pixel it crosses (centre sampling would hit it in about one pixel of ten), free
+    /// cells show white, and all-unknown stays grey.
+    #[test]
+    fn fine_maps_are_pooled_so_thin_walls_stay_visible() {
+        let n = 1000;
+        let mut m = GridMap::unknown(0.01, Point2::new(0.0, 0.0), n, n);
+        for iy in 0..n {
+            for ix in 0..n / 2 {
+                m.cells[iy * n + ix] = 0;
+            }
+            // A wall one cell thick at x = 2.505 m.
+            m.cells[iy * n + 250] = 100;
+        }
+        let img = Picture::new().size(100).map(&m).render().unwrap();
+        // The picture spans the known cells (x 0–5 m, y 0–10 m) padded by 5 % of the longer
+        // side: 11 m over the 100 px height.
+        let view_x = |x: f64| ((x + 0.5) / 11.0 * img.height() as f64) as u32;
+        let wall_px = view_x(2.505);
+        let dark_rows = (10..img.height() - 10)
+            .filter(|&py| img.get_pixel(wall_px, py).0 == [0, 0, 0])
+            .count();
+        assert_eq!(dark_rows, (img.height() - 20) as usize, "the wall has gaps");
+        let mid = img.height() / 2;
+        assert_eq!(*img.get_pixel(view_x(1.0), mid), WHITE);
+        assert_eq!(img.get_pixel(view_x(5.3), mid).0, [205, 205, 205]);
     }
 
     #[test]
