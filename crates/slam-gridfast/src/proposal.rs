@@ -70,9 +70,9 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// mean translational relations error (0.0583 m against 0.0557 m) and produced the only
 /// two runs above 0.06 m (0.110 m, with loop relations off by up to 1.2 m, and 0.075 m);
 /// the untempered fit's worst of the 32 runs is 0.059 m. On the simulated `office`
-/// (seeds 1–40, ATE mean / median) it helps with few particles (1: 0.294 / 0.217 →
-/// 0.222 / 0.161 m; 10: 0.118 / 0.090 → 0.105 / 0.081 m) and is mixed with many (30:
-/// 0.112 / 0.075 → 0.117 / 0.101 m; 100: 0.097 / 0.077 → 0.103 / 0.073 m).
+/// (seeds 1–40, ATE mean / median; 1: 0.294 / 0.217 → 0.222 / 0.161 m; 10: 0.118 / 0.090
+/// → 0.105 / 0.081 m; 30: 0.112 / 0.075 → 0.117 / 0.101 m; 100: 0.097 / 0.077 → 0.103 /
+/// 0.073 m) it is neutral: paired by seed, it wins 22, 21, 17 and 22 of the 40 runs.
 ///
 /// When the match has too few inliers (empty or unrelated map) the particle falls back to
 /// [`motion_and_likelihood`] and the failure is reported.
