@@ -120,24 +120,23 @@ pub(crate) fn improved<R: Rng + ?Sized>(
         log_tau[j] = l + log_motion;
         log_fit[j] = ctx.lk.gain * l + log_motion;
     }
-    let (log_tau, log_fit) = (&log_tau[..k], &log_fit[..k]);
+    let log_tau = &log_tau[..k];
     let top = log_tau.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let eta: f64 = log_tau.iter().map(|t| (t - top).exp()).sum();
-    let top_fit = log_fit.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let mut fit = [0.0f64; 729];
-    for (w, t) in fit.iter_mut().zip(log_fit) {
-        *w = (t - top_fit).exp();
-    }
-    let fit = &fit[..k];
+    // The fit's normalised weights, in place of their logarithms.
+    let fit = &mut log_fit[..k];
+    let top_fit = fit.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    fit.iter_mut().for_each(|t| *t = (*t - top_fit).exp());
     let total: f64 = fit.iter().sum();
+    fit.iter_mut().for_each(|w| *w /= total);
     let mut mean = Vector3::zeros();
     for (w, o) in fit.iter().zip(ctx.offsets) {
-        mean += Vector3::new(o[0], o[1], o[2]) * (w / total);
+        mean += Vector3::new(o[0], o[1], o[2]) * *w;
     }
     let mut sigma = Matrix3::zeros();
     for (w, o) in fit.iter().zip(ctx.offsets) {
         let d = Vector3::new(o[0], o[1], o[2]) - mean;
-        sigma += d * d.transpose() * (w / total);
+        sigma += d * d.transpose() * *w;
     }
     // A tiny floor keeps Σ positive definite when one sample carries all the mass.
     sigma += Matrix3::from_diagonal(&Vector3::new(1e-8, 1e-8, 1e-9));
