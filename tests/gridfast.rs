@@ -204,10 +204,11 @@ fn intel_prefix_relations_error() {
 /// The whole benchmark input with the settings (30 particles, improved proposal,
 /// defaults), scored by the relations metric. Bounds from published figures on this same
 /// input: a fresh GMapping run with 30 particles scores 0.070 m / 2.65° and the original
-/// GMapping run 0.057 m / 2.32° (dataset README); we require better than the fresh run and
-/// within 5 % of the original: < 0.060 m and < 2.44°. Filter seeds 0–31 score
-/// 0.0543–0.0588 m and 2.290–2.314° (README), so the check judges the filter, not a seed.
-/// ≈ 10 s in release on two threads.
+/// GMapping run 0.057 m / 2.32° (dataset README); we require better than the original run
+/// in both: < 0.057 m and < 2.32°. Filter seeds 0–31 score 0.0537–0.0559 m and
+/// 2.288–2.306° (README), so the check judges the filter, not a seed; the issue's own
+/// targets (≤ 0.055 m, ≤ 2.3°, met by the mean over those seeds and by 25 of them) are too
+/// close to single runs for a test. ≈ 10 s in release on two threads.
 #[test]
 fn intel_whole_log_beats_gmapping() {
     let (Some(log), Some(rel)) = (
@@ -229,7 +230,7 @@ fn intel_whole_log_beats_gmapping() {
         e.used, e.trans_mean, e.rot_mean_deg
     );
     assert_eq!((e.used, e.dropped), (2984, 0));
-    assert!(e.trans_mean < 0.060 && e.rot_mean_deg < 2.44, "{e:?}");
+    assert!(e.trans_mean < 0.057 && e.rot_mean_deg < 2.32, "{e:?}");
 }
 
 /// The pose-at-every-record rule (`slam_models::keyframes`, used by the filter's

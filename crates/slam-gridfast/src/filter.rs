@@ -55,7 +55,8 @@ fn sensor_model(config: &GridFastConfig) -> InverseSensorModel {
 }
 
 /// An empty particle map: `config.resolution` cells with a truncated distance field of
-/// `field_radius` (validated to 1..=15 cells) for the scan likelihood.
+/// `field_radius` (validated to 1..=15 cells) for the scan likelihood (which truncates it
+/// further at `likelihood_radius` where it decides and weighs a pose).
 pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFastError> {
     let radius = (config.field_radius / config.resolution).round() as u32;
     // slam-grid's lazily computed field is not used: no sub-cell hit statistics (their
@@ -106,7 +107,9 @@ pub struct GridFastSlam {
     seed: u64,
     /// An empty map (the template of every particle's map).
     empty: OccupancyGrid,
+    /// The endpoint model truncated at `likelihood_radius` and at the field's reach.
     lk: Likelihood,
+    capture: Likelihood,
     hc: HillClimb,
     offsets: Vec<[f64; 3]>,
     particles: Vec<Particle>,
@@ -155,8 +158,12 @@ impl GridFastSlam {
         let empty = new_map(&config)?;
         let lk = Likelihood {
             k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
-            radius: radius as f64 * config.resolution,
+            radius: config.likelihood_radius,
             gain: config.likelihood_gain,
+        };
+        let capture = Likelihood {
+            radius: radius as f64 * config.resolution,
+            ..lk
         };
         let hc = HillClimb {
             linear_step: config.match_linear_step,
@@ -182,6 +189,7 @@ impl GridFastSlam {
             seed,
             empty,
             lk,
+            capture,
             hc,
             offsets,
             particles,
@@ -395,7 +403,7 @@ impl GridFastSlam {
                 &field(&best.map),
                 &prepared,
                 &predicted,
-                &self.lk,
+                &self.capture,
                 &window,
             ))
         } else {
@@ -404,6 +412,7 @@ impl GridFastSlam {
         let ctx = StepContext {
             scan: &prepared,
             lk: self.lk,
+            capture: self.capture,
             hc: self.hc,
             u,
             motion: cfg.motion,
@@ -422,7 +431,14 @@ impl GridFastSlam {
         let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
             let best = &self.particles[self.best];
             let start = cfg.motion.predict(&best.pose, &u);
-            let matched = hill_climb(&field(&best.map), &prepared, &start, &self.lk, &self.hc);
+            let matched = hill_climb(
+                &field(&best.map),
+                &prepared,
+                &start,
+                &self.capture,
+                &self.lk,
+                &self.hc,
+            );
             let s2 = cfg.corrected_odometry_noise_scale.powi(2);
             let a = cfg.motion.alpha;
             let scaled = OdometryModel {

@@ -13,9 +13,15 @@
 //! scan; slam-grid's matchers score the mean of its lazily computed likelihood field.
 //!
 //! Endpoint model (PR §6.4, "likelihood field"): a beam ending at distance d from the
-//! nearest occupied cell contributes ln p = −min(d, r)²/(2σ²) (r the field radius; the
-//! truncation is the outlier floor). The scan's log-likelihood is Σ ln p divided by the
-//! gain g (GMapping's `ogain`).
+//! nearest occupied cell contributes ln p = −min(d, r)²/(2σ²) (the truncation r is the
+//! outlier floor). The scan's log-likelihood is Σ ln p divided by the gain g (GMapping's
+//! `ogain`).
+//!
+//! Two truncations, coarse to fine: the coarse search and the hill climber's coarse phase
+//! score with r = the distance field's full reach (`field_radius`, 0.2 m by default), so
+//! that a pose several centimetres off still feels the walls; the hill climber's fine
+//! phase, the proposal's samples and the weights use the likelihood's own r
+//! (`likelihood_radius`, 0.15 m), so that beams ending on clutter pull the mode less.
 
 use slam_grid::{CellIndex, DistanceField, GridError};
 use slam_models::{LaserScan, Pose2};
@@ -72,13 +78,13 @@ pub(crate) fn field(map: &slam_grid::OccupancyGrid) -> DistanceField<'_> {
 pub(crate) struct Likelihood {
     /// 1/(2σ²·g), per m².
     pub k: f64,
-    /// Field radius r, metres.
+    /// Truncation r, metres: distances beyond it count as r (at most the field's reach).
     pub radius: f64,
     /// The gain g itself: `g ·` a [`Score::log_likelihood`] is the untempered Σ ln p.
     pub gain: f64,
 }
 
-/// The score of one pose: Σ ln p / g, and how many beams ended within the field radius.
+/// The score of one pose: Σ ln p / g, and how many beams ended within the truncation r.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Score {
     pub log_likelihood: f64,
@@ -126,7 +132,7 @@ fn score_points(
         let d = field.dist4(CellIndex::new(iu, iv));
         let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
         let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
-        let dm = (d0 + av * (d1 - d0)) * unit;
+        let dm = ((d0 + av * (d1 - d0)) * unit).min(lk.radius);
         if dm < r_in {
             inliers += 1;
         }
@@ -239,11 +245,13 @@ pub(crate) fn coarse_score(
 
 /// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
 /// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
-/// the score, otherwise halve both steps, `refinements` times.
+/// the score, otherwise halve both steps, `refinements` times. The coarse phase scores with
+/// `capture` (the wide truncation), the fine phase and the returned score with `lk`.
 pub(crate) fn hill_climb(
     field: &DistanceField<'_>,
     scan: &PreparedScan,
     initial: &Pose2,
+    capture: &Likelihood,
     lk: &Likelihood,
     hc: &HillClimb,
 ) -> MatchOutcome {
@@ -260,10 +268,10 @@ pub(crate) fn hill_climb(
     // A hard cap keeps pathological inputs bounded (≈ GMapping's ~121 evaluations).
     let mut budget = 64;
     for phase in 0..2 {
-        let (points, last) = if phase == 0 {
-            (&scan.coarse[..], coarse_halvings)
+        let (points, last, lk) = if phase == 0 {
+            (&scan.coarse[..], coarse_halvings, capture)
         } else {
-            (&scan.points[..], hc.refinements + 1)
+            (&scan.points[..], hc.refinements + 1, lk)
         };
         let mut best_score = score_points(field, points, &best, lk);
         while halvings < last && budget > 0 {
@@ -372,6 +380,33 @@ pub(crate) mod tests {
         }
     }
 
+    /// A beam ending 0.18 m from the nearest wall cell scores min(d, r)²: d itself under the
+    /// 0.2 m capture truncation (an inlier), r under a 0.15 m one (an outlier).
+    #[test]
+    fn each_beam_is_truncated_at_the_likelihood_radius() {
+        let mut map = empty_map();
+        let origin = Pose2::new(0.0, 0.0, 0.0);
+        map.integrate_scan(&origin, &room_scan(&origin));
+        // The wall x = 4.025 runs through cell centres; the end point lies 0.4 of the way
+        // from the centre 0.2 m from it to the one 0.15 m from it, on a row of centres.
+        let point = [[4.025 - 0.18, 0.025]];
+        let lk = |radius: f64| Likelihood {
+            k: 1.0,
+            radius,
+            gain: 1.0,
+        };
+        let wide = score_points(&field(&map), &point, &origin, &lk(0.2));
+        let tight = score_points(&field(&map), &point, &origin, &lk(0.15));
+        assert!(
+            (wide.log_likelihood + 0.18 * 0.18).abs() < 1e-4,
+            "{}",
+            wide.log_likelihood
+        );
+        assert_eq!(wide.inliers, 1);
+        assert!((tight.log_likelihood + 0.15 * 0.15).abs() < 1e-9);
+        assert_eq!(tight.inliers, 0);
+    }
+
     #[test]
     fn hill_climbing_recovers_an_offset_pose() {
         let mut map = empty_map();
@@ -400,7 +435,7 @@ pub(crate) mod tests {
             Pose2::new(0.0, 0.15, 0.0),
         ] {
             let init = Pose2::new(truth.x + off.x, truth.y + off.y, truth.theta + off.theta);
-            let m = hill_climb(&field(&map), &scan, &init, &lk, &hc);
+            let m = hill_climb(&field(&map), &scan, &init, &lk, &lk, &hc);
             assert!(
                 m.pose.distance(&truth) < 0.02,
                 "{:?} from {:?}",

@@ -11,7 +11,11 @@ use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 /// What is the same for every particle in one step.
 pub(crate) struct StepContext<'a> {
     pub scan: &'a PreparedScan,
+    /// The endpoint model truncated at `likelihood_radius`: fine matching, samples, weights.
     pub lk: Likelihood,
+    /// The same model truncated at the field's reach: the choice of starting point and the
+    /// hill climber's coarse phase.
+    pub capture: Likelihood,
     pub hc: HillClimb,
     /// The odometry increment since the last processed scan.
     pub u: OdometryControl,
@@ -87,14 +91,14 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     // correction, whichever fits this particle's map better.
     let shifted = predicted.compose(&ctx.correction);
     let start = if ctx.correction != Pose2::IDENTITY
-        && coarse_score(field, ctx.scan, &shifted, &ctx.lk)
-            > coarse_score(field, ctx.scan, &predicted, &ctx.lk)
+        && coarse_score(field, ctx.scan, &shifted, &ctx.capture)
+            > coarse_score(field, ctx.scan, &predicted, &ctx.capture)
     {
         shifted
     } else {
         predicted
     };
-    let m = hill_climb(field, ctx.scan, &start, &ctx.lk, &ctx.hc);
+    let m = hill_climb(field, ctx.scan, &start, &ctx.capture, &ctx.lk, &ctx.hc);
     let covariance =
         ctx.motion.noise_covariance(pose, &ctx.u) + Matrix3::from_diagonal(&ctx.min_var);
     let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
@@ -216,6 +220,11 @@ mod tests {
                 scan: &scan,
                 lk: Likelihood {
                     k: 1.0 / (2.0 * sigma * sigma * gain),
+                    radius: 0.15,
+                    gain,
+                },
+                capture: Likelihood {
+                    k: 1.0 / (2.0 * sigma * sigma * gain),
                     radius: 0.2,
                     gain,
                 },
@@ -247,7 +256,14 @@ mod tests {
         assert!(d1.pose.distance(&truth) < 0.03, "{:?}", d1.pose);
         // η with the tempered likelihood, from the mode the matcher finds.
         let predicted = motion.predict(&previous, &u);
-        let m = hill_climb(&field(&map), &scan, &predicted, &ctx3.lk, &ctx3.hc);
+        let m = hill_climb(
+            &field(&map),
+            &scan,
+            &predicted,
+            &ctx3.capture,
+            &ctx3.lk,
+            &ctx3.hc,
+        );
         let cov = motion.noise_covariance(&previous, &u) + Matrix3::from_diagonal(&ctx3.min_var);
         let (inv, det) = (cov.try_inverse().unwrap(), cov.determinant());
         let log_tau: Vec<f64> = offsets
