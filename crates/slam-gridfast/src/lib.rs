@@ -17,7 +17,11 @@
 //! repairs incrementally after each integration from the cells whose occupancy flipped
 //! ([`slam_grid::OccupancyGrid::with_incremental_distance`]), stored in copy-on-write tiles
 //! like the occupancy. This crate adds the filter, the proposals and a GMapping-style scorer
-//! and hill climber on that field (the scan's log-likelihood, which the weights need).
+//! and hill climber on that field (the scan's log-likelihood, which the weights need). The
+//! scorer truncates the field twice, coarse to fine: at its full reach
+//! ([`GridFastConfig::field_radius`]) for the capture range of the coarse search and of the
+//! hill climber's first steps, and tighter ([`GridFastConfig::likelihood_radius`]) where
+//! the pose is decided and weighed, so that beams ending on clutter pull less.
 //!
 //! Speed comes from work done once instead of per particle or per beam: beam end points
 //! are computed once per scan; the field is never recomputed, so matching costs one
