@@ -245,7 +245,8 @@ pub(crate) fn coarse_score(
 
 /// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
 /// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
-/// the score, otherwise halve both steps, `refinements` times. The coarse phase scores with
+/// the score, otherwise halve both steps, `refinements` times. After a step, the move that
+/// would undo it is not evaluated again (it leads back to a pose that scored lower). The coarse phase scores with
 /// `capture` (the wide truncation), the fine phase and the returned score with `lk`.
 pub(crate) fn hill_climb(
     field: &DistanceField<'_>,
@@ -274,6 +275,7 @@ pub(crate) fn hill_climb(
             (&scan.points[..], hc.refinements + 1, lk)
         };
         let mut best_score = score_points(field, points, &best, lk);
+        let mut back: Option<usize> = None;
         while halvings < last && budget > 0 {
             budget -= 1;
             let moves = [
@@ -286,22 +288,29 @@ pub(crate) fn hill_climb(
             ];
             let mut improved = None;
             let mut top = best_score.log_likelihood;
-            for m in moves {
+            for (i, m) in moves.into_iter().enumerate() {
+                // The move back to where the last step came from scored below the current
+                // pose already (moves come in ± pairs: i ^ 1 undoes i).
+                if back == Some(i) {
+                    continue;
+                }
                 let s = score_points(field, points, &m, lk);
                 if s.log_likelihood > top {
                     top = s.log_likelihood;
-                    improved = Some((m, s));
+                    improved = Some((i, m, s));
                 }
             }
             match improved {
-                Some((m, s)) => {
+                Some((i, m, s)) => {
                     best = m;
                     best_score = s;
+                    back = Some(i ^ 1);
                 }
                 None => {
                     ls *= 0.5;
                     as_ *= 0.5;
                     halvings += 1;
+                    back = None;
                 }
             }
         }

@@ -114,7 +114,12 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     let k = ctx.offsets.len();
     for (j, o) in ctx.offsets.iter().enumerate() {
         let xj = Pose2::new(m.pose.x + o[0], m.pose.y + o[1], m.pose.theta + o[2]);
-        let l = score(field, ctx.scan, &xj, &ctx.lk).log_likelihood;
+        // The mode's own likelihood is the match's score (same pose, beams and model).
+        let l = if *o == [0.0; 3] {
+            m.score.log_likelihood
+        } else {
+            score(field, ctx.scan, &xj, &ctx.lk).log_likelihood
+        };
         let e = Vector3::new(
             xj.x - predicted.x,
             xj.y - predicted.y,
