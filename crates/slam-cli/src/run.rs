@@ -499,9 +499,13 @@ fn run_scan(
     let wall = start.elapsed().as_secs_f64();
     progress.finish();
     let peak_rss_mb = metrics::peak_rss_mb();
-    let map = match ctx.args.map_resolution {
-        Some(res) => filter.render_map(res).ok_or_else(cannot_render)?,
-        None => own_map.unwrap_or_else(|| filter.map()),
+    let map = match own_map {
+        Some(map) => map,
+        None => ctx
+            .args
+            .map_resolution
+            .and_then(|res| filter.render_map(res))
+            .ok_or_else(cannot_render)?,
     };
     let particles = filter.particles();
     if trajectory.len() != records.len() {

@@ -246,8 +246,9 @@ pub(crate) fn coarse_score(
 /// GMapping-style hill climbing (Grisetti et al. 2007 §VI; `ScanMatcher::optimize`): from
 /// `initial`, try the six moves ±x, ±y (world frame) and ±θ; take the best if it improves
 /// the score, otherwise halve both steps, `refinements` times. After a step, the move that
-/// would undo it is not evaluated again (it leads back to a pose that scored lower). The coarse phase scores with
-/// `capture` (the wide truncation), the fine phase and the returned score with `lk`.
+/// would undo it is not evaluated again (it leads back to a pose that scored lower). The
+/// coarse phase scores with `capture` (the wide truncation), the fine phase and the
+/// returned score with `lk`.
 pub(crate) fn hill_climb(
     field: &DistanceField<'_>,
     scan: &PreparedScan,
