@@ -11,6 +11,8 @@
 //! ```text
 //! cargo xtask bench fastslam
 //! ```
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};

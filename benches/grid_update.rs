@@ -1,5 +1,7 @@
 //! Map-update benchmarks: integrating a 360-beam scan into a 5 cm grid, and cloning a grid
 //! of 10⁶ cells then writing one scan into the clone (copy-on-write cost).
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use slam_grid::{InverseSensorModel, OccupancyGrid, PreparedScan};

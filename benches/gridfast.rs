@@ -2,6 +2,8 @@
 //! beams, ≈ 70 processed): a whole run with 30 particles per proposal, on one thread and on
 //! all threads. Whole-Intel figures (wall time, real-time factor, peak RSS)
 //! come from `cargo run --release --example gridfast_intel`.
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};

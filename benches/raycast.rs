@@ -2,6 +2,8 @@
 //!
 //! Criterion reports the throughput as `elem/s` (one element = one ray); the bench also
 //! prints `rays/s` directly from a plain timed loop before the criterion runs.
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, Criterion, Throughput};
 use rand::{Rng, SeedableRng};

@@ -2,6 +2,8 @@
 //! default windows: ±0.4 m, ±12°), and the stages on their own; the same match on a grid
 //! whose field measures to fitted lines (`LikelihoodParams::surface_lines`), and the
 //! field of the whole room computed from scratch both ways.
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_grid::{

@@ -1,5 +1,7 @@
 //! Scenario generation time: `city` at 2 000 and 50 000 landmarks (the number in view per
 //! step is the same, so the time should barely grow), and the `office` laser run.
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_sim::scenario::{generate, ScenarioOptions};

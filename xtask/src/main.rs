@@ -16,6 +16,15 @@ use std::time::Instant;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    // Every step works on paths relative to the workspace root (`crates/`, `configs/`), so
+    // start there whichever folder of the workspace `cargo xtask` was called from.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives one folder below the workspace root");
+    if let Err(e) = std::env::set_current_dir(root) {
+        eprintln!("xtask: cannot enter the workspace root {}: {e}", root.display());
+        return ExitCode::FAILURE;
+    }
     let result = match args.first().map(String::as_str) {
         Some("test-all") => test_all(),
         Some("tidy") => tidy(),

@@ -37,3 +37,16 @@ mod state;
 pub use config::{AssociationMode, EkfConfig};
 pub use error::EkfError;
 pub use filter::{Association, EkfSlam, EkfUpdateInfo, AUTO_ID_BASE};
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
+/// EKF-SLAM compiles with this crate alone (sophus-rs style).
+pub use slam_models::{
+    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, OdometryControl, Pose2,
+    RangeBearing, UpdateInfo, VelocityControl,
+};
+
+/// Traits only, for glob import: `use slam_ekf::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

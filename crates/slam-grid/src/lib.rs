@@ -47,3 +47,13 @@ pub use matcher::{
 };
 pub mod scanmatch;
 pub use scanmatch::{ScanMatchConfig, ScanMatchOdometry};
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
+/// the occupancy grid and scan matchers compiles with this crate alone (sophus-rs style).
+pub use slam_models::{GridMap, LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose};
+
+/// Traits only, for glob import: `use slam_grid::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

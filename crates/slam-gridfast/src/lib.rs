@@ -42,3 +42,16 @@ mod trajectory;
 pub use config::{GridFastConfig, Proposal};
 pub use error::GridFastError;
 pub use filter::GridFastSlam;
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
+/// grid FastSLAM compiles with this crate alone (sophus-rs style).
+pub use slam_models::{
+    FilterError, GridMap, LaserScan, Pose2, ScanDataset, ScanRecord, ScanSlam, ScanUpdateInfo,
+    TimedPose, WeightedPose,
+};
+
+/// Traits only, for glob import: `use slam_gridfast::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

@@ -35,3 +35,15 @@ pub mod tum;
 pub use dataset::{dead_reckoning, odometry_trajectory, open_dataset, Dataset};
 pub use error::IoError;
 pub use report::Skipped;
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
+/// the readers and writers compiles with this crate alone (sophus-rs style).
+pub use slam_models::{
+    GridMap, LandmarkDataset, LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose,
+};
+
+/// Traits only, for glob import: `use slam_io::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

@@ -58,7 +58,6 @@ pub use laser::World;
 use serde::{Deserialize, Serialize};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
-use slam_models::{LandmarkDataset, Pose2, ScanDataset};
 
 /// The output of a scenario: landmark or laser data with its ground truth.
 // Built once per run and matched immediately: boxing the larger variant would only
@@ -110,4 +109,14 @@ pub struct LaserSimRun {
     pub odometry: slam_models::motion::OdometryModel,
     /// The scanner that produced the scans (beams, range, noise, short-reading rate).
     pub scanner: laser::LaserScanner,
+}
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
+/// the simulators compiles with this crate alone (sophus-rs style).
+pub use slam_models::{LandmarkDataset, LaserScan, Pose2, RangeBearing, ScanDataset, TimedPose};
+
+/// Traits only, for glob import: `use slam_sim::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
 }
