@@ -22,7 +22,10 @@ fn main() -> ExitCode {
         .parent()
         .expect("xtask lives one folder below the workspace root");
     if let Err(e) = std::env::set_current_dir(root) {
-        eprintln!("xtask: cannot enter the workspace root {}: {e}", root.display());
+        eprintln!(
+            "xtask: cannot enter the workspace root {}: {e}",
+            root.display()
+        );
         return ExitCode::FAILURE;
     }
     let result = match args.first().map(String::as_str) {
