@@ -1,4 +1,6 @@
-//! # slam: 2-D SLAM in Rust (umbrella crate)
+#![doc = include_str!("../README.md")]
+//!
+//! ## The umbrella crate
 //!
 //! Re-exports every layer of slam-rs under one name, plus the numeric crates they use, so
 //! that applications depend on one crate and never fight version skew:
@@ -31,4 +33,23 @@ pub use slam_sim as sim;
 /// The filter and model traits, for glob import: `use slam::prelude::*;`.
 pub mod prelude {
     pub use slam_models::prelude::*;
+}
+
+#[cfg(test)]
+mod tests {
+    /// The README's two programs are `examples/landmarks.rs` and `examples/laser.rs`, verbatim:
+    /// the doc tests compile the README's copies and `cargo test` builds the examples, so
+    /// neither can rot while the other is checked.
+    #[test]
+    fn readme_programs_are_the_examples() {
+        let readme = include_str!("../README.md");
+        for (fence, example) in [
+            ("```rust\n", include_str!("../examples/landmarks.rs")),
+            ("```rust,no_run\n", include_str!("../examples/laser.rs")),
+        ] {
+            let start = readme.find(fence).expect("the README has the code block") + fence.len();
+            let len = readme[start..].find("\n```").expect("the code block is closed");
+            assert_eq!(&readme[start..start + len], example.trim_end());
+        }
+    }
 }
