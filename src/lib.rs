@@ -48,7 +48,9 @@ mod tests {
             ("```rust,no_run\n", include_str!("../examples/laser.rs")),
         ] {
             let start = readme.find(fence).expect("the README has the code block") + fence.len();
-            let len = readme[start..].find("\n```").expect("the code block is closed");
+            let len = readme[start..]
+                .find("\n```")
+                .expect("the code block is closed");
             assert_eq!(&readme[start..start + len], example.trim_end());
         }
     }

@@ -1,4 +1,4 @@
-//! The laser scenarios: `office` and `replay`.
+//! The laser scenarios: `office`, `campus` and `replay`.
 
 use super::ScenarioOptions;
 use crate::error::{check_range, check_steps, SimError};
@@ -206,6 +206,121 @@ pub fn office(opts: &ScenarioOptions) -> Result<LaserSimRun, SimError> {
     let world = office_world();
     let path = office_path();
     let cfg = laser_config("office", opts, 20.0, scans_for(opts, path.length(), 2.0)?)?;
+    simulate_laser(&world, &path, &cfg, opts.seed)
+}
+
+/// Road centre lines of the [`campus_world`], metres, the same along x and y.
+pub const CAMPUS_ROADS: [f64; 4] = [20.0, 85.0, 150.0, 215.0];
+
+/// The campus (the layout is fixed, independent of the seed): an outdoor world of
+/// 250 m × 250 m for laser SLAM beyond the office, of the kind the grid-FastSLAM lecture shows.
+///
+/// Roads 10 m wide run along x and y at [`CAMPUS_ROADS`], leaving a ring road and nine
+/// 55 m × 55 m blocks. Each block is cut into four lots; three lots in four hold a building
+/// (a box of 10–18 m × 8–18 m kept 3 m inside its 27.5 m lot), the others a few trees. Trees (0.6 m
+/// squares) line both sides of every road 7 m from its centre, 8–16 m apart, and are
+/// scattered in the 15 m margin outside the ring road. There is no boundary wall: many long
+/// beams hit nothing, as outdoors.
+pub fn campus_world() -> World {
+    let mut rng = Pcg64Mcg::seed_from_u64(0xCA4_9005);
+    let mut s = Vec::new();
+    let tree = |x: f64, y: f64, s: &mut Vec<Segment>| rect(x - 0.3, y - 0.3, x + 0.3, y + 0.3, s);
+    let (lo, hi) = (0.0, 250.0);
+    let near_crossing = |v: f64| CAMPUS_ROADS.iter().any(|&c| (v - c).abs() < 9.0);
+    // Trees along both sides of every road, between the crossings.
+    for &c in &CAMPUS_ROADS {
+        for side in [-7.0, 7.0] {
+            let mut t = lo + 3.0 + rng.random_range(0.0..8.0);
+            while t < hi - 3.0 {
+                if !near_crossing(t) {
+                    tree(t, c + side, &mut s); // along the road parallel to x
+                }
+                let u = t + rng.random_range(0.0..4.0);
+                if u < hi - 3.0 && !near_crossing(u) {
+                    tree(c + side, u, &mut s); // along the road parallel to y
+                }
+                t += rng.random_range(8.0..16.0);
+            }
+        }
+    }
+    // Buildings and trees in the four lots of each block.
+    for bx in 0..3 {
+        for by in 0..3 {
+            let (x0, y0) = (CAMPUS_ROADS[bx] + 5.0, CAMPUS_ROADS[by] + 5.0);
+            let lot = (CAMPUS_ROADS[1] - CAMPUS_ROADS[0] - 10.0) / 2.0;
+            for (lx, ly) in [(0.0, 0.0), (lot, 0.0), (0.0, lot), (lot, lot)] {
+                let (ax, ay) = (x0 + lx, y0 + ly);
+                if rng.random_range(0.0..1.0) < 0.75 {
+                    let (w, h) = (rng.random_range(10.0..18.0), rng.random_range(8.0..18.0));
+                    let bx0 = ax + 3.0 + rng.random_range(0.0..lot - 6.0 - w);
+                    let by0 = ay + 3.0 + rng.random_range(0.0..lot - 6.0 - h);
+                    rect(bx0, by0, bx0 + w, by0 + h, &mut s);
+                } else {
+                    for _ in 0..4 {
+                        let (x, y) = (
+                            rng.random_range(3.0..lot - 3.0),
+                            rng.random_range(3.0..lot - 3.0),
+                        );
+                        tree(ax + x, ay + y, &mut s);
+                    }
+                }
+            }
+        }
+    }
+    // Scattered trees outside the ring road.
+    for _ in 0..80 {
+        let along = rng.random_range(lo + 2.0..hi - 2.0);
+        let across = rng.random_range(lo + 2.0..lo + 12.0);
+        match rng.random_range(0..4) {
+            0 => tree(along, across, &mut s),
+            1 => tree(along, hi - across, &mut s),
+            2 => tree(across, along, &mut s),
+            _ => tree(hi - across, along, &mut s),
+        }
+    }
+    World::new(s).expect("constant campus world is valid")
+}
+
+/// The campus route, ≈ 1.3 km along road centre lines, corners rounded to 4 m: the ring road
+/// counter-clockwise from (85, 20), then a loop through the inner roads that crosses and
+/// re-drives stretches already seen, back to the start.
+pub fn campus_path() -> Path {
+    let c = |i: usize, j: usize| Point2::new(CAMPUS_ROADS[i], CAMPUS_ROADS[j]);
+    let pts = [
+        c(1, 0),
+        c(3, 0),
+        c(3, 3),
+        c(0, 3),
+        c(0, 0),
+        c(1, 0),
+        c(1, 2),
+        c(2, 2),
+        c(2, 1),
+        c(0, 1),
+        c(0, 0),
+    ];
+    Path::rounded(&pts, true, 4.0, 0.1).expect("constant campus path is valid")
+}
+
+/// `campus`: the [`campus_world`] driven along the [`campus_path`]. Defaults: 2 laps
+/// (≈ 2.6 km, ≈ 5,800 scans), 361 beams over 180° (0.5° apart), range 80 m, σ = 3 cm; the
+/// robot at 1.5 m/s (a scan every 0.45 m), look-ahead 3 m; odometry as in [`office`].
+pub fn campus(opts: &ScenarioOptions) -> Result<LaserSimRun, SimError> {
+    let world = campus_world();
+    let path = campus_path();
+    let mut base = LaserSimConfig::default();
+    base.follower.speed = 1.5;
+    let per_scan = base.follower.speed * base.follower.dt * base.odometry_per_scan as f64;
+    let scans = match opts.steps {
+        Some(s) => s,
+        None => ((opts.laps_or(2.0)? * path.length() / per_scan).round() as usize).max(1),
+    };
+    let mut o = opts.clone();
+    o.beams = Some(opts.beams.unwrap_or(361));
+    o.laser_sigma = Some(opts.laser_sigma.unwrap_or(0.03));
+    let mut cfg = laser_config("campus", &o, 80.0, scans)?;
+    cfg.follower.speed = base.follower.speed;
+    cfg.follower.lookahead = 3.0;
     simulate_laser(&world, &path, &cfg, opts.seed)
 }
 

@@ -1,5 +1,5 @@
-//! Named scenarios: `loop`, `figure8`, `city`, `clutter` (landmark worlds), `office` and
-//! `replay` (laser worlds).
+//! Named scenarios: `loop`, `figure8`, `city`, `clutter` (landmark worlds), `office`,
+//! `campus` and `replay` (laser worlds).
 //!
 //! [`generate`] builds a scenario from a name and a [`ScenarioOptions`]; every option is
 //! optional and falls back to the scenario's documented default (see [`list`] and the
@@ -63,6 +63,12 @@ pub fn list() -> Vec<ScenarioInfo> {
             kind: ScenarioKind::Laser,
             description: "office floor (40 m x 20 m, rooms on both sides of a corridor loop); 180 deg 181-beam laser, \
                           range 20 m, two laps of the corridor",
+        },
+        ScenarioInfo {
+            name: "campus",
+            kind: ScenarioKind::Laser,
+            description: "outdoor campus (250 m x 250 m: roads, buildings, trees, no boundary wall); 180 deg \
+                          361-beam laser, range 80 m, 1.5 m/s, two laps of a 1.3 km route with loops",
         },
         ScenarioInfo {
             name: "replay",
@@ -156,6 +162,7 @@ pub fn generate(name: &str, opts: &ScenarioOptions) -> Result<SimOutput, SimErro
         "city" => landmarks::city(opts).map(SimOutput::Landmark),
         "clutter" => landmarks::clutter(opts).map(SimOutput::Landmark),
         "office" => laser::office(opts).map(SimOutput::Laser),
+        "campus" => laser::campus(opts).map(SimOutput::Laser),
         "replay" => laser::replay(opts).map(SimOutput::Laser),
         _ => Err(SimError::UnknownScenario {
             name: name.to_string(),
