@@ -637,6 +637,59 @@ mod tests {
     }
 
     #[test]
+    fn campus_defaults() {
+        let w = campus_world();
+        let (lo, hi) = w.bounds();
+        assert!(
+            lo.x > -1.0 && lo.y > -1.0 && hi.x < 251.0 && hi.y < 251.0,
+            "{lo:?} {hi:?}"
+        );
+        assert!(hi.x - lo.x > 240.0 && hi.y - lo.y > 240.0, "{lo:?} {hi:?}");
+        let path = campus_path();
+        assert!((path.length() - 1300.0).abs() < 30.0, "{}", path.length());
+        let r = run(
+            "campus",
+            &ScenarioOptions {
+                seed: 2,
+                steps: Some(400),
+                ..Default::default()
+            },
+        );
+        let recs = &r.dataset.records;
+        let gt = r.dataset.ground_truth.as_ref().unwrap();
+        assert_eq!(recs.iter().filter(|r| r.scan.is_some()).count(), 400);
+        let (mut beams, mut hits, mut far) = (0, 0, 0);
+        for rec in recs {
+            if let Some(s) = &rec.scan {
+                assert_eq!(s.len(), 361);
+                s.validate().unwrap();
+                beams += s.len();
+                for k in (0..s.len()).filter(|&k| s.is_hit(k)) {
+                    hits += 1;
+                    far += usize::from(s.ranges[k] > 20.0);
+                }
+            }
+        }
+        // Outdoors: many beams hit nothing, and many hits lie beyond an indoor laser's reach.
+        assert!(
+            hits * 10 > beams && hits * 10 < beams * 9,
+            "{hits} of {beams}"
+        );
+        assert!(far * 5 > hits, "{far} of {hits} hits beyond 20 m");
+        // The robot keeps to the roads: every true pose is ≥ 3 m from every tree and wall.
+        for g in gt {
+            for k in 0..36 {
+                let a = k as f64 * 10f64.to_radians();
+                assert!(
+                    w.cast(&g.pose.translation(), a, 3.0).is_none(),
+                    "{:?}",
+                    g.pose
+                );
+            }
+        }
+    }
+
+    #[test]
     fn office_is_deterministic_and_noise_free_odometry_is_the_truth() {
         let o = ScenarioOptions {
             seed: 9,
