@@ -9,6 +9,8 @@
 //!   `fastslam`, `grid`, `gridfast`, `sim`).
 //! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
 //!   into `slam-out/eval/`; not part of the test suite.
+//! * `cargo xtask eval robust [--seeds N] [--only NAME]`: grid FastSLAM's robustness suite
+//!   (see [`robust`]), writing into `slam-out/robust/`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
@@ -32,10 +34,11 @@ fn main() -> ExitCode {
         Some("test-all") => test_all(),
         Some("tidy") => tidy(),
         Some("bench") => bench(args.get(1).map(String::as_str)),
+        Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|sim] | eval>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|sim] | eval [robust]>"
             );
             return ExitCode::from(2);
         }
@@ -428,4 +431,218 @@ fn eval(extra: &[String]) -> Result<(), String> {
         run(&format!("eval line {}: slam {line}", i + 1), &mut cmd)?;
     }
     Ok(())
+}
+
+/// One input of the robustness suite: a log with the trajectory it is scored against.
+struct RobustCase {
+    /// Short name: `<log>`, `<log>-moderate`, `<log>-hard` or `campus`.
+    name: String,
+    log: std::path::PathBuf,
+    truth: std::path::PathBuf,
+    /// Whether `truth` is exact (simulated or perturbed) or GMapping's reference (bench).
+    exact: bool,
+    relations: Option<std::path::PathBuf>,
+}
+
+/// `cargo xtask eval robust`: grid FastSLAM (defaults, 30 particles) on every log in
+/// `../shared/datasets/bench` against its reference trajectory; on every
+/// `radish-corrected` log with its odometry replaced by `../shared/tools/perturb-odometry`
+/// at the `moderate` and `hard` profiles (the corrected poses are then exact ground truth);
+/// and on the simulated `campus` (exact ground truth). Each with filter seeds 0..N (default
+/// 5). Prints and writes `slam-out/robust/summary.md`: per input the median and worst
+/// aligned ATE, the median relations error where relations exist, and the runs counted
+/// lost (aligned ATE above 1 m, or a failed run).
+fn robust(extra: &[String]) -> Result<(), String> {
+    let mut seeds = 5u64;
+    let mut only: Option<String> = None;
+    let mut it = extra.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--seeds" => {
+                seeds = it
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|&n| n > 0)
+                    .ok_or("--seeds takes a positive count")?
+            }
+            "--only" => only = Some(it.next().ok_or("--only takes a case name")?.clone()),
+            other => return Err(format!("eval robust: unknown argument {other:?}")),
+        }
+    }
+    let data = std::env::var_os("SLAM_DATASETS")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/datasets"));
+    let tools = data.join("../tools");
+    if !data.join("bench").is_dir() {
+        return Err(format!("{} not found", data.join("bench").display()));
+    }
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"));
+    let exe = target.join("release").join("slam");
+    let out = std::path::Path::new("slam-out/robust");
+    let inputs = out.join("inputs");
+    std::fs::create_dir_all(&inputs).map_err(|e| format!("{}: {e}", inputs.display()))?;
+
+    let mut cases = Vec::new();
+    let mut bench: Vec<_> = std::fs::read_dir(data.join("bench"))
+        .map_err(|e| e.to_string())?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|x| x == "log"))
+        .collect();
+    bench.sort();
+    for log in &bench {
+        let stem = log
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .to_string();
+        let relations = data.join(format!("slam-benchmark-relations/{stem}.relations"));
+        cases.push(RobustCase {
+            name: stem.clone(),
+            log: log.clone(),
+            truth: log.with_extension("ref.tum"),
+            exact: false,
+            relations: relations.exists().then_some(relations),
+        });
+    }
+    let mut corrected: Vec<_> = std::fs::read_dir(data.join("radish-corrected"))
+        .map_err(|e| e.to_string())?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.to_string_lossy().ends_with("-corrected.log.gz"))
+        .collect();
+    corrected.sort();
+    for log in &corrected {
+        let file = log
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .to_string();
+        let stem = file.trim_end_matches("-corrected.log.gz");
+        for profile in ["moderate", "hard"] {
+            let name = format!("{stem}-{profile}");
+            if only.as_ref().is_some_and(|o| o != &name) {
+                continue;
+            }
+            let prefix = inputs.join(&name);
+            if !prefix.with_extension("log").exists() {
+                run(
+                    &format!("perturb {name}"),
+                    Command::new(tools.join("perturb-odometry"))
+                        .arg(log)
+                        .arg(&prefix)
+                        .args(["--seed", "1", "--profile", profile]),
+                )?;
+            }
+            cases.push(RobustCase {
+                name,
+                log: prefix.with_extension("log"),
+                truth: inputs.join(format!("{stem}-{profile}.gt.tum")),
+                exact: true,
+                relations: None,
+            });
+        }
+    }
+    let campus = inputs.join("campus");
+    if !campus.join("campus.log").exists() && only.as_deref().is_none_or(|o| o == "campus") {
+        run(
+            "simulate campus",
+            Command::new(&exe)
+                .args(["sim", "campus", "--seed", "1", "--out"])
+                .arg(&campus),
+        )?;
+    }
+    cases.push(RobustCase {
+        name: "campus".into(),
+        log: campus.join("campus.log"),
+        truth: campus.join("ground_truth.tum"),
+        exact: true,
+        relations: None,
+    });
+    cases.retain(|c| only.as_ref().is_none_or(|o| o == &c.name));
+
+    let mut table = String::from(
+        "| input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost |\n|---|---|---|---|---|\n",
+    );
+    for case in &cases {
+        let mut ates = Vec::new();
+        let mut rel = Vec::new();
+        let mut lost = 0;
+        for seed in 0..seeds {
+            let dir = out.join(format!("{}-seed{seed}", case.name));
+            let _ = std::fs::remove_dir_all(&dir);
+            let mut cmd = Command::new(&exe);
+            cmd.args([
+                "run",
+                "--filter",
+                "gridfast",
+                "--particles",
+                "30",
+                "--quiet",
+            ])
+            .arg("--dataset")
+            .arg(&case.log)
+            .arg("--ground-truth")
+            .arg(&case.truth)
+            .args(["--seed", &seed.to_string(), "--out"])
+            .arg(&dir);
+            if let Some(r) = &case.relations {
+                cmd.arg("--relations").arg(r);
+            }
+            let ok = run(&format!("{} seed {seed}", case.name), &mut cmd).is_ok();
+            let metrics = std::fs::read_to_string(dir.join("metrics.json")).unwrap_or_default();
+            match (ok, json_number(&metrics, "ate_rmse_aligned_m")) {
+                (true, Some(a)) => {
+                    lost += usize::from(a > 1.0);
+                    ates.push(a);
+                }
+                _ => lost += 1,
+            }
+            if let (Some(t), Some(r)) = (
+                json_number(&metrics, "relations_trans_mean_m"),
+                json_number(&metrics, "relations_rot_mean_deg"),
+            ) {
+                rel.push((t, r));
+            }
+        }
+        ates.sort_by(f64::total_cmp);
+        rel.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let ate = match (ates.get(ates.len() / 2), ates.last()) {
+            (Some(m), Some(w)) => format!("{m:.3} / {w:.3}"),
+            _ => "–".into(),
+        };
+        let rel = rel
+            .get(rel.len() / 2)
+            .map_or("–".into(), |(t, r)| format!("{t:.4} / {r:.2}"));
+        let truth = if case.exact {
+            "exact"
+        } else {
+            "GMapping reference"
+        };
+        table.push_str(&format!(
+            "| {} | {truth} | {ate} | {rel} | {lost} of {seeds} |\n",
+            case.name
+        ));
+    }
+    println!("{table}");
+    let summary = out.join("summary.md");
+    std::fs::write(&summary, &table).map_err(|e| format!("{}: {e}", summary.display()))?;
+    println!("xtask: wrote {}", summary.display());
+    Ok(())
+}
+
+/// The number after `"key":` in a flat JSON text, or `None` (absent, `null`).
+fn json_number(json: &str, key: &str) -> Option<f64> {
+    let at = json.find(&format!("\"{key}\""))? + key.len() + 2;
+    let rest = json[at..].trim_start().strip_prefix(':')?.trim_start();
+    let end = rest
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
+        .unwrap_or(rest.len());
+    rest[..end].parse().ok()
 }
