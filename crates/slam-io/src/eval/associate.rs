@@ -1,4 +1,5 @@
-//! Looking an estimate up at a time (the rule of the dataset README, section 6).
+//! Looking an estimate up at a time (the rule of the dataset README, section 6), and
+//! [`associate`], the one rule that pairs an estimate with its ground truth for ATE and RPE.
 
 use slam_models::{normalize_angle, Pose2, TimedPose};
 
@@ -34,6 +35,77 @@ pub fn lookup(sorted: &[TimedPose], t: f64, max_dt: f64) -> Option<usize> {
         (None, None) => return None,
     };
     ((sorted[pick].t - t).abs() <= max_dt).then_some(pick)
+}
+
+/// True when `a` and `b` come from the same log: the same number of poses with the same
+/// time stamps, record by record (bit for bit).
+pub fn same_stamps(a: &[TimedPose], b: &[TimedPose]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.t.to_bits() == q.t.to_bits())
+}
+
+/// The association of an estimate with its ground truth: pairs (estimate index, ground-truth
+/// index), both in file (record) order, in ground-truth file order. This is the one rule ATE,
+/// RPE and the "as is" anchor use (documented in `docs/evaluation.md`):
+///
+/// * When both files come from the same log ([`same_stamps`]: same length, same stamps in
+///   the same order), record i of the estimate goes with record i of the ground truth. Only
+///   this keeps repeated or backward stamps apart, so a trajectory scored against itself is
+///   exactly 0.
+/// * Otherwise every ground-truth pose takes the estimate pose nearest in time ([`lookup`]
+///   on the estimate sorted by time, file order kept among equal stamps, the earlier on a
+///   tie), if it is at most `max_dt` seconds away; ground-truth poses without one are left
+///   out.
+pub fn associate(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Vec<(usize, usize)> {
+    if same_stamps(est, gt) {
+        return (0..est.len()).map(|i| (i, i)).collect();
+    }
+    let mut order: Vec<usize> = (0..est.len()).collect();
+    order.sort_by(|&a, &b| est[a].t.total_cmp(&est[b].t));
+    let sorted: Vec<TimedPose> = order.iter().map(|&i| est[i]).collect();
+    gt.iter()
+        .enumerate()
+        .filter_map(|(j, g)| lookup(&sorted, g.t, max_dt).map(|k| (order[k], j)))
+        .collect()
+}
+
+/// Stamps that repeat (equal to the one before) and stamps that step back (earlier than the
+/// one before), counted in file order.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StampOrder {
+    /// Poses whose stamp equals the previous pose's.
+    pub repeated: usize,
+    /// Poses whose stamp is earlier than the previous pose's.
+    pub backwards: usize,
+}
+
+/// Counts repeated and backward stamps in `traj` (file order).
+pub fn stamp_order(traj: &[TimedPose]) -> StampOrder {
+    let mut s = StampOrder::default();
+    for w in traj.windows(2) {
+        if w[1].t == w[0].t {
+            s.repeated += 1;
+        } else if w[1].t < w[0].t {
+            s.backwards += 1;
+        }
+    }
+    s
+}
+
+/// One warning line (without a `warning:` prefix) when `traj`, named `what`, has stamps that
+/// repeat or step back, saying how such poses are associated; `None` when its stamps
+/// strictly increase.
+pub fn stamp_order_warning(traj: &[TimedPose], what: &str) -> Option<String> {
+    let s = stamp_order(traj);
+    (s.repeated + s.backwards > 0).then(|| {
+        format!(
+            "{what}: {} of {} time stamps repeat and {} step back; poses are associated by \
+             nearest stamp, record by record when both files have the same stamps (see \
+             docs/evaluation.md)",
+            s.repeated,
+            traj.len(),
+            s.backwards
+        )
+    })
 }
 
 /// How an estimate is read at a time t.
@@ -117,6 +189,29 @@ mod tests {
         assert_eq!(lookup(&s, 1.011, 0.006), None);
         assert_eq!(lookup(&s, 1.0099, 0.006), Some(3));
         assert_eq!(lookup(&[], 1.0, 1.0), None);
+    }
+
+    #[test]
+    fn association_rule() {
+        // Same log, with a repeated and a backward stamp: record by record.
+        let a = [at(1.0, 0.0), at(1.0, 1.0), at(0.9, 2.0), at(2.0, 3.0)];
+        let b = [at(1.0, 5.0), at(1.0, 6.0), at(0.9, 7.0), at(2.0, 8.0)];
+        assert!(same_stamps(&a, &b));
+        assert_eq!(associate(&a, &b, 0.006), vec![(0, 0), (1, 1), (2, 2), (3, 3)]);
+        assert_eq!(
+            stamp_order(&a),
+            StampOrder {
+                repeated: 1,
+                backwards: 1
+            }
+        );
+        assert!(stamp_order_warning(&a, "x").unwrap().contains("1 of 4"));
+        assert!(stamp_order_warning(&a[2..], "x").is_none());
+        // Different logs: nearest stamp, indices in the estimate's file order, the first of
+        // equal stamps; the ground truth at 5.0 finds nothing.
+        let gt = [at(2.001, 0.0), at(1.0, 0.0), at(0.902, 0.0), at(5.0, 0.0)];
+        assert!(!same_stamps(&a, &gt));
+        assert_eq!(associate(&a, &gt, 0.006), vec![(3, 0), (0, 1), (2, 2)]);
     }
 
     #[test]

@@ -13,6 +13,12 @@
 //! (the earlier on a tie); and give up if it is more than `max_dt` away
 //! ([`DEFAULT_MAX_DT`] = 6 ms unless said otherwise). For estimates that are sparse in
 //! time, [`relations_error_lookup`] with [`PoseLookup::Interpolate`] interpolates instead.
+//!
+//! **Pairing an estimate with its ground truth** (ATE, RPE, the "as is" anchor) is
+//! [`associate`]: that lookup, except that two files from the same log (same length, same
+//! stamps) are paired record by record, which keeps repeated and backward stamps apart.
+//! `docs/evaluation.md` states the rule and the `evo` command lines that reproduce each
+//! figure.
 
 mod align;
 mod associate;
@@ -23,7 +29,10 @@ mod trajectory;
 
 pub use align::align_se2;
 pub(crate) use align::errors_as_is_and_aligned;
-pub use associate::{lookup, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
+pub use associate::{
+    associate, lookup, pose_at, same_stamps, sorted_by_time, stamp_order, stamp_order_warning,
+    PoseLookup, StampOrder, DEFAULT_MAX_DT,
+};
 pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
 pub use landmarks::{
     landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,

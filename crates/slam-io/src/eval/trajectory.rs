@@ -1,7 +1,7 @@
 //! Absolute trajectory error (ATE) and relative pose error (RPE) (Sturm et al., IROS 2012,
 //! the TUM RGB-D benchmark definitions, restricted to SE(2)).
 
-use super::{errors_as_is_and_aligned, lookup, mean_std, rms, sorted_by_time, DEFAULT_MAX_DT};
+use super::{associate, errors_as_is_and_aligned, mean_std, rms, DEFAULT_MAX_DT};
 use crate::error::IoError;
 use serde::Serialize;
 use slam_models::{Point2, Pose2, TimedPose};
@@ -25,34 +25,38 @@ pub struct AteResult {
     pub alignment: Pose2,
 }
 
-/// Pairs (estimate, ground truth) for every ground-truth pose with an estimate within
-/// `max_dt` (see the module docs for the lookup rule).
+/// Pairs (estimate, ground truth) by [`associate`], in ground-truth file order.
 fn matched_pairs(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Vec<(Pose2, Pose2)> {
-    let sorted = sorted_by_time(est);
-    gt.iter()
-        .filter_map(|g| lookup(&sorted, g.t, max_dt).map(|i| (sorted[i].pose, g.pose)))
+    associate(est, gt, max_dt)
+        .into_iter()
+        .map(|(i, j)| (est[i].pose, gt[j].pose))
         .collect()
 }
 
-/// The ground truth `gt` moved rigidly so that its first pose with an estimate at the same time
-/// (within [`DEFAULT_MAX_DT`]) coincides with that estimate: T = e ⊕ g⁻¹ applied to
-/// every ground-truth pose. Unchanged when no pose matches in time (ATE then says so).
+/// The ground truth `gt` moved rigidly so that the ground-truth partner of the estimate's
+/// first pose in file (record) order coincides with that pose: T = e ⊕ g⁻¹ applied to every
+/// ground-truth pose, with (e, g) the pair of [`associate`] (within [`DEFAULT_MAX_DT`]) of
+/// lowest estimate index. This is `evo_ape --align_origin`. Unchanged when no pose matches
+/// in time (ATE then says so).
 ///
 /// Use it when the estimate starts in its own frame (a laser filter starts at the identity):
-/// "as is" metrics then mean "sharing the start frame".
+/// "as is" metrics then mean "sharing the start frame". The anchor is the first record, not
+/// the earliest stamp: logs with a few late records stamped before the start (Intel) would
+/// otherwise anchor at a pose far into the run.
 pub fn anchor_at_first_match(trajectory: &[TimedPose], gt: &[TimedPose]) -> Vec<TimedPose> {
-    let est = sorted_by_time(trajectory);
-    let anchor = sorted_by_time(gt).into_iter().find_map(|g| {
-        lookup(&est, g.t, DEFAULT_MAX_DT).map(|i| est[i].pose.compose(&g.pose.inverse()))
-    });
-    match anchor {
-        Some(t) => gt
-            .iter()
-            .map(|g| TimedPose {
-                t: g.t,
-                pose: t.compose(&g.pose),
-            })
-            .collect(),
+    let first = associate(trajectory, gt, DEFAULT_MAX_DT)
+        .into_iter()
+        .min_by_key(|&(i, j)| (i, j));
+    match first {
+        Some((i, j)) => {
+            let t = trajectory[i].pose.compose(&gt[j].pose.inverse());
+            gt.iter()
+                .map(|g| TimedPose {
+                    t: g.t,
+                    pose: t.compose(&g.pose),
+                })
+                .collect()
+        }
         None => gt.to_vec(),
     }
 }
@@ -62,7 +66,8 @@ pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
     ate_with(est, gt, DEFAULT_MAX_DT)
 }
 
-/// ATE: for every ground-truth pose, the estimate at its time (within `max_dt`), then
+/// ATE: the pairs of [`associate`] (every ground-truth pose with the estimate nearest its
+/// time within `max_dt`, or record by record for files from the same log), then
 /// RMSE = √(1/n Σ‖p_est,i − p_gt,i‖²) as is and after aligning the estimate's positions
 /// onto the ground truth's with [`align_se2`](super::align_se2) (Umeyama without scale). Errors when no
 /// ground-truth pose finds an estimate, or values are not finite.
@@ -133,7 +138,7 @@ pub fn rpe(est: &[TimedPose], gt: &[TimedPose]) -> Result<RpeResult, IoError> {
     rpe_with(est, gt, DEFAULT_MAX_DT, 1)
 }
 
-/// RPE: match every ground-truth pose to the estimate (as for ATE); for matched poses i and
+/// RPE: pair the poses by [`associate`] (as for ATE); for matched poses i and
 /// i + `stride` (in ground-truth order) compare the relative motions Δ = e_i⁻¹ ⊕ e_j (`e_i.between(e_j)`), and the error E = Δ_gt⁻¹ ⊕ Δ_est; report its
 /// translation norm (m) and |rotation| (degrees, normalised). Errors when fewer than
 /// `stride + 1` poses match or `stride` is 0.
@@ -292,5 +297,42 @@ mod tests {
         assert!(a[1].pose.approx_eq(&est[0].pose, 1e-12), "{:?}", a[1]);
         assert!(a[2].pose.approx_eq(&est[1].pose, 1e-12), "{:?}", a[2]);
         assert_eq!(a[0].t, 0.0);
+    }
+
+    #[test]
+    fn anchor_is_the_first_record_not_the_earliest_stamp() {
+        // The last estimate record carries a stamp before the first one (as 22 late records
+        // of the Intel log do); the anchor is still the first record.
+        let est = [
+            tp(1.0, 0.0, 0.0, 0.0),
+            tp(2.0, 1.0, 0.0, 0.0),
+            tp(0.5, 7.0, 7.0, 0.0),
+        ];
+        let gt = [
+            tp(0.5, 4.0, 4.0, 0.0),
+            tp(1.0, 3.0, 0.0, 0.0),
+            tp(2.0, 4.0, 0.0, 0.0),
+        ];
+        let a = anchor_at_first_match(&est, &gt);
+        // T moves gt(1.0) = (3, 0) onto est(1.0) = (0, 0): a shift by (−3, 0).
+        assert!(a[1].pose.approx_eq(&est[0].pose, 1e-12));
+        assert!(a[2].pose.approx_eq(&est[1].pose, 1e-12));
+        assert!(a[0].pose.approx_eq(&Pose2::new(1.0, 4.0, 0.0), 1e-12));
+    }
+
+    #[test]
+    fn a_trajectory_scored_against_itself_is_exactly_zero() {
+        // Repeated and backward stamps, as in every bench reference.
+        let t = [
+            tp(1.0, 0.0, 0.0, 0.0),
+            tp(1.0, 0.3, 0.1, 0.2),
+            tp(1.5, 0.9, 0.2, 0.4),
+            tp(0.9, 1.4, 0.6, 1.1),
+            tp(2.0, 2.0, 1.0, -3.0),
+        ];
+        let a = ate(&t, &t).unwrap();
+        assert_eq!((a.rmse, a.rmse_aligned, a.matched), (0.0, 0.0, 5));
+        let r = rpe(&t, &t).unwrap();
+        assert_eq!((r.trans_mean, r.rot_mean_deg, r.pairs), (0.0, 0.0, 4));
     }
 }
