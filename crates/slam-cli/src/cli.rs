@@ -48,8 +48,9 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
 
-    /// Number of simulated steps (the scenario's own length when not given).
-    #[arg(long, value_name = "N", requires = "sim", value_parser = clap::value_parser!(u64).range(1..))]
+    /// Number of simulated steps (the scenario's own length when not given); exactly this
+    /// many, or an error saying why not. Only with --sim.
+    #[arg(long, value_name = "N", requires = "sim", conflicts_with = "dataset", value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: Option<u64>,
 
     /// Dataset: a Freiburg folder (world.dat + sensor_data.dat), a CARMEN log (.log, .clf,
@@ -77,9 +78,15 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub relations: Option<PathBuf>,
 
-    /// Output folder (default ./slam-out/FILTER-DATASET).
+    /// Output folder (default ./slam-out/FILTER-DATASET): a new or empty folder, or one an
+    /// earlier `slam run` wrote (its files are replaced).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+
+    /// Write into a non-empty --out that slam run did not make: the files slam run writes
+    /// are replaced there, all others are left alone.
+    #[arg(long)]
+    pub force: bool,
 
     /// Laser filters: write the map re-rendered at this cell size in metres (e.g. 0.01)
     /// from the best trajectory and every scan, instead of the filter's own grid (gridfast).
@@ -106,11 +113,13 @@ pub struct SimArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub seed: u64,
 
-    /// Number of steps (the scenario's own length when not given).
+    /// Number of steps, scans for laser scenarios (the scenario's own length when not
+    /// given); exactly this many, or an error saying why not.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: Option<u64>,
 
-    /// Output folder.
+    /// Output folder: a new or empty folder, or one an earlier `slam sim` wrote (its files
+    /// are replaced); never a folder holding anything else.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
 }

@@ -99,6 +99,14 @@ pub enum CliError {
         #[source]
         source: FilterError,
     },
+    /// The run was stopped by Ctrl-C (SIGINT) or SIGTERM; no output was written.
+    #[error("interrupted at step {step} of {steps}; no output written (an earlier complete output in the folder is left as it was)")]
+    Interrupted {
+        /// Steps done when the stop was seen.
+        step: usize,
+        /// Steps in the input.
+        steps: usize,
+    },
     /// The worker thread pool could not be created.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {
@@ -110,10 +118,12 @@ pub enum CliError {
 }
 
 impl CliError {
-    /// The process exit code: 2 for command-line mistakes, 1 for everything else.
+    /// The process exit code: 2 for command-line mistakes, 130 (128 + SIGINT, the shell's
+    /// convention) for an interrupted run, 1 for everything else.
     pub fn exit_code(&self) -> i32 {
         match self {
             CliError::Usage(_) => 2,
+            CliError::Interrupted { .. } => 130,
             _ => 1,
         }
     }

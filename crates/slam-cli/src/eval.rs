@@ -36,6 +36,23 @@ pub struct EvalReport {
     pub relations_dropped: Option<usize>,
 }
 
+/// Prints to stderr one warning line per trajectory whose stamps repeat or step back (one
+/// line for both when they come from the same log), saying how they are associated.
+pub(crate) fn warn_stamp_order(est: &[slam_models::TimedPose], gt: &[slam_models::TimedPose]) {
+    use slam_io::eval::{same_stamps, stamp_order_warning};
+    let lines = if same_stamps(est, gt) {
+        vec![stamp_order_warning(gt, "estimate and ground truth (same stamps)")]
+    } else {
+        vec![
+            stamp_order_warning(est, "estimate"),
+            stamp_order_warning(gt, "ground truth"),
+        ]
+    };
+    for l in lines.into_iter().flatten() {
+        eprintln!("slam: warning: {l}");
+    }
+}
+
 /// Runs `slam eval` with `args`, printing the figures to `out`.
 pub fn eval(args: &EvalArgs, out: &mut dyn Write) -> Result<EvalReport, CliError> {
     let est = slam_io::tum::read_tum(&args.estimate)?;
@@ -51,6 +68,7 @@ pub fn eval(args: &EvalArgs, out: &mut dyn Write) -> Result<EvalReport, CliError
     );
     if let Some(p) = &args.ground_truth {
         let gt = slam_io::tum::read_tum(p)?;
+        warn_stamp_order(&est, &gt);
         let ate = slam_io::eval::ate(&est, &gt)?;
         r.ate_rmse_m = finite(Some(ate.rmse));
         r.ate_rmse_aligned_m = finite(Some(ate.rmse_aligned));

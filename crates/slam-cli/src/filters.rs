@@ -142,15 +142,22 @@ fn unavailable(info: &FilterInfo) -> CliError {
     }
 }
 
-/// The checks every filter build starts with: `--particles` only for particle filters, and
-/// the filter must be available in this build.
-fn check_buildable(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
-    if setup.particles.is_some() && !info.particle_filter {
+/// `--particles` (`given`) applies to particle filters only; `slam run` asks before it loads
+/// the data.
+pub(crate) fn check_particles(info: &FilterInfo, given: bool) -> Result<(), CliError> {
+    if given && !info.particle_filter {
         return Err(CliError::InvalidArgument(format!(
             "--particles applies to particle filters (fastslam1, fastslam2, gridfast); `{}` has none",
             info.name
         )));
     }
+    Ok(())
+}
+
+/// The checks every filter build starts with: `--particles` only for particle filters, and
+/// the filter must be available in this build.
+fn check_buildable(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
+    check_particles(info, setup.particles.is_some())?;
     if info.unavailable.is_some() {
         return Err(unavailable(info));
     }

@@ -3,7 +3,7 @@
 //! ```text
 //! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
-//!           [--out <dir>] [--threads N] [--quiet]
+//!           [--out <dir>] [--force] [--threads N] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam list
@@ -17,7 +17,9 @@
 //! Output of `slam run` (in `--out`, default `./slam-out/<filter>-<dataset>`):
 //! `trajectory.tum`, `map.png`, `landmarks.csv` (landmark filters) or `map.pgm` + `map.yaml`
 //! (laser filters), `config.toml` (the configuration actually used) and `metrics.json`
-//! ([`Metrics`], a fixed set of keys, `null` where a figure cannot be computed).
+//! ([`Metrics`], a fixed set of keys, `null` where a figure cannot be computed), written
+//! last: a folder with `metrics.json` holds one complete run (see `outdir` for the rules on
+//! whose folder may be written and how an interrupted run leaves nothing behind).
 
 #![warn(missing_docs)]
 
@@ -28,6 +30,7 @@ pub mod eval;
 pub mod filters;
 mod list;
 pub mod metrics;
+mod outdir;
 mod progress;
 pub mod run;
 pub mod sim;
@@ -42,6 +45,21 @@ use clap::error::ErrorKind;
 use clap::Parser;
 use std::ffi::OsString;
 use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Set when the user asked the program to stop (Ctrl-C); `slam run` checks it between steps.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Asks a running `slam run` to stop at its next step (what `main`'s Ctrl-C handler calls);
+/// returns whether a stop had been asked for already.
+pub fn request_stop() -> bool {
+    STOP.swap(true, Ordering::SeqCst)
+}
+
+/// Whether a stop was asked for.
+pub(crate) fn stop_requested() -> bool {
+    STOP.load(Ordering::SeqCst)
+}
 
 /// What a successful command did.
 #[derive(Debug)]

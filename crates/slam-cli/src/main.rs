@@ -21,6 +21,16 @@ fn main() -> ExitCode {
             msg.replace('\n', " ")
         );
     }));
+    // Ctrl-C (and SIGTERM) asks `slam run` to stop at its next step, so it can leave no
+    // half-written output; a second one ends the program at once (the outputs are staged
+    // in `.slam-partial`, so even then nothing complete-looking is left).
+    let _ = ctrlc::set_handler(|| {
+        if slam_cli::request_stop() {
+            eprintln!("slam: stopped");
+            std::process::exit(130);
+        }
+        eprintln!("slam: stopping at the next step (Ctrl-C again to stop at once)");
+    });
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match slam_cli::main_with_args(std::env::args_os(), &mut out) {

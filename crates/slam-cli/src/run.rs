@@ -8,14 +8,22 @@
 //!   own, one pose per record. Outputs: `trajectory.tum`, `map.pgm` + `map.yaml`, `map.png`,
 //!   `config.toml`, `metrics.json`.
 //!
+//! Simulated runs also write the simulator's `ground_truth.tum`, so that both files can be
+//! handed to `evo` (docs/evaluation.md).
+//!
 //! Only the filter loop is timed (`wall_s`); reading the data and writing the outputs are not.
+//!
+//! Every option and the output folder are checked before the data is loaded; the outputs
+//! are staged and renamed into place with `metrics.json` last (see `outdir`), and Ctrl-C
+//! stops the run between steps with nothing written.
 
 use crate::cli::RunArgs;
 use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
 use crate::metrics::{self, Metrics};
+use crate::outdir::{OutDir, Owner};
 use crate::progress::Progress;
-use crate::sim::scenario_options;
+use crate::sim::{generate_exact, replay_map, scenario_options};
 use slam_io::eval;
 use slam_io::picture::{Picture, Rgb};
 use slam_io::Dataset;
@@ -67,6 +75,8 @@ struct Input {
     description: String,
     /// False when the data's times are step indices, not a clock (Freiburg course data).
     has_clock: bool,
+    /// Made by the simulator (its ground truth is written beside the trajectory).
+    simulated: bool,
     data: Data,
 }
 
@@ -94,6 +104,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             info.name
         )));
     }
+    filters::check_particles(&info, args.particles.is_some())?;
     // Fail on a missing config file before loading a possibly large dataset.
     if let Some(c) = &args.config {
         if !c.is_file() {
@@ -103,6 +114,33 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             });
         }
     }
+    // The small inputs are read, and the output folder checked, before the data is loaded.
+    let ground_truth = match &args.ground_truth {
+        Some(p) => Some(slam_io::tum::read_tum(p)?),
+        None => None,
+    };
+    let relations = match &args.relations {
+        Some(p) => Some(slam_io::relations::read_relations(p)?),
+        None => None,
+    };
+    let out_dir = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("slam-out").join(format!("{}-{}", info.name, file_safe(&default_name(args))))
+    });
+    let mut inputs: Vec<(&str, &Path)> = Vec::new();
+    for (option, path) in [
+        ("--dataset", &args.dataset),
+        ("--ground-truth", &args.ground_truth),
+        ("--relations", &args.relations),
+        ("--config", &args.config),
+    ] {
+        if let Some(p) = path {
+            inputs.push((option, p.as_path()));
+        }
+    }
+    if let Some(map) = args.sim.as_deref().and_then(replay_map) {
+        inputs.push(("--sim replay map", map));
+    }
+    let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let mut input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);
     if input.kind() != info.kind {
@@ -114,27 +152,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             suggest: filters::names_of(input.kind()),
         });
     }
-    let ground_truth = match &args.ground_truth {
-        Some(p) => Some(slam_io::tum::read_tum(p)?),
-        None => None,
-    };
-    let relations = match &args.relations {
-        Some(p) => Some(slam_io::relations::read_relations(p)?),
-        None => None,
-    };
-    let out_dir = args.out.clone().unwrap_or_else(|| {
-        PathBuf::from("slam-out").join(format!("{}-{}", info.name, file_safe(&input.name)))
-    });
-    std::fs::create_dir_all(&out_dir).map_err(|e| CliError::Write {
-        path: out_dir.clone(),
-        source: e,
-    })?;
+    if crate::stop_requested() {
+        return Err(CliError::Interrupted { step: 0, steps: 0 });
+    }
     let ctx = RunContext {
         info,
         args,
-        out_dir: &out_dir,
+        stage: staging.stage(),
         ground_truth,
         relations,
+        simulated: input.simulated,
     };
     let threads = args.threads.map(|t| t as usize);
     let run = |input: &mut Input| -> Result<Finished, CliError> {
@@ -163,6 +190,18 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         }
         None => run(&mut input)?,
     };
+    if crate::stop_requested() {
+        return Err(CliError::Interrupted {
+            step: metrics.steps,
+            steps: metrics.steps,
+        });
+    }
+    let order: Vec<String> = files
+        .iter()
+        .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().to_string()))
+        .collect();
+    let order: Vec<&str> = order.iter().map(String::as_str).collect();
+    let files = staging.commit(&order)?;
     print_summary(out, &metrics, &notes, &out_dir, &files);
     Ok(RunReport {
         out_dir,
@@ -176,18 +215,45 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
 struct RunContext<'a> {
     info: FilterInfo,
     args: &'a RunArgs,
-    out_dir: &'a Path,
+    /// Where the outputs are written before they are renamed into the output folder.
+    stage: &'a Path,
+    /// The input came from the simulator: write its ground truth too.
+    simulated: bool,
     /// `--ground-truth`, read.
     ground_truth: Option<Vec<TimedPose>>,
     /// `--relations`, read.
     relations: Option<Vec<slam_io::relations::Relation>>,
 }
 
+/// The dataset's name for the default output folder, from the arguments alone (so the
+/// folder can be checked before the data is loaded): the scenario, or the dataset's file
+/// or folder name without `.gz`/`.log`/`.clf` (with `-robotN` for MRCLAM).
+fn default_name(args: &RunArgs) -> String {
+    if let Some(spec) = &args.sim {
+        return base_name(spec);
+    }
+    let stem = args
+        .dataset
+        .as_deref()
+        .and_then(Path::file_name)
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "dataset".into());
+    let stem = stem
+        .trim_end_matches(".gz")
+        .trim_end_matches(".log")
+        .trim_end_matches(".clf")
+        .to_string();
+    match args.robot {
+        Some(r) => format!("{stem}-robot{r}"),
+        None => stem,
+    }
+}
+
 /// Reads the dataset or generates the scenario.
 fn load_input(args: &RunArgs) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
         let (name, opts) = scenario_options(spec, args.seed, args.steps)?;
-        let output = slam_sim::scenario::generate(&name, &opts)?;
+        let output = generate_exact(&name, &opts)?;
         return Ok(match output {
             slam_sim::SimOutput::Landmark(run) => {
                 let d = &run.dataset;
@@ -202,6 +268,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
                     name: base_name(&name),
                     label: format!("scenario {spec}"),
                     has_clock: true,
+                    simulated: true,
                     data: Data::Landmark {
                         dataset: run.dataset,
                         sim_models: Some((run.motion, run.sensor)),
@@ -220,6 +287,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
                     name: base_name(&name),
                     label: format!("scenario {spec}"),
                     has_clock: true,
+                    simulated: true,
                     data: Data::Laser(run.dataset),
                 }
             }
@@ -257,6 +325,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
             label: path.display().to_string(),
             description,
             has_clock: !freiburg_without_clock,
+            simulated: false,
             data: Data::Landmark {
                 dataset: d,
                 sim_models: None,
@@ -267,6 +336,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
             label: path.display().to_string(),
             description,
             has_clock: true,
+            simulated: false,
             data: Data::Laser(d),
         },
     })
@@ -353,6 +423,12 @@ fn run_landmark(
     let mut progress = Progress::new(steps.len(), ctx.args.quiet);
     let start = Instant::now();
     for (k, step) in steps.iter().enumerate() {
+        if crate::stop_requested() {
+            return Err(CliError::Interrupted {
+                step: k,
+                steps: steps.len(),
+            });
+        }
         let fail = |source| CliError::FilterStep {
             filter: info.name.to_string(),
             step: k,
@@ -413,11 +489,18 @@ fn run_landmark(
     }
     m.peak_rss_mb = metrics::peak_rss_mb();
 
-    let dir = ctx.out_dir;
+    let dir = ctx.stage;
     let mut files = Vec::new();
     let p = dir.join("trajectory.tum");
     slam_io::tum::write_tum(&p, &trajectory)?;
     files.push(p);
+    if ctx.simulated {
+        if let Some(gt) = &dataset.ground_truth {
+            let p = dir.join("ground_truth.tum");
+            slam_io::tum::write_tum(&p, gt)?;
+            files.push(p);
+        }
+    }
     let p = dir.join("landmarks.csv");
     slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
     files.push(p);
@@ -482,6 +565,12 @@ fn run_scan(
     let mut progress = Progress::new(records.len(), ctx.args.quiet);
     let start = Instant::now();
     for (k, record) in records.iter().enumerate() {
+        if crate::stop_requested() {
+            return Err(CliError::Interrupted {
+                step: k,
+                steps: records.len(),
+            });
+        }
         filter
             .process(record)
             .map_err(|source| CliError::FilterStep {
@@ -538,11 +627,19 @@ fn run_scan(
     }
     m.peak_rss_mb = peak_rss_mb;
 
-    let dir = ctx.out_dir;
+    let dir = ctx.stage;
     let mut files = Vec::new();
     let p = dir.join("trajectory.tum");
     slam_io::tum::write_tum(&p, &trajectory)?;
     files.push(p);
+    if ctx.simulated {
+        // The simulator's own frame, not the anchored copy the metrics use.
+        if let Some(gt) = &dataset.ground_truth {
+            let p = dir.join("ground_truth.tum");
+            slam_io::tum::write_tum(&p, gt)?;
+            files.push(p);
+        }
+    }
     slam_io::ros_map::write_ros_map(dir, "map", &map)?;
     files.push(dir.join("map.pgm"));
     files.push(dir.join("map.yaml"));
@@ -576,6 +673,7 @@ fn run_scan(
 /// computed (no pose matched in time, …) stays null, with a warning on stderr: the run's
 /// outputs are still written.
 fn trajectory_metrics(m: &mut Metrics, trajectory: &[TimedPose], gt: &[TimedPose]) {
+    crate::eval::warn_stamp_order(trajectory, gt);
     match eval::ate(trajectory, gt) {
         Ok(ate) => {
             m.ate_rmse_m = Some(ate.rmse);

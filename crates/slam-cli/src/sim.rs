@@ -8,9 +8,15 @@
 //!
 //! `replay:<map.yaml>` (or `replay:<map.pgm>` with its YAML beside it) reads a ROS
 //! map_server map and drives through its free space.
+//!
+//! The folder is new, empty, or one an earlier `slam sim` marked as its own (`.slam-sim`,
+//! whose listed files are replaced, so no sidecar of an earlier scenario is left); a folder
+//! holding anything else, a dataset above all, is refused (see `outdir`). `--steps` is
+//! exact: a scenario that ends sooner is an error saying so.
 
 use crate::cli::SimArgs;
 use crate::error::CliError;
+use crate::outdir::{OutDir, Owner};
 use slam_sim::scenario::ScenarioOptions;
 use slam_sim::SimOutput;
 use std::io::Write;
@@ -81,19 +87,56 @@ pub(crate) fn scenario_options(
     Ok((name, opts))
 }
 
+/// The map file of a `replay:<map>` scenario spec (an input that must not lie in `--out`).
+pub(crate) fn replay_map(spec: &str) -> Option<&Path> {
+    match spec.split_once(':') {
+        Some(("replay", map)) if !map.is_empty() => Some(Path::new(map)),
+        _ => None,
+    }
+}
+
+/// Generates scenario `name`, checking that it has exactly the `steps` asked for (steps for
+/// landmark scenarios, scans for laser ones): a scenario whose path ends sooner is an error
+/// that says how many it can give.
+pub(crate) fn generate_exact(
+    name: &str,
+    opts: &ScenarioOptions,
+) -> Result<SimOutput, CliError> {
+    let output = slam_sim::scenario::generate(name, opts)?;
+    if let Some(want) = opts.steps {
+        let (got, what) = match &output {
+            SimOutput::Landmark(run) => (run.dataset.steps.len(), "steps"),
+            SimOutput::Laser(run) => (
+                run.dataset.records.iter().filter(|r| r.scan.is_some()).count(),
+                "scans",
+            ),
+        };
+        if got != want {
+            return Err(CliError::InvalidArgument(format!(
+                "--steps {want}: scenario {name} (seed {}) gives {got} {what}, its path ends \
+                 there; ask for at most {got}",
+                opts.seed
+            )));
+        }
+    }
+    Ok(output)
+}
+
 /// Runs `slam sim` with `args`, printing what was written to `out`.
 pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
+    let mut inputs: Vec<(&str, &Path)> = Vec::new();
+    if let Some(map) = replay_map(&args.scenario) {
+        inputs.push(("replay map", map));
+    }
     let (name, opts) = scenario_options(&args.scenario, args.seed, args.steps)?;
-    let output = slam_sim::scenario::generate(&name, &opts)?;
+    let staging = OutDir::prepare(&args.out, Owner::Sim, false, &inputs)?;
+    let output = generate_exact(&name, &opts)?;
     let dir = &args.out;
-    std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
-        path: dir.clone(),
-        source: e,
-    })?;
+    let stage = staging.stage();
     let gt_path = dir.join("ground_truth.tum");
     let report = match output {
         SimOutput::Landmark(run) => {
-            slam_io::freiburg::write_freiburg(dir, &run.dataset)?;
+            slam_io::freiburg::write_freiburg(stage, &run.dataset)?;
             let d = &run.dataset;
             let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
             let _ = writeln!(
@@ -114,10 +157,10 @@ pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
         }
         SimOutput::Laser(run) => {
             let log = dir.join(format!("{name}.log"));
-            slam_io::carmen::write_carmen(&log, &run.dataset)?;
+            slam_io::carmen::write_carmen(&stage.join(format!("{name}.log")), &run.dataset)?;
             let d = &run.dataset;
             let gt = d.ground_truth.as_deref().unwrap_or_default();
-            slam_io::tum::write_tum(&gt_path, gt)?;
+            slam_io::tum::write_tum(&stage.join("ground_truth.tum"), gt)?;
             let scans = d.records.iter().filter(|r| r.scan.is_some()).count();
             let _ = writeln!(
                 out,
@@ -135,6 +178,7 @@ pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
             }
         }
     };
+    staging.commit(&[])?;
     let run_hint = if report.kind == "landmark" {
         // The Freiburg reader picks up ground_truth.tum from the folder by itself.
         format!(
