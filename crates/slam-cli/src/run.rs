@@ -114,6 +114,20 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             });
         }
     }
+    // A bad configuration fails before the data is loaded: the filter is built once on a
+    // placeholder start (the real one, with the data's initial pose and a simulation's
+    // noise models, is built in the run).
+    let placeholder = Setup {
+        config_path: args.config.as_deref(),
+        particles: args.particles.map(|p| p as usize),
+        seed: args.seed,
+        initial_pose: slam_models::Pose2::default(),
+        sim_models: None,
+    };
+    match info.kind {
+        DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
+        DataKind::Laser => drop(filters::build_scan(&info, &placeholder)?),
+    }
     // The small inputs are read, and the output folder checked, before the data is loaded.
     let ground_truth = match &args.ground_truth {
         Some(p) => Some(slam_io::tum::read_tum(p)?),

@@ -178,6 +178,12 @@ pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
             }
         }
     };
+    if crate::stop_requested() {
+        return Err(CliError::Interrupted {
+            step: report.steps,
+            steps: report.steps,
+        });
+    }
     staging.commit(&[])?;
     let run_hint = if report.kind == "landmark" {
         // The Freiburg reader picks up ground_truth.tum from the folder by itself.

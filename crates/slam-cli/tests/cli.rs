@@ -251,7 +251,7 @@ fn unknown_config_key_is_an_error_naming_it() {
         "--config",
         cfg.to_str().unwrap(),
         "--out",
-        dir.to_str().unwrap(),
+        dir.join("out").to_str().unwrap(),
     ]);
     let e = r.expect_err("an unknown key must be an error");
     let msg = e.to_string();

@@ -569,3 +569,25 @@ fn intel_ate_as_is_matches_slam_eval_and_evo() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Options are checked before the data is loaded (no `input:` line, no folder made): a bad
+/// config key, `--particles` for a filter without particles.
+#[test]
+fn bad_options_fail_before_loading() {
+    let dir = scratch("early");
+    let cfg = dir.join("bad.toml");
+    std::fs::write(&cfg, "no_such_parameter = 3\n").unwrap();
+    let out = dir.join("out");
+    for extra in [
+        vec!["--filter", "gridfast", "--config", s(&cfg)],
+        vec!["--filter", "scanmatch", "--particles", "5"],
+    ] {
+        let mut a = vec!["run", "--sim", "office", "--quiet", "--out", s(&out)];
+        a.extend(extra);
+        let (r, text) = slam(&a);
+        assert!(r.is_err(), "{a:?}");
+        assert!(!text.contains("input:"), "{a:?}: {text}");
+        assert!(!out.exists(), "{a:?}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
