@@ -41,7 +41,10 @@ pub struct EvalReport {
 pub(crate) fn warn_stamp_order(est: &[slam_models::TimedPose], gt: &[slam_models::TimedPose]) {
     use slam_io::eval::{same_stamps, stamp_order_warning};
     let lines = if same_stamps(est, gt) {
-        vec![stamp_order_warning(gt, "estimate and ground truth (same stamps)")]
+        vec![stamp_order_warning(
+            gt,
+            "estimate and ground truth (same stamps)",
+        )]
     } else {
         vec![
             stamp_order_warning(est, "estimate"),

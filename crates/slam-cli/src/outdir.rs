@@ -346,7 +346,9 @@ mod tests {
         for n in ["metrics.json", "map.png", "landmarks.csv"] {
             std::fs::write(o.stage().join(n), n).unwrap();
         }
-        let files = o.commit(&["landmarks.csv", "metrics.json", "map.png"]).unwrap();
+        let files = o
+            .commit(&["landmarks.csv", "metrics.json", "map.png"])
+            .unwrap();
         let last = files.last().unwrap();
         assert!(last.ends_with("metrics.json"), "{files:?}");
         assert_eq!(
@@ -364,7 +366,10 @@ mod tests {
             names(&d),
             [".slam-run", "map.pgm", "metrics.json", "notes.txt"]
         );
-        assert_eq!(std::fs::read_to_string(d.join("metrics.json")).unwrap(), "new");
+        assert_eq!(
+            std::fs::read_to_string(d.join("metrics.json")).unwrap(),
+            "new"
+        );
         std::fs::remove_dir_all(&d).unwrap();
     }
 

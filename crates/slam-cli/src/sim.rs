@@ -98,16 +98,17 @@ pub(crate) fn replay_map(spec: &str) -> Option<&Path> {
 /// Generates scenario `name`, checking that it has exactly the `steps` asked for (steps for
 /// landmark scenarios, scans for laser ones): a scenario whose path ends sooner is an error
 /// that says how many it can give.
-pub(crate) fn generate_exact(
-    name: &str,
-    opts: &ScenarioOptions,
-) -> Result<SimOutput, CliError> {
+pub(crate) fn generate_exact(name: &str, opts: &ScenarioOptions) -> Result<SimOutput, CliError> {
     let output = slam_sim::scenario::generate(name, opts)?;
     if let Some(want) = opts.steps {
         let (got, what) = match &output {
             SimOutput::Landmark(run) => (run.dataset.steps.len(), "steps"),
             SimOutput::Laser(run) => (
-                run.dataset.records.iter().filter(|r| r.scan.is_some()).count(),
+                run.dataset
+                    .records
+                    .iter()
+                    .filter(|r| r.scan.is_some())
+                    .count(),
                 "scans",
             ),
         };

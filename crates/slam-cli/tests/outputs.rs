@@ -113,7 +113,10 @@ fn sim_never_overwrites_a_dataset() {
     std::fs::write(dir.join("sensor_data.dat"), "ODOMETRY 0 0.1 0\n").unwrap();
     let (r, _) = slam(&["sim", "loop", "--out", s(&dir)]);
     let e = r.unwrap_err().to_string();
-    assert!(e.contains("not empty") && e.contains("never overwrites"), "{e}");
+    assert!(
+        e.contains("not empty") && e.contains("never overwrites"),
+        "{e}"
+    );
     assert_eq!(names(&dir), ["sensor_data.dat"]);
     assert_eq!(
         std::fs::read_to_string(dir.join("sensor_data.dat")).unwrap(),
@@ -121,7 +124,15 @@ fn sim_never_overwrites_a_dataset() {
     );
     let run_out = dir.join("run");
     let (r, _) = slam(&[
-        "run", "--filter", "ekf", "--sim", "loop", "--steps", "20", "--quiet", "--out",
+        "run",
+        "--filter",
+        "ekf",
+        "--sim",
+        "loop",
+        "--steps",
+        "20",
+        "--quiet",
+        "--out",
         s(&run_out),
     ]);
     assert!(r.is_ok(), "{r:?}");
@@ -144,7 +155,15 @@ fn run_out_is_new_empty_own_or_forced() {
     std::fs::write(out.join("map.png"), "not a png").unwrap();
     let landmark = |extra: &[&str]| {
         let mut a = vec![
-            "run", "--filter", "ekf", "--sim", "loop", "--steps", "30", "--quiet", "--out",
+            "run",
+            "--filter",
+            "ekf",
+            "--sim",
+            "loop",
+            "--steps",
+            "30",
+            "--quiet",
+            "--out",
             s(&out),
         ];
         a.extend_from_slice(extra);
@@ -170,11 +189,22 @@ fn run_out_is_new_empty_own_or_forced() {
             "trajectory.tum"
         ]
     );
-    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine"
+    );
     assert_ne!(std::fs::read(out.join("map.png")).unwrap(), b"not a png");
     // Its own folder now: a laser run replaces everything the landmark run wrote.
     let (r, text) = slam(&[
-        "run", "--filter", "scanmatch", "--sim", "office", "--steps", "20", "--quiet", "--out",
+        "run",
+        "--filter",
+        "scanmatch",
+        "--sim",
+        "office",
+        "--steps",
+        "20",
+        "--quiet",
+        "--out",
         s(&out),
     ]);
     assert!(r.is_ok(), "{r:?}\n{text}");
@@ -216,7 +246,10 @@ fn run_out_is_new_empty_own_or_forced() {
         }
         let (r, _) = slam(&a);
         let e = r.unwrap_err().to_string();
-        assert!(e.contains("--ground-truth") && e.contains("inside --out"), "{e}");
+        assert!(
+            e.contains("--ground-truth") && e.contains("inside --out"),
+            "{e}"
+        );
     }
     assert_eq!(std::fs::read(&gt).unwrap(), before);
     let _ = std::fs::remove_dir_all(&dir);
@@ -242,12 +275,22 @@ fn unwritable_out_fails_before_the_run() {
     }
     for place in places {
         let (r, text) = slam(&[
-            "run", "--filter", "ekf", "--sim", "loop", "--quiet", "--out", s(&place),
+            "run",
+            "--filter",
+            "ekf",
+            "--sim",
+            "loop",
+            "--quiet",
+            "--out",
+            s(&place),
         ]);
         let Err(CliError::Write { path, .. }) = &r else {
             panic!("{}: {r:?}", place.display())
         };
-        assert!(path.starts_with(&place) || place.starts_with(path), "{path:?}");
+        assert!(
+            path.starts_with(&place) || place.starts_with(path),
+            "{path:?}"
+        );
         assert!(!text.contains("input:"), "{text}");
         assert!(!place.join("metrics.json").exists());
     }
@@ -272,8 +315,18 @@ fn steps_are_exact_and_refused_with_a_dataset() {
         panic!("{r:?}")
     };
     let log = std::fs::read_to_string(dir.join("b").join("office.log")).unwrap();
-    assert_eq!(log.lines().filter(|l| l.starts_with("ROBOTLASER1")).count(), 13);
-    let (r, _) = slam(&["sim", "city", "--steps", "20000", "--out", s(&dir.join("c"))]);
+    assert_eq!(
+        log.lines().filter(|l| l.starts_with("ROBOTLASER1")).count(),
+        13
+    );
+    let (r, _) = slam(&[
+        "sim",
+        "city",
+        "--steps",
+        "20000",
+        "--out",
+        s(&dir.join("c")),
+    ]);
     let e = r.unwrap_err().to_string();
     assert!(e.contains("--steps 20000") && e.contains("at most"), "{e}");
     assert!(!dir.join("c").exists(), "a failed sim leaves no folder");
@@ -329,7 +382,16 @@ fn ctrl_c_leaves_the_earlier_output_or_nothing() {
     let dir = scratch("sigint");
     let out = dir.join("out");
     let (r, _) = slam(&[
-        "run", "--filter", "ekf", "--sim", "loop", "--steps", "40", "--quiet", "--out", s(&out),
+        "run",
+        "--filter",
+        "ekf",
+        "--sim",
+        "loop",
+        "--steps",
+        "40",
+        "--quiet",
+        "--out",
+        s(&out),
     ]);
     assert!(r.is_ok(), "{r:?}");
     let before: Vec<(String, Vec<u8>)> = names(&out)
@@ -393,7 +455,11 @@ fn ctrl_c_leaves_the_earlier_output_or_nothing() {
                     (n, b)
                 })
                 .collect();
-            assert!(after == before, "the earlier output changed: {:?}", names(&out));
+            assert!(
+                after == before,
+                "the earlier output changed: {:?}",
+                names(&out)
+            );
         } else {
             assert!(!target.exists(), "left {:?}", names(&target));
         }

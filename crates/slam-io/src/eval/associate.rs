@@ -197,7 +197,10 @@ mod tests {
         let a = [at(1.0, 0.0), at(1.0, 1.0), at(0.9, 2.0), at(2.0, 3.0)];
         let b = [at(1.0, 5.0), at(1.0, 6.0), at(0.9, 7.0), at(2.0, 8.0)];
         assert!(same_stamps(&a, &b));
-        assert_eq!(associate(&a, &b, 0.006), vec![(0, 0), (1, 1), (2, 2), (3, 3)]);
+        assert_eq!(
+            associate(&a, &b, 0.006),
+            vec![(0, 0), (1, 1), (2, 2), (3, 3)]
+        );
         assert_eq!(
             stamp_order(&a),
             StampOrder {
