@@ -24,7 +24,9 @@ mod trajectory;
 pub use align::align_se2;
 pub(crate) use align::errors_as_is_and_aligned;
 pub use associate::{lookup, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
-pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
+pub use consistency::{
+    chi2_band, chi2_quantile, nees_pose, nees_summary, nis, regularized_gamma_p, NeesSummary,
+};
 pub use landmarks::{
     landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,
 };
