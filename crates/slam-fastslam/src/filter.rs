@@ -370,6 +370,11 @@ impl LandmarkSlam for FastSlam {
         let weights = self.particles.iter().map(|p| p.log_weight.exp()).collect();
         Some(ParticlePaths::from_leaves(&leaves, weights, self.best))
     }
+
+    /// Every particle's landmarks, in key order.
+    fn particle_landmarks(&self) -> Option<Vec<Vec<LandmarkEstimate>>> {
+        Some(self.particles.iter().map(|p| estimates(&p.map)).collect())
+    }
 }
 
 #[cfg(test)]
@@ -589,6 +594,9 @@ mod tests {
             assert_eq!((best[0], best[data.len()]), (start, f.pose()));
             let tree = f.particle_paths().unwrap();
             assert_eq!(tree.path_of(tree.best), best);
+            let maps = f.particle_landmarks().unwrap();
+            assert_eq!(maps.len(), f.particles.len());
+            assert_eq!(maps[tree.best], f.landmarks());
             for (k, p) in f.particles.iter().enumerate() {
                 let path = tree.path_of(k);
                 assert_eq!(path, p.path());

@@ -154,6 +154,15 @@ pub trait LandmarkSlam: Send {
     fn particle_paths(&self) -> Option<ParticlePaths> {
         None
     }
+
+    /// Every particle's map, in particle order (the order of
+    /// [`particle_paths`](LandmarkSlam::particle_paths)' leaves), each as
+    /// [`landmarks`](LandmarkSlam::landmarks) would give it for that particle: for
+    /// pictures of the map posterior. O(particles × landmarks) memory, so meant for the
+    /// end of a run, not every step. `None` (the default) for filters without particles.
+    fn particle_landmarks(&self) -> Option<Vec<Vec<LandmarkEstimate>>> {
+        None
+    }
 }
 
 /// What one scan-SLAM step did.
