@@ -7,6 +7,13 @@
 //!    step (a counting global allocator). A copy-the-map design would scale with N; the
 //!    shared trees scale with log N. Prints t(50,000)/t(500) (target ≤ 2).
 //! 2. 1,000 particles on `loop`: steps per second on one thread and on all threads.
+//! 3. Memory as the run grows: FastSLAM 2.0, 100 particles, `loop` for 100,000 steps
+//!    (≈ 330 laps past the same 50 landmarks, so the maps stop growing after the first lap).
+//!    At 1,000, 10,000 and 100,000 steps: bytes allocated per step since the previous
+//!    checkpoint (flat: O(1) work per particle per step), the live heap the filter holds and
+//!    its growth per step (one trunk node of the shared path tree, not one pose per
+//!    particle: copying every particle's path would hold M · t poses), and the tree's
+//!    distinct nodes. Printed only; `FASTSLAM_MEMORY_STEPS=N` shortens it.
 //!
 //! ```text
 //! cargo xtask bench fastslam
@@ -24,10 +31,13 @@ use std::hint::black_box;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-/// The system allocator, counting the bytes it hands out.
+/// The system allocator, counting the bytes it hands out and (for the live heap) takes
+/// back. A `realloc` counts as the growth only, as before the free counter existed; its
+/// shrinking counts as freed.
 struct Counting;
 
 static ALLOCATED: AtomicU64 = AtomicU64::new(0);
+static FREED: AtomicU64 = AtomicU64::new(0);
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, l: Layout) -> *mut u8 {
@@ -36,14 +46,21 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.alloc(l) }
     }
     unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        FREED.fetch_add(l.size() as u64, Ordering::Relaxed);
         // SAFETY: forwarded unchanged to the system allocator.
         unsafe { System.dealloc(p, l) }
     }
     unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
         ALLOCATED.fetch_add(new.saturating_sub(l.size()) as u64, Ordering::Relaxed);
+        FREED.fetch_add(l.size().saturating_sub(new) as u64, Ordering::Relaxed);
         // SAFETY: forwarded unchanged to the system allocator.
         unsafe { System.realloc(p, l, new) }
     }
+}
+
+/// Bytes allocated and not yet freed.
+fn live() -> u64 {
+    ALLOCATED.load(Ordering::Relaxed) - FREED.load(Ordering::Relaxed)
 }
 
 #[global_allocator]
@@ -185,5 +202,51 @@ fn loop_1000(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, city, loop_1000);
+fn memory_per_step(_: &mut Criterion) {
+    let steps: usize = std::env::var("FASTSLAM_MEMORY_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(100_000);
+    let particles = 100;
+    let run = scenario("loop", None, steps);
+    let cfg = FastSlamConfig {
+        variant: Variant::FastSlam2,
+        particles,
+        motion: run.motion,
+        sensor: run.sensor,
+        ..Default::default()
+    };
+    let live0 = live();
+    let mut f = FastSlam::new(cfg, run.dataset.initial_pose, 0).expect("valid config");
+    println!("memory: FastSLAM 2.0, {particles} particles, loop, {steps} steps");
+    println!(
+        "{:>8} {:>14} {:>12} {:>14} {:>11} {:>16}",
+        "steps", "alloc B/step", "live MB", "live B/step", "tree nodes", "copied paths MB"
+    );
+    let checkpoints = [1_000, 10_000, 100_000];
+    let (mut prev_step, mut prev_alloc, mut prev_live) =
+        (0usize, ALLOCATED.load(Ordering::Relaxed), live());
+    for (k, s) in run.dataset.steps.iter().enumerate() {
+        f.predict(&s.control).expect("finite");
+        f.update(&s.observations).expect("finite");
+        let done = k + 1;
+        if checkpoints.contains(&done) {
+            let (alloc, held) = (ALLOCATED.load(Ordering::Relaxed), live());
+            let n = (done - prev_step) as f64;
+            // Counted after the snapshot: flattening the tree allocates.
+            let nodes = f.particle_paths().map_or(0, |p| p.nodes.len());
+            println!(
+                "{done:>8} {:>14.0} {:>12.2} {:>14.1} {:>11} {:>16.1}",
+                (alloc - prev_alloc) as f64 / n,
+                (held - live0) as f64 / 1e6,
+                (held as f64 - prev_live as f64) / n,
+                nodes,
+                (particles * (done + 1) * 24) as f64 / 1e6
+            );
+            (prev_step, prev_alloc, prev_live) = (done, ALLOCATED.load(Ordering::Relaxed), live());
+        }
+    }
+}
+
+criterion_group!(benches, city, loop_1000, memory_per_step);
 criterion_main!(benches);

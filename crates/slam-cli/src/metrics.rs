@@ -12,6 +12,14 @@ use std::path::Path;
 /// Units: metres, seconds, degrees, MiB. "As is" figures compare estimate and ground truth
 /// in the frame they share at the start; "aligned" figures first apply the least-squares
 /// SE(2) alignment (Umeyama without scale).
+///
+/// Which trajectory each figure is about: the `ate_*`, `rpe_*` and `relations_*` figures
+/// are always those of the run's `trajectory.tum`, the filter's final answer: for FastSLAM
+/// the full-SLAM estimate (the path of the particle with the highest weight at the end),
+/// for the EKF the online estimates, for laser filters the filter's own trajectory. The
+/// `online_*` figures are those of the online estimates (the pose the filter reported
+/// after each step; `trajectory-online.tum` when it differs from `trajectory.tum`) of
+/// landmark filters; for the EKF they equal the `ate_*`/`rpe_*` ones.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Metrics {
@@ -38,6 +46,14 @@ pub struct Metrics {
     pub rpe_trans_mean_m: Option<f64>,
     /// Relative pose error between consecutive poses: mean rotational error, degrees.
     pub rpe_rot_mean_deg: Option<f64>,
+    /// ATE as is of the online estimates, metres (landmark filters).
+    pub online_ate_rmse_m: Option<f64>,
+    /// ATE after SE(2) alignment of the online estimates, metres (landmark filters).
+    pub online_ate_rmse_aligned_m: Option<f64>,
+    /// RPE translational mean of the online estimates, metres (landmark filters).
+    pub online_rpe_trans_mean_m: Option<f64>,
+    /// RPE rotational mean of the online estimates, degrees (landmark filters).
+    pub online_rpe_rot_mean_deg: Option<f64>,
     /// Landmark map error, RMSE as is, metres.
     pub landmark_rmse_m: Option<f64>,
     /// Landmark map error after SE(2) alignment, metres.
@@ -46,8 +62,15 @@ pub struct Metrics {
     pub relations_trans_mean_m: Option<f64>,
     /// Kümmerle et al. relations metric: mean absolute rotational error, degrees.
     pub relations_rot_mean_deg: Option<f64>,
-    /// Mean NEES of the 3-dof pose over all steps (consistent filter: ≈ 3); needs a
-    /// ground-truth pose at every step.
+    /// Fraction of steps whose pose NEES (3 dof, the filter's Gaussian summary of the
+    /// pose against the true pose) lies inside the two-sided 95 % χ²(3) band
+    /// [0.216, 9.348]: ≈ 0.95 for a consistent filter. The headline consistency figure;
+    /// needs a ground-truth pose at every step. Per-step values are in `estimates.csv`.
+    pub nees_pose_in_band_fraction: Option<f64>,
+    /// Median pose NEES over all steps (consistent filter: ≈ 2.366, the χ²(3) median).
+    pub nees_pose_median: Option<f64>,
+    /// Mean pose NEES over the steps where it is finite (consistent filter: ≈ 3); a few
+    /// steps where a particle cloud collapses can dominate it.
     pub nees_pose_mean: Option<f64>,
     /// Peak resident memory of the process (VmHWM) at the end of the filter run, before
     /// outputs are written (a `--map-resolution` re-rendering is not counted), MiB; null
@@ -70,10 +93,16 @@ impl Metrics {
             ate_rmse_aligned_m: None,
             rpe_trans_mean_m: None,
             rpe_rot_mean_deg: None,
+            online_ate_rmse_m: None,
+            online_ate_rmse_aligned_m: None,
+            online_rpe_trans_mean_m: None,
+            online_rpe_rot_mean_deg: None,
             landmark_rmse_m: None,
             landmark_rmse_aligned_m: None,
             relations_trans_mean_m: None,
             relations_rot_mean_deg: None,
+            nees_pose_in_band_fraction: None,
+            nees_pose_median: None,
             nees_pose_mean: None,
             peak_rss_mb: None,
         }
@@ -100,10 +129,16 @@ impl Metrics {
             &mut self.ate_rmse_aligned_m,
             &mut self.rpe_trans_mean_m,
             &mut self.rpe_rot_mean_deg,
+            &mut self.online_ate_rmse_m,
+            &mut self.online_ate_rmse_aligned_m,
+            &mut self.online_rpe_trans_mean_m,
+            &mut self.online_rpe_rot_mean_deg,
             &mut self.landmark_rmse_m,
             &mut self.landmark_rmse_aligned_m,
             &mut self.relations_trans_mean_m,
             &mut self.relations_rot_mean_deg,
+            &mut self.nees_pose_in_band_fraction,
+            &mut self.nees_pose_median,
             &mut self.nees_pose_mean,
             &mut self.peak_rss_mb,
         ] {
@@ -168,10 +203,16 @@ mod tests {
             "ate_rmse_aligned_m",
             "rpe_trans_mean_m",
             "rpe_rot_mean_deg",
+            "online_ate_rmse_m",
+            "online_ate_rmse_aligned_m",
+            "online_rpe_trans_mean_m",
+            "online_rpe_rot_mean_deg",
             "landmark_rmse_m",
             "landmark_rmse_aligned_m",
             "relations_trans_mean_m",
             "relations_rot_mean_deg",
+            "nees_pose_in_band_fraction",
+            "nees_pose_median",
             "nees_pose_mean",
             "peak_rss_mb",
         ];

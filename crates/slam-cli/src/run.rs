@@ -1,9 +1,15 @@
 //! `slam run`: one filter over one input (a simulated scenario or a dataset), then the
 //! outputs and the metrics.
 //!
-//! * Landmark filters: `predict` with each step's control, `update` with its observations,
-//!   and the pose after the update is the trajectory entry at the step's time. Outputs:
-//!   `trajectory.tum`, `landmarks.csv`, `map.png`, `config.toml`, `metrics.json`.
+//! * Landmark filters: `predict` with each step's control, `update` with its observations;
+//!   the pose after the update is the online estimate at the step's time. `trajectory.tum`
+//!   is the filter's full-SLAM path where it has one ([`LandmarkSlam::full_path`]: FastSLAM's
+//!   best particle at the end, whose map is `landmarks.csv`), with the online estimates in
+//!   `trajectory-online.tum`; for the EKF, a filter, `trajectory.tum` is the online
+//!   estimates. `estimates.csv` holds the per-step Gaussian pose summary, covariance and
+//!   NEES ([`slam_io::estimates_csv`]). Outputs: `trajectory.tum`
+//!   [, `trajectory-online.tum`], `estimates.csv`, `landmarks.csv`, `map.png`,
+//!   `config.toml`, `metrics.json`.
 //! * Laser filters: `process` on every record in file order; the trajectory is the filter's
 //!   own, one pose per record. Outputs: `trajectory.tum`, `map.pgm` + `map.yaml`, `map.png`,
 //!   `config.toml`, `metrics.json`.
@@ -24,12 +30,13 @@ use crate::metrics::{self, Metrics};
 use crate::outdir::{OutDir, Owner};
 use crate::progress::Progress;
 use crate::sim::{generate_exact, replay_map, scenario_options};
+use slam_io::estimates_csv::PoseEstimateRow;
 use slam_io::eval;
 use slam_io::picture::{Picture, Rgb};
 use slam_io::Dataset;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
-use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
+use slam_models::{LandmarkDataset, LandmarkSlam, LandmarkStep, ScanDataset, TimedPose};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -432,8 +439,8 @@ fn run_landmark(
         g.len() == steps.len() && g.iter().zip(steps).all(|(p, s)| (p.t - s.t).abs() < 1e-9)
     });
 
-    let mut trajectory = Vec::with_capacity(steps.len());
-    let mut nees = Vec::new();
+    let mut online = Vec::with_capacity(steps.len());
+    let mut estimates = Vec::with_capacity(steps.len());
     let mut progress = Progress::new(steps.len(), ctx.args.quiet);
     let start = Instant::now();
     for (k, step) in steps.iter().enumerate() {
@@ -451,17 +458,27 @@ fn run_landmark(
         };
         filter.predict(&step.control).map_err(fail)?;
         filter.update(&step.observations).map_err(fail)?;
-        let pose = filter.pose();
-        trajectory.push(TimedPose { t: step.t, pose });
-        if let Some(truth) = truth_per_step {
-            let (mean, cov) = filter.pose_gaussian();
-            nees.push(eval::nees_pose(&mean, &cov, &truth[k].pose));
-        }
+        online.push(TimedPose {
+            t: step.t,
+            pose: filter.pose(),
+        });
+        let (mean, covariance) = filter.pose_gaussian();
+        estimates.push(PoseEstimateRow {
+            step: k,
+            t: step.t,
+            pose: mean,
+            covariance,
+            nees: truth_per_step.map(|truth| eval::nees_pose(&mean, &covariance, &truth[k].pose)),
+        });
         progress.set(k + 1);
     }
     let wall = start.elapsed().as_secs_f64();
     progress.finish();
 
+    // The full-SLAM path (entry 0 the initial pose, entry k the pose after step k, by the
+    // LandmarkSlam contract) and the map, both the final best particle's: read together,
+    // with no filter call between them.
+    let full = full_trajectory(&*filter, steps);
     let landmarks = filter.landmarks();
     let particles = filter.particles();
     let mut m = Metrics::new(info.name, name, steps.len());
@@ -469,11 +486,18 @@ fn run_landmark(
     let times: Vec<f64> = steps.iter().map(|s| s.t).collect();
     let span = data_duration(&times, has_clock, &mut notes);
     m.set_timing(wall, span);
+    let trajectory = full.as_ref().unwrap_or(&online);
     if let Some(gt) = ground_truth {
-        trajectory_metrics(&mut m, &trajectory, gt);
+        trajectory_metrics(&mut m, trajectory, gt);
+        let mut o = Metrics::new(info.name, name, steps.len());
+        trajectory_metrics(&mut o, &online, gt);
+        m.online_ate_rmse_m = o.ate_rmse_m;
+        m.online_ate_rmse_aligned_m = o.ate_rmse_aligned_m;
+        m.online_rpe_trans_mean_m = o.rpe_trans_mean_m;
+        m.online_rpe_rot_mean_deg = o.rpe_rot_mean_deg;
     }
     if let Some(rel) = &ctx.relations {
-        notes.push(relations_metrics(&mut m, &trajectory, rel));
+        notes.push(relations_metrics(&mut m, trajectory, rel));
     }
     if let Some(truth) = &dataset.landmarks {
         let by_id = steps
@@ -495,18 +519,26 @@ fn run_landmark(
             ));
         }
     }
-    if !nees.is_empty() {
-        let finite: Vec<f64> = nees.iter().copied().filter(|v| v.is_finite()).collect();
-        if !finite.is_empty() {
-            m.nees_pose_mean = Some(finite.iter().sum::<f64>() / finite.len() as f64);
-        }
+    let nees: Vec<f64> = estimates.iter().filter_map(|e| e.nees).collect();
+    if let Some(s) = eval::nees_summary(&nees) {
+        m.nees_pose_in_band_fraction = Some(s.in_band_fraction);
+        m.nees_pose_median = metrics::finite(Some(s.median));
+        m.nees_pose_mean = metrics::finite(Some(s.mean));
     }
     m.peak_rss_mb = metrics::peak_rss_mb();
 
     let dir = ctx.stage;
     let mut files = Vec::new();
     let p = dir.join("trajectory.tum");
-    slam_io::tum::write_tum(&p, &trajectory)?;
+    slam_io::tum::write_tum(&p, trajectory)?;
+    files.push(p);
+    if full.is_some() {
+        let p = dir.join("trajectory-online.tum");
+        slam_io::tum::write_tum(&p, &online)?;
+        files.push(p);
+    }
+    let p = dir.join("estimates.csv");
+    slam_io::estimates_csv::write_estimates_csv(&p, &estimates)?;
     files.push(p);
     if ctx.simulated {
         if let Some(gt) = &dataset.ground_truth {
@@ -545,6 +577,30 @@ fn run_landmark(
         files,
         notes,
     })
+}
+
+/// The filter's full-SLAM path paired with the steps' times: entry k + 1 of
+/// [`LandmarkSlam::full_path`] is the pose after step k (entry 0, the initial pose, has no
+/// step and is not written). `None` for filters without a path (the EKF), and, with a
+/// warning, when the path breaks the one-pose-per-update contract.
+fn full_trajectory(filter: &dyn LandmarkSlam, steps: &[LandmarkStep]) -> Option<Vec<TimedPose>> {
+    let path = filter.full_path()?;
+    if path.len() != steps.len() + 1 {
+        eprintln!(
+            "slam: warning: filter `{}` returned a path of {} poses for {} steps (the LandmarkSlam contract is the initial pose plus one per step); writing its online estimates instead",
+            filter.name(),
+            path.len(),
+            steps.len()
+        );
+        return None;
+    }
+    Some(
+        steps
+            .iter()
+            .zip(&path[1..])
+            .map(|(s, &pose)| TimedPose { t: s.t, pose })
+            .collect(),
+    )
 }
 
 fn run_scan(
@@ -779,6 +835,16 @@ fn print_summary(
             fmt_opt(m.rpe_rot_mean_deg, " deg"),
         );
     }
+    if m.online_ate_rmse_m.is_some() && m.online_ate_rmse_m != m.ate_rmse_m {
+        let _ = writeln!(
+            out,
+            "  online estimates: ATE {} (aligned {}), RPE {} / {}",
+            fmt_opt(m.online_ate_rmse_m, " m"),
+            fmt_opt(m.online_ate_rmse_aligned_m, " m"),
+            fmt_opt(m.online_rpe_trans_mean_m, " m"),
+            fmt_opt(m.online_rpe_rot_mean_deg, " deg"),
+        );
+    }
     if m.landmark_rmse_m.is_some() {
         let _ = writeln!(
             out,
@@ -787,10 +853,12 @@ fn print_summary(
             fmt_opt(m.landmark_rmse_aligned_m, " m"),
         );
     }
-    if m.nees_pose_mean.is_some() {
+    if let Some(f) = m.nees_pose_in_band_fraction {
         let _ = writeln!(
             out,
-            "  mean pose NEES {} (3 for a consistent filter)",
+            "  pose NEES: {:.1} % of steps in the 95 % χ²(3) band, median {}, mean {} (consistent: 95 %, 2.366, 3)",
+            100.0 * f,
+            fmt_opt(m.nees_pose_median, ""),
             fmt_opt(m.nees_pose_mean, ""),
         );
     }

@@ -6,7 +6,9 @@ use crate::error::FastSlamError;
 use crate::map::LandmarkMap;
 use crate::particle::{estimates, stream, Obs, Particle, ParticleStats, StepContext};
 use rayon::prelude::*;
-use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
+use slam_models::particle::{
+    effective_sample_size_log, normalize_log_weights, ParticlePaths, PathNode,
+};
 use slam_models::{
     normalize_angle, Control, FilterError, LandmarkEstimate, LandmarkSlam, Matrix3, Pose2,
     RangeBearing, UpdateInfo, Vector3, WeightedPose,
@@ -73,6 +75,7 @@ impl FastSlam {
         let m = config.particles;
         let proto = Particle {
             pose: initial_pose,
+            path: PathNode::child(None, initial_pose, 0),
             log_weight: -(m as f64).ln(),
             map: LandmarkMap::new(config.index_cell_size),
             provisional: Vec::new(),
@@ -268,13 +271,19 @@ impl LandmarkSlam for FastSlam {
             update_index: self.updates,
         };
         self.updates += 1;
+        // This update's poses become path step `updates` (step 0 is the initial pose).
+        let step = self.updates as usize;
         let (seed, tick) = (self.seed, self.tick);
         let pending = self.pending.take();
         let stats: Vec<ParticleStats> = match self.config.variant {
             Variant::FastSlam1 => self
                 .particles
                 .par_iter_mut()
-                .map(|p| p.update_fastslam1(&ctx, &obs))
+                .map(|p| {
+                    let st = p.update_fastslam1(&ctx, &obs);
+                    p.extend_path(step);
+                    st
+                })
                 .collect(),
             Variant::FastSlam2 => self
                 .particles
@@ -282,7 +291,9 @@ impl LandmarkSlam for FastSlam {
                 .enumerate()
                 .map(|(k, p)| {
                     let mut rng = stream(seed, tick, k as u64);
-                    p.update_fastslam2(&ctx, pending.as_ref(), &obs, &mut rng)
+                    let st = p.update_fastslam2(&ctx, pending.as_ref(), &obs, &mut rng);
+                    p.extend_path(step);
+                    st
                 })
                 .collect(),
         };
@@ -344,6 +355,25 @@ impl LandmarkSlam for FastSlam {
                 })
                 .collect(),
         )
+    }
+
+    /// The best particle's path: the initial pose, then its pose after each update. Its
+    /// map is [`LandmarkSlam::landmarks`].
+    fn full_path(&self) -> Option<Vec<Pose2>> {
+        Some(self.particles[self.best].path())
+    }
+
+    /// Every particle's path, the shared history stored once.
+    fn particle_paths(&self) -> Option<ParticlePaths> {
+        let leaves: Vec<&std::sync::Arc<PathNode>> =
+            self.particles.iter().map(|p| &p.path).collect();
+        let weights = self.particles.iter().map(|p| p.log_weight.exp()).collect();
+        Some(ParticlePaths::from_leaves(&leaves, weights, self.best))
+    }
+
+    /// Every particle's landmarks, in key order.
+    fn particle_landmarks(&self) -> Option<Vec<Vec<LandmarkEstimate>>> {
+        Some(self.particles.iter().map(|p| estimates(&p.map)).collect())
     }
 }
 
@@ -519,6 +549,7 @@ mod tests {
                         removed += info.removed;
                         poses.push(f.pose());
                     }
+                    poses.extend(f.full_path().unwrap());
                     let cloud: Vec<(Pose2, u64)> = f
                         .particles
                         .iter()
@@ -539,6 +570,77 @@ mod tests {
             assert!(a.5 > 0, "{variant:?}: landmark removal not exercised");
             assert_eq!(a, b, "{variant:?}");
         }
+    }
+
+    /// Every particle's path holds the initial pose and one pose per update, ends at the
+    /// particle's pose, and the best particle's path is the full-SLAM estimate; the
+    /// flattened tree gives back the same paths.
+    #[test]
+    fn paths_have_one_pose_per_update_and_end_at_the_particles() {
+        let (data, _) = world(3, 60, false);
+        let start = Pose2::new(0.5, -0.25, 0.1);
+        for variant in [Variant::FastSlam1, Variant::FastSlam2] {
+            let mut f = FastSlam::new(config(variant, 12), start, 8).unwrap();
+            let mut online = Vec::new();
+            let mut resampled = 0;
+            for (u, z) in &data {
+                f.predict(u).unwrap();
+                resampled += f.update(z).unwrap().resampled as usize;
+                online.push(f.pose());
+            }
+            assert!(resampled > 0, "{variant:?}");
+            let best = f.full_path().unwrap();
+            assert_eq!(best.len(), data.len() + 1);
+            assert_eq!((best[0], best[data.len()]), (start, f.pose()));
+            let tree = f.particle_paths().unwrap();
+            assert_eq!(tree.path_of(tree.best), best);
+            let maps = f.particle_landmarks().unwrap();
+            assert_eq!(maps.len(), f.particles.len());
+            assert_eq!(maps[tree.best], f.landmarks());
+            for (k, p) in f.particles.iter().enumerate() {
+                let path = tree.path_of(k);
+                assert_eq!(path, p.path());
+                assert_eq!(path.len(), data.len() + 1);
+                assert_eq!(path[data.len()], p.pose);
+            }
+            // The full-SLAM path is not the online one: the best particle changed lineage
+            // at least once (otherwise this test would not tell the two apart).
+            assert_ne!(&best[1..], &online[..], "{variant:?}");
+        }
+    }
+
+    /// The path tree frees dead branches: after many resamplings every live node lies on
+    /// some particle's path (none leaked), and the live nodes are far fewer than the nodes
+    /// ever made (1 + M·T): the shared trunk (≤ T + 1) plus the branches since the last
+    /// common ancestor, a few dozen steps deep for each of the M particles.
+    #[test]
+    fn dead_path_branches_are_freed() {
+        let steps = 400;
+        let m = 20;
+        let (data, _) = world(5, steps, false);
+        let mut f = FastSlam::new(config(Variant::FastSlam2, m), Pose2::IDENTITY, 4).unwrap();
+        let mut made: Vec<std::sync::Weak<PathNode>> = Vec::new();
+        let mut resampled = 0;
+        for (u, z) in &data {
+            f.predict(u).unwrap();
+            resampled += f.update(z).unwrap().resampled as usize;
+            for p in &f.particles {
+                let w = std::sync::Arc::downgrade(&p.path);
+                if !made.iter().rev().take(m).any(|o| o.ptr_eq(&w)) {
+                    made.push(w);
+                }
+            }
+        }
+        assert!(resampled > 50, "only {resampled} resamplings");
+        let live = made.iter().filter(|w| w.strong_count() > 0).count() + 1; // + the root
+        let reachable = f.particle_paths().unwrap().nodes.len();
+        assert_eq!(live, reachable);
+        let bound = (steps + 1) + m * 30;
+        assert!(
+            live <= bound,
+            "{live} live nodes > {bound} (made {})",
+            1 + m * steps
+        );
     }
 
     /// The weighted mean and covariance of the cloud match a direct computation.

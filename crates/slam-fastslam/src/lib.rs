@@ -14,7 +14,9 @@
 //!   index for nearest-landmark queries (maximum-likelihood association, negative
 //!   evidence).
 //! * [`landmark::Landmark`]: mean, covariance and existence counter of one landmark.
-//! * [`particle::Particle`]: pose, log weight and map.
+//! * [`particle::Particle`]: pose, path (a leaf of one tree of poses shared by all
+//!   particles, [`slam_models::particle::PathNode`]), log weight and map. The best
+//!   particle's path is the full-SLAM estimate ([`slam_models::LandmarkSlam::full_path`]).
 //!
 //! Units: metres and radians; bearings counter-clockwise from the heading; angles normalised
 //! to (−π, π].

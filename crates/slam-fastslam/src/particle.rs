@@ -9,15 +9,21 @@ use crate::map::LandmarkMap;
 use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 use slam_models::gaussian::{log_likelihood, mahalanobis_squared};
+use slam_models::particle::PathNode;
 use slam_models::Vector3;
 use slam_models::{normalize_angle, Control, LandmarkId, Matrix3, Pose2, RangeBearing, Vector2};
+use std::sync::Arc;
 
-/// A particle: a pose sample x_t⁽ᵏ⁾, its log importance weight and its landmark map
-/// (PR eq. 13.12: Y_t⁽ᵏ⁾ = ⟨x_t⁽ᵏ⁾, μ₁⁽ᵏ⁾, Σ₁⁽ᵏ⁾, …, μ_N⁽ᵏ⁾, Σ_N⁽ᵏ⁾⟩).
+/// A particle: a pose sample x_t⁽ᵏ⁾ with the path x_{0:t}⁽ᵏ⁾ that led to it, its log
+/// importance weight and its landmark map (PR eq. 13.12: Y_t⁽ᵏ⁾ = ⟨x_t⁽ᵏ⁾, μ₁⁽ᵏ⁾, Σ₁⁽ᵏ⁾, …,
+/// μ_N⁽ᵏ⁾, Σ_N⁽ᵏ⁾⟩; FastSLAM's particles are samples of the whole path, §13.3).
 #[derive(Debug, Clone)]
 pub struct Particle {
     /// The current pose sample.
     pub pose: Pose2,
+    /// The latest node of this particle's path in the tree shared by all particles
+    /// ([`PathNode`]): clones share it, so resampling copies a pointer, not the path.
+    pub(crate) path: Arc<PathNode>,
     /// ln w, normalised over the particle set after every update (Σ exp = 1).
     pub log_weight: f64,
     /// This particle's landmarks; clones share every node (O(1) copy).
@@ -95,6 +101,24 @@ pub(crate) struct StepContext<'a> {
 }
 
 impl Particle {
+    /// This particle's path x_{0:t}: the initial pose, then its pose after each update, in
+    /// order. O(t), iterative.
+    pub fn path(&self) -> Vec<Pose2> {
+        self.path.path()
+    }
+
+    /// The node of this particle's latest path pose (shared with the particles that
+    /// descend from the same ancestor).
+    pub fn path_node(&self) -> &Arc<PathNode> {
+        &self.path
+    }
+
+    /// Appends the current pose to the path as the pose of update `step`: one allocation,
+    /// the ancestry is shared.
+    pub(crate) fn extend_path(&mut self, step: usize) {
+        self.path = PathNode::child(Some(Arc::clone(&self.path)), self.pose, step);
+    }
+
     /// x_t ~ p(x_t | u_t, x_{t−1}) (PR table 13.1 line 4).
     pub(crate) fn sample_motion<R: Rng + ?Sized>(
         &mut self,
@@ -476,6 +500,7 @@ mod tests {
         map.insert(3, lm);
         let start = Particle {
             pose: Pose2::new(0.1, -0.2, 0.3),
+            path: PathNode::child(None, Pose2::new(0.1, -0.2, 0.3), 0),
             log_weight: 0.0,
             map,
             provisional: vec![],
@@ -554,6 +579,7 @@ mod tests {
         );
         Particle {
             pose: Pose2::IDENTITY,
+            path: PathNode::child(None, Pose2::IDENTITY, 0),
             log_weight: 0.0,
             map,
             provisional: vec![],

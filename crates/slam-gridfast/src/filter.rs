@@ -6,13 +6,13 @@ use crate::matcher::{
     field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
 };
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
-use crate::trajectory::Node;
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
+use slam_models::particle::PathNode;
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
 use slam_models::{
     normalize_angle, FilterError, GridMap, LaserScan, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo,
@@ -28,7 +28,7 @@ struct Particle {
     pose: Pose2,
     log_w: f64,
     map: OccupancyGrid,
-    node: Option<Arc<Node>>,
+    node: Option<Arc<PathNode>>,
 }
 
 /// The inverse sensor model of every particle's map (and of [`GridFastSlam::render_map`]):
@@ -345,7 +345,7 @@ impl GridFastSlam {
         scan: &LaserScan,
         odometry: Pose2,
     ) -> Result<ScanUpdateInfo, GridFastError> {
-        let node = Node::child(None, odometry, 0);
+        let node = PathNode::child(None, odometry, 0);
         let mut map = self.particles[0].map.clone();
         let prepared = self.prepare(0, scan)?;
         map.try_integrate_prepared(&odometry, &prepared.grid)
@@ -481,7 +481,7 @@ impl GridFastSlam {
         for (p, d) in self.particles.iter_mut().zip(&drawn) {
             p.pose = d.pose;
             p.log_w += d.log_weight;
-            p.node = Some(Node::child(p.node.take(), d.pose, k));
+            p.node = Some(PathNode::child(p.node.take(), d.pose, k));
             failures += d.match_failed as usize;
             log_w.push(p.log_w);
         }

@@ -2,9 +2,10 @@
 //!
 //! A Rao-Blackwellized particle filter on occupancy grids (Murphy 2000; Hähnel, Burgard,
 //! Fox & Thrun, IROS 2003; Grisetti, Stachniss & Burgard, ICRA 2005 / T-RO 2007). Each
-//! particle holds a pose, a trajectory (a leaf of one shared tree of poses), a log-odds
-//! occupancy grid ([`slam_grid::OccupancyGrid`]: copy-on-write tiles shared between
-//! particles) and a log weight.
+//! particle holds a pose, a trajectory (a leaf of one shared tree of poses,
+//! [`slam_models::particle::PathNode`]), a log-odds occupancy grid
+//! ([`slam_grid::OccupancyGrid`]: copy-on-write tiles shared between particles) and a log
+//! weight.
 //!
 //! * [`GridFastSlam`]: the filter; implements [`slam_models::ScanSlam`] (name
 //!   `"gridfast"`), and [`GridFastSlam::render_map`] re-renders the best particle's map at
@@ -37,7 +38,6 @@ mod error;
 mod filter;
 mod matcher;
 mod proposal;
-mod trajectory;
 
 pub use config::{GridFastConfig, Proposal};
 pub use error::GridFastError;

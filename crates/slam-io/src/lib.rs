@@ -5,7 +5,8 @@
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
 //!   trajectories); [`open_dataset`] picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
-//!   [`freiburg::write_freiburg`], [`carmen::write_carmen`], [`picture`] (PNG).
+//!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
+//!   [`carmen::write_carmen`], [`picture`] (PNG).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
 //!   chi-square bands).
 //!
@@ -20,6 +21,7 @@
 pub mod carmen;
 mod dataset;
 pub mod error;
+pub mod estimates_csv;
 pub mod eval;
 pub mod freiburg;
 mod glyphs;

@@ -16,6 +16,7 @@
 use crate::data::{Control, LandmarkId, RangeBearing, ScanRecord, TimedPose};
 use crate::error::ModelError;
 use crate::grid_map::GridMap;
+use crate::particle::ParticlePaths;
 use crate::{Matrix2, Matrix3, Point2, Pose2};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -86,6 +87,21 @@ pub struct WeightedPose {
 /// Call order per time step: [`predict`](LandmarkSlam::predict) with the control that moved
 /// the robot, then [`update`](LandmarkSlam::update) with the observations taken after the
 /// motion (an empty slice is allowed). Bearings and headings are radians, CCW positive.
+///
+/// Two trajectories can be read from a filter:
+///
+/// * the *online* estimate: [`pose`](LandmarkSlam::pose) read after each step, x̂_t given
+///   z_{1:t}. This is all a filter such as the EKF has: it marginalises past poses out.
+/// * the *full-SLAM* estimate of the path x_{0:t} given everything seen so far,
+///   [`full_path`](LandmarkSlam::full_path), from filters that estimate the path posterior
+///   (FastSLAM: each particle is a path hypothesis, Probabilistic Robotics §13.3). At the
+///   end of a run it is the better answer: later observations have re-weighted the past.
+///
+/// Times: the trait knows none. Path entry 0 is the pose the filter was built with (before
+/// any step); entry k ≥ 1 is the pose after the k-th call of `update`. A run loop that
+/// makes one `predict` + `update` per data step (as `slam run` does) pairs entry k with the
+/// time of its k-th step (counting from 1), so a path of a run of n steps has n + 1 poses
+/// and entries 1..=n line up with the n online poses.
 pub trait LandmarkSlam: Send {
     /// Short name, e.g. `"ekf"`, `"fastslam2"`.
     fn name(&self) -> &str;
@@ -118,6 +134,33 @@ pub trait LandmarkSlam: Send {
 
     /// The particle cloud, for particle filters; `None` otherwise.
     fn particles(&self) -> Option<Vec<WeightedPose>> {
+        None
+    }
+
+    /// The full-SLAM estimate of the path: the path of the particle with the highest weight
+    /// now, one pose per `update` call after the initial pose (see the trait docs for how
+    /// entries pair with times). Its last pose is [`pose`](LandmarkSlam::pose); its
+    /// map is [`landmarks`](LandmarkSlam::landmarks). `None` (the default) for a filter
+    /// that keeps no path: the EKF marginalises past poses out, so its trajectory is the
+    /// online one, `pose()` after each step.
+    fn full_path(&self) -> Option<Vec<Pose2>> {
+        None
+    }
+
+    /// Every particle's path, as one tree of distinct poses with each particle's leaf, its
+    /// weight, and which particle [`full_path`](LandmarkSlam::full_path) follows (for
+    /// pictures of the path posterior). Step numbering as in `full_path`. `None` (the
+    /// default) for filters without particles.
+    fn particle_paths(&self) -> Option<ParticlePaths> {
+        None
+    }
+
+    /// Every particle's map, in particle order (the order of
+    /// [`particle_paths`](LandmarkSlam::particle_paths)' leaves), each as
+    /// [`landmarks`](LandmarkSlam::landmarks) would give it for that particle: for
+    /// pictures of the map posterior. O(particles × landmarks) memory, so meant for the
+    /// end of a run, not every step. `None` (the default) for filters without particles.
+    fn particle_landmarks(&self) -> Option<Vec<Vec<LandmarkEstimate>>> {
         None
     }
 }

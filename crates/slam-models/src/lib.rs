@@ -56,6 +56,7 @@ pub use filter::{
     FilterError, LandmarkEstimate, LandmarkSlam, ScanSlam, ScanUpdateInfo, UpdateInfo, WeightedPose,
 };
 pub use grid_map::GridMap;
+pub use particle::{ParticlePaths, PathTreeNode};
 pub use pose::Pose2;
 
 /// A 2-D point in the world frame, metres.

@@ -33,7 +33,9 @@ pub use associate::{
     associate, lookup, pose_at, same_stamps, sorted_by_time, stamp_order, stamp_order_warning,
     PoseLookup, StampOrder, DEFAULT_MAX_DT,
 };
-pub use consistency::{chi2_band, chi2_quantile, nees_pose, nis, regularized_gamma_p};
+pub use consistency::{
+    chi2_band, chi2_quantile, nees_pose, nees_summary, nis, regularized_gamma_p, NeesSummary,
+};
 pub use landmarks::{
     landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,
 };

@@ -244,9 +244,9 @@ pub fn campus_world() -> World {
         }
     }
     // Buildings and trees in the four lots of each block.
-    for bx in 0..3 {
-        for by in 0..3 {
-            let (x0, y0) = (CAMPUS_ROADS[bx] + 5.0, CAMPUS_ROADS[by] + 5.0);
+    for &rx in &CAMPUS_ROADS[..3] {
+        for &ry in &CAMPUS_ROADS[..3] {
+            let (x0, y0) = (rx + 5.0, ry + 5.0);
             let lot = (CAMPUS_ROADS[1] - CAMPUS_ROADS[0] - 10.0) / 2.0;
             for (lx, ly) in [(0.0, 0.0), (lot, 0.0), (0.0, lot), (lot, lot)] {
                 let (ax, ay) = (x0 + lx, y0 + ly);
