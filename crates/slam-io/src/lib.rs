@@ -3,7 +3,8 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories); [`open_dataset`] picks the reader for a path.
+//!   trajectories), [`g2o`] (2-D pose graphs, read and written); [`open_dataset`] picks the
+//!   reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`freiburg::write_freiburg`], [`carmen::write_carmen`], [`picture`] (PNG).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
@@ -22,6 +23,7 @@ mod dataset;
 pub mod error;
 pub mod eval;
 pub mod freiburg;
+pub mod g2o;
 mod glyphs;
 pub mod landmarks_csv;
 pub mod mrclam;
