@@ -119,8 +119,9 @@ impl Edge {
 /// g.add_pose(1, Pose2::new(0.9, 0.1, 0.0)).unwrap();
 /// g.add_between(0, 1, Pose2::new(1.0, 0.0, 0.0), Matrix3::identity()).unwrap();
 /// let report = Optimizer::new(&g, OptimizerConfig::default()).unwrap().optimize(&mut g).unwrap();
-/// assert!(report.final_chi2 < 1e-20);
-/// assert!(g.pose(1).unwrap().approx_eq(&Pose2::new(1.0, 0.0, 0.0), 1e-9));
+/// // The default stopping rule ends once χ² falls by at most 1e-5.
+/// assert!(report.final_chi2 < 1e-5);
+/// assert!(g.pose(1).unwrap().approx_eq(&Pose2::new(1.0, 0.0, 0.0), 1e-3));
 /// ```
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PoseGraph {

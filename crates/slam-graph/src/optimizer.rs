@@ -82,6 +82,21 @@ impl Default for OptimizerConfig {
 }
 
 impl OptimizerConfig {
+    /// The stopping rule of the module documentation (GTSAM's `checkConvergence` on the cost
+    /// F) after an iteration took F from `before` to `after`: `Some(reason)` to stop.
+    pub fn converged(&self, before: f64, after: f64) -> Option<StopReason> {
+        let decrease = before - after;
+        if after <= self.absolute_tolerance {
+            Some(StopReason::CostBelowTolerance)
+        } else if decrease <= self.absolute_tolerance {
+            Some(StopReason::AbsoluteDecrease)
+        } else if decrease / before <= self.relative_tolerance {
+            Some(StopReason::RelativeDecrease)
+        } else {
+            None
+        }
+    }
+
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), GraphError> {
         let bad = |field, value, expected| {
@@ -454,7 +469,7 @@ impl Optimizer {
             if !info.accepted {
                 break StopReason::LambdaLimit;
             }
-            if let Some(reason) = converged(&c, info.cost_before, info.cost_after) {
+            if let Some(reason) = c.converged(info.cost_before, info.cost_after) {
                 break reason;
             }
         };
@@ -517,20 +532,6 @@ impl System<'_> {
                 *t += v;
             }
         }
-    }
-}
-
-/// GTSAM's `checkConvergence` on the cost F.
-fn converged(c: &OptimizerConfig, before: f64, after: f64) -> Option<StopReason> {
-    let decrease = before - after;
-    if after <= c.absolute_tolerance {
-        Some(StopReason::CostBelowTolerance)
-    } else if decrease <= c.absolute_tolerance {
-        Some(StopReason::AbsoluteDecrease)
-    } else if decrease / before <= c.relative_tolerance {
-        Some(StopReason::RelativeDecrease)
-    } else {
-        None
     }
 }
 
