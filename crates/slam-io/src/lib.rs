@@ -6,7 +6,8 @@
 //!   trajectories), [`g2o`] (2-D pose graphs, read and written); [`open_dataset`] picks the
 //!   reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
-//!   [`freiburg::write_freiburg`], [`carmen::write_carmen`], [`picture`] (PNG).
+//!   [`freiburg::write_freiburg`], [`carmen::write_carmen`], [`picture`] (PNG),
+//!   [`g2o::write_g2o`], [`graph_picture`] (a pose graph before and after optimisation).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
 //!   chi-square bands).
 //!
@@ -25,6 +26,7 @@ pub mod eval;
 pub mod freiburg;
 pub mod g2o;
 mod glyphs;
+pub mod graph_picture;
 pub mod landmarks_csv;
 pub mod mrclam;
 pub mod picture;
