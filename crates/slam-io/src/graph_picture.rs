@@ -38,7 +38,7 @@ pub fn save_before_after(
             hi = (hi.0.max(x), hi.1.max(y));
         }
     }
-    if !(lo.0 <= hi.0) {
+    if lo.0 > hi.0 {
         return Err(IoError::Picture("no finite node position to draw".into()));
     }
     let span = (hi.0 - lo.0).max(hi.1 - lo.1).max(1e-9);
