@@ -12,11 +12,12 @@
 //! | [`fastslam`] | `slam-fastslam` | FastSLAM 1.0 / 2.0 |
 //! | [`grid`] | `slam-grid` | occupancy grids, likelihood fields, scan matching |
 //! | [`gridfast`] | `slam-gridfast` | grid-based FastSLAM |
+//! | [`graph`] | `slam-graph` | pose graphs and their sparse least-squares optimiser |
 //! | [`sim`] | `slam-sim` | simulators and scenarios |
 //! | [`io`] | `slam-io` | dataset readers/writers, metrics |
 //!
 //! Dependencies point one way: `models` at the bottom; `ekf`, `fastslam`, `grid`, `sim`, `io`
-//! on it; `gridfast` on `grid`; the `slam` command-line program (`slam-cli`) on top.
+//! on it; `gridfast` on `grid`; `graph` on `models` (and `io` on `graph` for g2o files); the `slam` command-line program (`slam-cli`) on top.
 
 pub use faer;
 pub use nalgebra;
@@ -24,6 +25,7 @@ pub use rand;
 pub use rand_pcg;
 pub use slam_ekf as ekf;
 pub use slam_fastslam as fastslam;
+pub use slam_graph as graph;
 pub use slam_grid as grid;
 pub use slam_gridfast as gridfast;
 pub use slam_io as io;

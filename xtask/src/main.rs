@@ -6,7 +6,7 @@
 //!   summary. Exits non-zero if any step fails. This is what CI runs.
 //! * `cargo xtask tidy`: only the cheap source checks of `test-all` (see `tidy`).
 //! * `cargo xtask bench [NAME]`: the criterion benches (all, or one crate's: `ekf`,
-//!   `fastslam`, `grid`, `gridfast`, `sim`).
+//!   `fastslam`, `grid`, `gridfast`, `graph`, `sim`).
 //! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
 //!   into `slam-out/eval/`; not part of the test suite.
 //! * `cargo xtask eval robust [--seeds N] [--only NAME]`: grid FastSLAM's robustness suite
@@ -38,7 +38,7 @@ fn main() -> ExitCode {
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|sim] | eval [robust]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust]>"
             );
             return ExitCode::from(2);
         }
@@ -344,6 +344,7 @@ fn bench(name: Option<&str>) -> Result<(), String> {
         Some("fastslam") => &["fastslam_step"],
         Some("grid") => &["grid_update", "scan_match"],
         Some("gridfast") => &["gridfast"],
+        Some("graph") => &["graph"],
         Some("sim") => &["raycast", "scenarios"],
         Some(other) => return Err(format!("unknown bench group {other:?}")),
     };

@@ -28,8 +28,30 @@ pub enum Command {
     Sim(SimArgs),
     /// Score a TUM trajectory against ground truth (ATE, RPE) or Kümmerle relations.
     Eval(EvalArgs),
+    /// Optimise a pose graph (g2o file); write the result, its χ² and a before/after picture.
+    Optimize(OptimizeArgs),
     /// List the filters and scenarios, and whether each is available in this build.
     List,
+}
+
+/// `slam optimize`.
+#[derive(Debug, Clone, Args)]
+pub struct OptimizeArgs {
+    /// The pose graph, g2o format (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX).
+    #[arg(value_name = "GRAPH.g2o")]
+    pub graph: PathBuf,
+
+    /// Output folder: optimized.g2o, result.json, graph.png, config.toml.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+
+    /// Optimiser configuration, a TOML file (see configs/graph.toml); unknown keys are an error.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+
+    /// Robust kernel, overriding the config file: none, huber:DELTA, cauchy:C or dcs:PHI.
+    #[arg(long, value_name = "KERNEL")]
+    pub kernel: Option<String>,
 }
 
 /// `slam run`.

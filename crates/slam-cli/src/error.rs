@@ -107,6 +107,9 @@ pub enum CliError {
         /// Steps in the input.
         steps: usize,
     },
+    /// The pose-graph optimiser rejected the graph or its configuration, or failed.
+    #[error("optimize: {0}")]
+    Graph(#[from] slam_graph::GraphError),
     /// The worker thread pool could not be created.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {

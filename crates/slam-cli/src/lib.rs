@@ -6,6 +6,7 @@
 //!           [--out <dir>] [--force] [--threads N] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
+//! slam optimize <graph.g2o> --out <dir> [--config <file.toml>] [--kernel <name:param>]
 //! slam list
 //! ```
 //!
@@ -30,6 +31,7 @@ pub mod eval;
 pub mod filters;
 mod list;
 pub mod metrics;
+pub mod optimize;
 mod outdir;
 mod progress;
 pub mod run;
@@ -38,6 +40,7 @@ pub mod sim;
 pub use error::CliError;
 pub use eval::EvalReport;
 pub use metrics::Metrics;
+pub use optimize::OptimizeOutput;
 pub use run::RunReport;
 pub use sim::SimReport;
 
@@ -74,6 +77,8 @@ pub enum Outcome {
     Simulated(SimReport),
     /// `slam eval` computed metrics.
     Evaluated(EvalReport),
+    /// `slam optimize` optimised a pose graph.
+    Optimized(Box<OptimizeOutput>),
 }
 
 /// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
@@ -99,6 +104,9 @@ where
         cli::Command::Run(a) => run::run(&a, out).map(|r| Outcome::Ran(Box::new(r))),
         cli::Command::Sim(a) => sim::sim(&a, out).map(Outcome::Simulated),
         cli::Command::Eval(a) => eval::eval(&a, out).map(Outcome::Evaluated),
+        cli::Command::Optimize(a) => {
+            optimize::optimize(&a, out).map(|r| Outcome::Optimized(Box::new(r)))
+        }
         cli::Command::List => {
             list::list(out);
             Ok(Outcome::Listed)
@@ -110,7 +118,7 @@ where
 /// `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval or list (see `slam --help`)".into();
+        return "missing subcommand: run, sim, eval, optimize or list (see `slam --help`)".into();
     }
     let text = e.render().to_string();
     let first: Vec<&str> = text

@@ -3,10 +3,12 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories); [`open_dataset`] picks the reader for a path.
+//!   trajectories), [`g2o`] (2-D pose graphs, read and written); [`open_dataset`] picks the
+//!   reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
-//!   [`carmen::write_carmen`], [`picture`] (PNG).
+//!   [`carmen::write_carmen`], [`picture`] (PNG), [`g2o::write_g2o`], [`graph_picture`] (a
+//!   pose graph before and after optimisation).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
 //!   chi-square bands).
 //!
@@ -24,7 +26,9 @@ pub mod error;
 pub mod estimates_csv;
 pub mod eval;
 pub mod freiburg;
+pub mod g2o;
 mod glyphs;
+pub mod graph_picture;
 pub mod landmarks_csv;
 pub mod mrclam;
 pub mod picture;

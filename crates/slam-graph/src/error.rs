@@ -1,0 +1,81 @@
+//! The one error type of slam-graph.
+
+use thiserror::Error;
+
+/// What went wrong while building or optimising a pose graph. Each variant names the node or
+/// edge and the bound it broke.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GraphError {
+    /// A node id was added twice.
+    #[error("node {id} already exists")]
+    DuplicateNode {
+        /// The node's id.
+        id: u64,
+    },
+    /// An edge or a fix referred to a node id that was never added.
+    #[error("unknown node {id}")]
+    UnknownNode {
+        /// The id asked for.
+        id: u64,
+    },
+    /// An edge joined nodes of the wrong kinds (e.g. a pose-pose edge ending at a point), or a
+    /// node to itself.
+    #[error("edge {from} → {to}: {reason}")]
+    WrongNodeKind {
+        /// Id of the first node.
+        from: u64,
+        /// Id of the second node.
+        to: u64,
+        /// What was expected, in words.
+        reason: &'static str,
+    },
+    /// A value was NaN or infinite.
+    #[error("{what} is not finite ({value})")]
+    NonFinite {
+        /// Which quantity.
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// An information matrix was not symmetric positive definite.
+    #[error("edge {from} → {to}: information matrix is not symmetric positive definite")]
+    InformationNotPositiveDefinite {
+        /// Id of the first node.
+        from: u64,
+        /// Id of the second node.
+        to: u64,
+    },
+    /// A configuration value was outside its documented range.
+    #[error("invalid optimiser configuration: {field} = {value}, expected {expected}")]
+    InvalidConfig {
+        /// The field of [`crate::OptimizerConfig`].
+        field: &'static str,
+        /// The value given.
+        value: f64,
+        /// What was expected, in words.
+        expected: &'static str,
+    },
+    /// The graph has no free variable to optimise (no nodes, or all fixed).
+    #[error("nothing to optimise: {0}")]
+    Empty(&'static str),
+    /// The normal equations were singular: some variable is not constrained by any edge (a
+    /// node without edges, a landmark seen once by a bearing-only edge, ...) or the damping
+    /// could not make them positive definite.
+    #[error("normal equations are not positive definite at iteration {iteration} (an unconstrained node?)")]
+    NotPositiveDefinite {
+        /// 0-based iteration.
+        iteration: usize,
+    },
+    /// A residual could not be evaluated (a range-bearing edge whose landmark sits on the
+    /// pose, where the bearing is undefined).
+    #[error("edge {edge}: {reason}")]
+    Degenerate {
+        /// 0-based index of the edge in [`crate::PoseGraph::edges`].
+        edge: usize,
+        /// What failed.
+        reason: String,
+    },
+    /// The sparse factorisation's symbolic analysis failed (out of memory or index overflow).
+    #[error("sparse Cholesky analysis failed: {0}")]
+    Sparse(String),
+}

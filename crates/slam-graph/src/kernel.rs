@@ -1,0 +1,125 @@
+//! Robust kernels ρ(s) of the squared Mahalanobis error s = eᵀΩe, applied by iteratively
+//! reweighted least squares (IRLS): each edge's block of the normal equations is scaled by
+//! w = ρ′(s) at the current estimate (g2o's `RobustKernel::robustify`, Kümmerle et al. 2011).
+//!
+//! A kernel bounds the pull of an edge whose error is far larger than its information claims,
+//! which is what a false loop closure looks like.
+
+use serde::{Deserialize, Serialize};
+
+/// A robust cost ρ of the squared error s = eᵀΩe (dimensionless, χ²-distributed for a correct
+/// edge). Every kernel has ρ(s) = s and ρ′(s) = 1 for small s, so inliers are treated as
+/// plain least squares.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum RobustKernel {
+    /// Plain least squares: ρ(s) = s.
+    #[default]
+    None,
+    /// Huber: ρ(s) = s for s ≤ δ², 2δ√s − δ² beyond (linear growth in ‖e‖; g2o's
+    /// `RobustKernelHuber`). δ is in units of standard deviations of the whitened error.
+    Huber {
+        /// Threshold δ > 0 on √s.
+        delta: f64,
+    },
+    /// Cauchy: ρ(s) = c² ln(1 + s/c²), w = 1/(1 + s/c²) (g2o's `RobustKernelCauchy`).
+    Cauchy {
+        /// Scale c > 0, in whitened standard deviations.
+        c: f64,
+    },
+    /// Dynamic Covariance Scaling (Agarwal, Tipaldi, Spinello, Stachniss and Burgard, ICRA
+    /// 2013, eq. 11): the error is scaled by σ = min(1, 2Φ/(Φ + s)), so w = σ². The cost whose
+    /// IRLS weight this is, ρ(s) = s for s ≤ Φ and 3Φ − 4Φ²/(Φ + s) beyond, is continuous,
+    /// bounded by 3Φ and is what the Levenberg-Marquardt acceptance test compares.
+    Dcs {
+        /// Φ > 0, the squared error at which scaling starts (the paper uses Φ = 1).
+        phi: f64,
+    },
+}
+
+impl RobustKernel {
+    /// ρ(s) and w = ρ′(s) for s = eᵀΩe ≥ 0.
+    #[inline]
+    pub fn robustify(&self, s: f64) -> (f64, f64) {
+        match *self {
+            RobustKernel::None => (s, 1.0),
+            RobustKernel::Huber { delta } => {
+                if s <= delta * delta {
+                    (s, 1.0)
+                } else {
+                    let r = s.sqrt();
+                    (2.0 * delta * r - delta * delta, delta / r)
+                }
+            }
+            RobustKernel::Cauchy { c } => {
+                let c2 = c * c;
+                let q = 1.0 + s / c2;
+                (c2 * q.ln(), 1.0 / q)
+            }
+            RobustKernel::Dcs { phi } => {
+                if s <= phi {
+                    (s, 1.0)
+                } else {
+                    let scale = 2.0 * phi / (phi + s);
+                    (3.0 * phi - 4.0 * phi * phi / (phi + s), scale * scale)
+                }
+            }
+        }
+    }
+
+    /// The kernel's parameter, or `None` for plain least squares.
+    pub fn parameter(&self) -> Option<f64> {
+        match *self {
+            RobustKernel::None => None,
+            RobustKernel::Huber { delta } => Some(delta),
+            RobustKernel::Cauchy { c } => Some(c),
+            RobustKernel::Dcs { phi } => Some(phi),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// w = ρ′(s), checked by central differences, and ρ continuous at the switch points.
+    #[test]
+    fn weight_is_the_derivative_of_the_cost() {
+        for k in [
+            RobustKernel::None,
+            RobustKernel::Huber { delta: 1.5 },
+            RobustKernel::Cauchy { c: 2.0 },
+            RobustKernel::Dcs { phi: 1.0 },
+        ] {
+            for s in [0.01f64, 0.5, 0.99, 1.01, 2.2, 2.3, 7.0, 100.0, 1e4] {
+                let h = 1e-6 * s.max(1.0);
+                let d = (k.robustify(s + h).0 - k.robustify(s - h).0) / (2.0 * h);
+                let w = k.robustify(s).1;
+                assert!(
+                    (d - w).abs() < 1e-6 * w.max(1e-3),
+                    "{k:?} s={s}: {d} vs {w}"
+                );
+            }
+            let p = k.parameter().unwrap_or(1.0);
+            let edge = if matches!(k, RobustKernel::Huber { .. }) {
+                p * p
+            } else {
+                p
+            };
+            let (a, b) = (
+                k.robustify(edge * (1.0 - 1e-12)).0,
+                k.robustify(edge * (1.0 + 1e-12)).0,
+            );
+            assert!((a - b).abs() < 1e-9, "{k:?} jumps at {edge}");
+        }
+    }
+
+    #[test]
+    fn redescending_kernels_bound_the_cost() {
+        let dcs = RobustKernel::Dcs { phi: 1.0 };
+        assert!(dcs.robustify(1e12).0 < 3.0);
+        assert!(dcs.robustify(1e6).1 < 1e-11);
+        let cauchy = RobustKernel::Cauchy { c: 1.0 };
+        assert!(cauchy.robustify(1e6).1 < 1e-5);
+    }
+}

@@ -1,0 +1,36 @@
+//! # slam-graph: graph-based SLAM's back end
+//!
+//! A 2-D pose graph and its sparse nonlinear least-squares optimiser, after Grisetti,
+//! Kümmerle, Stachniss and Burgard, "A tutorial on graph-based SLAM" (IEEE Intelligent
+//! Transportation Systems Magazine, 2010) and Kümmerle, Grisetti, Strasdat, Konolige and
+//! Burgard, "g2o: A general framework for graph optimization" (ICRA 2011):
+//!
+//! * [`PoseGraph`]: SE(2) pose nodes and R² point nodes; relative-pose edges (g2o
+//!   `EDGE_SE2`), Cartesian point edges (`EDGE_SE2_XY`) and range-bearing point edges, each
+//!   with its information matrix Ω.
+//! * [`factor`]: each edge's error and exact analytic Jacobians (tested by finite
+//!   differences).
+//! * [`Optimizer`]: Gauss-Newton or Levenberg-Marquardt on the manifold, the normal equations
+//!   solved by faer's sparse Cholesky with an AMD ordering ([`linear`]), robust kernels
+//!   ([`RobustKernel`]: Huber, Cauchy, DCS) by IRLS, the gauge fixed at the first pose, an
+//!   [`IterationInfo`] per iteration and a documented stopping rule.
+//!
+//! The χ² reported everywhere is g2o's: Σ eᵀΩe over the edges (GTSAM reports half of it).
+//! File input and output (g2o format) live in `slam-io`.
+
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod factor;
+pub mod graph;
+pub mod kernel;
+pub mod linear;
+pub mod optimizer;
+
+pub use error::GraphError;
+pub use graph::{BetweenEdge, Edge, Node, NodeValue, PointXyEdge, PoseGraph, RangeBearingEdge};
+pub use kernel::RobustKernel;
+pub use linear::{Factorization, Ordering};
+pub use optimizer::{
+    IterationInfo, Method, OptimizeReport, Optimizer, OptimizerConfig, StopReason,
+};

@@ -1,0 +1,130 @@
+//! A before/after picture of a pose graph: two panels side by side at one scale, each edge a
+//! one-pixel line between its nodes' positions (odometry, i.e. edges between consecutive
+//! pose ids, dark; other pose-pose edges, the loop closures, red; pose-point edges green).
+//! Kept apart from [`crate::picture`] on purpose: it draws nothing but straight lines.
+
+use crate::error::IoError;
+use image::{Rgb, RgbImage};
+use slam_graph::{Edge, NodeValue, PoseGraph};
+use std::path::Path;
+
+/// Width and height of one panel, pixels.
+const PANEL: u32 = 800;
+/// Margin around the drawing, pixels.
+const MARGIN: f64 = 10.0;
+
+fn position(v: &NodeValue) -> (f64, f64) {
+    match v {
+        NodeValue::Pose(p) => (p.x, p.y),
+        NodeValue::Point(p) => (p.x, p.y),
+    }
+}
+
+/// Draws `before` (left) and `after` (right), which must have the same edges, into a PNG at
+/// `path`. Errors when no node position is finite or the file cannot be written.
+pub fn save_before_after(
+    before: &PoseGraph,
+    after: &PoseGraph,
+    path: &Path,
+) -> Result<(), IoError> {
+    let (mut lo, mut hi) = (
+        (f64::INFINITY, f64::INFINITY),
+        (f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for n in before.nodes().iter().chain(after.nodes()) {
+        let (x, y) = position(&n.value);
+        if x.is_finite() && y.is_finite() {
+            lo = (lo.0.min(x), lo.1.min(y));
+            hi = (hi.0.max(x), hi.1.max(y));
+        }
+    }
+    if lo.0 > hi.0 {
+        return Err(IoError::Picture("no finite node position to draw".into()));
+    }
+    let span = (hi.0 - lo.0).max(hi.1 - lo.1).max(1e-9);
+    let scale = (PANEL as f64 - 2.0 * MARGIN) / span;
+    let mut img = RgbImage::from_pixel(2 * PANEL, PANEL, Rgb([255, 255, 255]));
+    for (panel, g) in [before, after].into_iter().enumerate() {
+        let dx = panel as f64 * PANEL as f64 + MARGIN;
+        let px = |v: &NodeValue| {
+            let (x, y) = position(v);
+            (
+                dx + (x - lo.0) * scale,
+                PANEL as f64 - MARGIN - (y - lo.1) * scale,
+            )
+        };
+        let nodes = g.nodes();
+        // Loop closures first, so the odometry chain stays visible on top.
+        for pass in 0..2 {
+            for e in g.edges() {
+                let (a, b) = e.nodes();
+                let colour = match e {
+                    Edge::Between(_) if nodes[a].id.abs_diff(nodes[b].id) == 1 => Rgb([40, 40, 40]),
+                    Edge::Between(_) => Rgb([230, 90, 90]),
+                    _ => Rgb([60, 170, 60]),
+                };
+                let odometry = colour == Rgb([40, 40, 40]);
+                if odometry == (pass == 1) {
+                    line(&mut img, px(&nodes[a].value), px(&nodes[b].value), colour);
+                }
+            }
+        }
+    }
+    for y in 0..PANEL {
+        img.put_pixel(PANEL, y, Rgb([0, 0, 0]));
+    }
+    img.save(path)
+        .map_err(|e| IoError::invalid(path, format!("cannot write PNG: {e}")))
+}
+
+/// A straight line by uniform steps along its longer axis (DDA), clipped to the image.
+fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Rgb<u8>) {
+    if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
+        return;
+    }
+    let steps = (b.0 - a.0)
+        .abs()
+        .max((b.1 - a.1).abs())
+        .ceil()
+        .clamp(1.0, 4.0 * PANEL as f64);
+    let n = steps as usize;
+    for k in 0..=n {
+        let t = k as f64 / steps;
+        let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+        if x >= 0.0 && y >= 0.0 && (x as u32) < img.width() && (y as u32) < img.height() {
+            img.put_pixel(x as u32, y as u32, c);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use slam_models::{Matrix3, Pose2};
+
+    #[test]
+    fn draws_both_panels() {
+        let mut g = PoseGraph::new();
+        for i in 0..4 {
+            g.add_pose(i, Pose2::new(i as f64, (i % 2) as f64, 0.0))
+                .unwrap();
+        }
+        for i in 0..3 {
+            g.add_between(i, i + 1, Pose2::new(1.0, 0.0, 0.0), Matrix3::identity())
+                .unwrap();
+        }
+        g.add_between(0, 3, Pose2::new(3.0, 0.0, 0.0), Matrix3::identity())
+            .unwrap();
+        let dir = std::env::temp_dir().join(format!("slam-io-gp-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("g.png");
+        save_before_after(&g, &g, &p).unwrap();
+        let img = image::open(&p).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (2 * PANEL, PANEL));
+        let red = img.pixels().filter(|p| p.0 == [230, 90, 90]).count();
+        let dark = img.pixels().filter(|p| p.0 == [40, 40, 40]).count();
+        assert!(red > 100 && dark > 100, "{red} {dark}");
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(save_before_after(&PoseGraph::new(), &PoseGraph::new(), &p).is_err());
+    }
+}

@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""GTSAM's Levenberg-Marquardt against slam-graph's on a 2-D g2o pose graph (issue 22).
+
+Both start from the file's initial guess, with no robust kernel, the first pose held (GTSAM:
+a prior of variances 1e-6, 1e-6, 1e-8, the form of GTSAM's Pose2SLAMExample_g2o.py), and
+the same stopping rule: GTSAM's LevenbergMarquardtParams defaults (lambda 1e-5, factor 10,
+upper bound 1e5, relative error tolerance 1e-5, at most 100 iterations), with GTSAM's
+absolute tolerance set to 0.5e-5 because GTSAM's error is chi2 / 2 and slam-graph's
+tolerances apply to chi2.
+
+The runs alternate, GTSAM then slam-graph (one process per run, `examples/graph_optimize`),
+`--rounds` times; file reading is not timed on either side. Prints one JSON object:
+GTSAM's figures (its own chi2 = 2 * error, over the file's edges only, and the chi2 of the
+g2o error t2v(Z^-1 Xi^-1 Xj) that slam-graph minimises, evaluated at GTSAM's result), ours,
+and the median time ratios. Run through scripts/gtsam_compare.sh, which makes the venv.
+"""
+
+import argparse
+import importlib.metadata
+import json
+import math
+import statistics
+import subprocess
+import time
+
+import gtsam
+
+
+def g2o_chi2(path, values):
+    """Sum over EDGE_SE2 lines of e^T I e with e = t2v(Z^-1 (Xi^-1 Xj)), g2o's EdgeSE2."""
+    total = 0.0
+    with open(path) as f:
+        for line in f:
+            w = line.split()
+            if not w or w[0] != "EDGE_SE2":
+                continue
+            i, j = int(w[1]), int(w[2])
+            zx, zy, zt = map(float, w[3:6])
+            u = list(map(float, w[6:12]))
+            info = [[u[0], u[1], u[2]], [u[1], u[3], u[4]], [u[2], u[4], u[5]]]
+            a, b = values.atPose2(i), values.atPose2(j)
+            c, s = math.cos(a.theta()), math.sin(a.theta())
+            dx, dy = b.x() - a.x(), b.y() - a.y()
+            d = (c * dx + s * dy, -s * dx + c * dy)
+            cz, sz = math.cos(zt), math.sin(zt)
+            tx, ty = d[0] - zx, d[1] - zy
+            e = [cz * tx + sz * ty, -sz * tx + cz * ty,
+                 math.remainder(b.theta() - a.theta() - zt, 2 * math.pi)]
+            total += sum(e[r] * info[r][k] * e[k] for r in range(3) for k in range(3))
+    return total
+
+
+def run_gtsam(path):
+    graph, initial = gtsam.readG2o(path, False)
+    edges_only = gtsam.NonlinearFactorGraph(graph)
+    prior = gtsam.noiseModel.Diagonal.Variances(gtsam.Point3(1e-6, 1e-6, 1e-8))
+    graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), prior))
+    params = gtsam.LevenbergMarquardtParams()
+    params.setRelativeErrorTol(1e-5)
+    params.setAbsoluteErrorTol(0.5e-5)
+    params.setMaxIterations(100)
+    t0 = time.perf_counter()
+    opt = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
+    result = opt.optimize()
+    seconds = time.perf_counter() - t0
+    return {
+        "chi2_initial": 2.0 * edges_only.error(initial),
+        "chi2_final_gtsam_error": 2.0 * edges_only.error(result),
+        "chi2_final_g2o_error": g2o_chi2(path, result),
+        "iterations": opt.iterations(),
+        "seconds_total": seconds,
+    }
+
+
+def run_ours(binary, path):
+    out = subprocess.run([binary, path], check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("g2o")
+    ap.add_argument("--ours", required=True, help="path of the graph_optimize example binary")
+    ap.add_argument("--rounds", type=int, default=7)
+    a = ap.parse_args()
+    g, o = [], []
+    for _ in range(a.rounds):
+        g.append(run_gtsam(a.g2o))
+        o.append(run_ours(a.ours, a.g2o))
+    med = statistics.median
+    gt_total = med(r["seconds_total"] for r in g)
+    gt_iter = med(r["seconds_total"] / r["iterations"] for r in g)
+    our_total = med(r["seconds_total"] for r in o)
+    our_iter = med(statistics.mean(r["seconds_iterations"]) for r in o)
+    print(json.dumps({
+        "file": a.g2o,
+        "rounds": a.rounds,
+        "gtsam_version": importlib.metadata.version("gtsam"),
+        "gtsam": g[0] | {"seconds_total_median": gt_total, "seconds_per_iteration_median": gt_iter},
+        "ours": {k: o[0][k] for k in ("chi2_initial", "chi2_final", "iterations", "stop")}
+        | {"seconds_total_median": our_total, "seconds_per_iteration_median": our_iter,
+           "seconds_setup_median": med(r["seconds_setup"] for r in o)},
+        "ratio_total_ours_over_gtsam": our_total / gt_total,
+        "ratio_per_iteration_ours_over_gtsam": our_iter / gt_iter,
+    }, indent=2))
+
+
+if __name__ == "__main__":
+    main()
