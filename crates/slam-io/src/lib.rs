@@ -3,7 +3,8 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories); [`open_dataset`] picks the reader for a path.
+//!   trajectories), `rosbag` (ROS 2 bags: MCAP files and rosbag2 folders, feature
+//!   `rosbag`, on by default); [`open_dataset`] picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`freiburg::write_freiburg`], [`carmen::write_carmen`], [`picture`] (PNG).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
@@ -29,6 +30,8 @@ pub mod picture;
 pub mod relations;
 pub mod report;
 pub mod ros_map;
+#[cfg(feature = "rosbag")]
+pub mod rosbag;
 pub(crate) mod text;
 pub mod tum;
 
