@@ -1,12 +1,14 @@
 //! # slam-cli: the `slam` program
 //!
 //! ```text
-//! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N])
+//! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N]
+//!           [--scan-topic T] [--odom-topic T] [--laser-pose x,y,θ])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
 //!           [--out <dir>] [--threads N] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam list
+//! slam info <path>
 //! ```
 //!
 //! The program is this library plus a thin `main`: [`main_with_args`] parses a command line,
@@ -26,6 +28,7 @@ mod config;
 pub mod error;
 pub mod eval;
 pub mod filters;
+mod info;
 mod list;
 pub mod metrics;
 mod progress;
@@ -56,6 +59,8 @@ pub enum Outcome {
     Simulated(SimReport),
     /// `slam eval` computed metrics.
     Evaluated(EvalReport),
+    /// `slam info` described a dataset.
+    Described,
 }
 
 /// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
@@ -81,6 +86,7 @@ where
         cli::Command::Run(a) => run::run(&a, out).map(|r| Outcome::Ran(Box::new(r))),
         cli::Command::Sim(a) => sim::sim(&a, out).map(Outcome::Simulated),
         cli::Command::Eval(a) => eval::eval(&a, out).map(Outcome::Evaluated),
+        cli::Command::Info(a) => info::info(&a, out).map(|_| Outcome::Described),
         cli::Command::List => {
             list::list(out);
             Ok(Outcome::Listed)
@@ -92,7 +98,7 @@ where
 /// `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval or list (see `slam --help`)".into();
+        return "missing subcommand: run, sim, eval, list or info (see `slam --help`)".into();
     }
     let text = e.render().to_string();
     let first: Vec<&str> = text

@@ -35,7 +35,10 @@ pub mod rosbag;
 pub(crate) mod text;
 pub mod tum;
 
-pub use dataset::{dead_reckoning, odometry_trajectory, open_dataset, Dataset};
+pub use dataset::{
+    dataset_info, dead_reckoning, odometry_trajectory, open_dataset, open_dataset_with, Dataset,
+    DatasetOptions,
+};
 pub use error::IoError;
 pub use report::Skipped;
 

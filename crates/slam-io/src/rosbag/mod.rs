@@ -103,6 +103,8 @@ pub struct RosBag {
     pub scan_topic: String,
     /// The odometry read.
     pub odometry: OdometrySource,
+    /// Number of odometry poses read (messages, or `/tf` transforms of the odometry edge).
+    pub odometry_poses: usize,
     /// The scans' frame (`header.frame_id` of the first scan).
     pub laser_frame: String,
     /// The robot's base frame (the odometry's child frame).
@@ -129,7 +131,7 @@ impl RosBag {
                 s.len(),
                 s.angle_min.to_degrees(),
                 s.angle_increment.to_degrees(),
-                s.max_range
+                s.max_range as f32
             ),
             None => "no scans".into(),
         };
@@ -137,18 +139,18 @@ impl RosBag {
             OdometrySource::Topic(t) => format!("odometry {t}"),
             OdometrySource::Tf { parent, child } => format!("odometry /tf {parent} → {child}"),
         };
+        let poses = self.odometry_poses;
         let (p, from) = self.laser_pose;
         let span = match (recs.first(), recs.last()) {
             (Some(a), Some(b)) => b.t - a.t,
             _ => 0.0,
         };
         let mut s = format!(
-            "ROS 2 bag {}: scans {} ({} scans, {geometry}), {odom} ({} records), over {span:.1} s; \
-             laser frame {} at ({}, {}, {}) in {} ({from})",
+            "ROS 2 bag {}: scans {} ({} scans, {geometry}), {odom} ({poses} poses), over {span:.1} s; \
+             laser frame {} at ({:.4} m, {:.4} m, {:.4} rad) in {} ({from})",
             path.display(),
             self.scan_topic,
             scans.len(),
-            recs.len() - scans.len(),
             self.laser_frame,
             p.x,
             p.y,
@@ -277,8 +279,8 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
             m.angle_min.to_degrees(),
             m.angle_max.to_degrees(),
             m.angle_increment.to_degrees(),
-            m.range_min,
-            m.range_max
+            m.range_min as f32,
+            m.range_max as f32
         );
     }
     if first_scan.is_empty() {
@@ -306,7 +308,12 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     let statics: Vec<String> = edges
         .iter()
         .filter(|((st, _, _), _)| *st)
-        .map(|((_, p, c), (_, q))| format!("{p} → {c} at ({}, {}, {})", q.x, q.y, q.theta))
+        .map(|((_, p, c), (_, q))| {
+            format!(
+                "{p} → {c} at ({:.4} m, {:.4} m, {:.4} rad)",
+                q.x, q.y, q.theta
+            )
+        })
         .collect();
     let _ = write!(
         s,
@@ -685,6 +692,7 @@ fn assemble(
         topics,
         scan_topic,
         odometry: source,
+        odometry_poses: odom.len(),
         laser_frame,
         base_frame,
         laser_pose: first_mount.unwrap_or((Pose2::IDENTITY, "same frame")),
