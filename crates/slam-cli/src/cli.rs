@@ -19,8 +19,11 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// The four subcommands.
+/// The five subcommands.
 #[derive(Debug, Subcommand)]
+// The run options make `Run` large; a command is parsed once per process, so boxing it
+// would buy nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Command {
     /// Run one filter on a simulated scenario or a dataset; write trajectory, map, picture and metrics.
     Run(RunArgs),

@@ -4,7 +4,8 @@
 //! **Container.** MCAP, read with Foxglove's `mcap` crate (chunks uncompressed, zstd or
 //! lz4). A rosbag2 folder is read through its `metadata.yaml` (`storage_identifier: mcap`,
 //! the files of `relative_file_paths` in order); sqlite3 storage is refused with an error
-//! that names it. Messages must be CDR-encoded ROS 2 messages ([`cdr`](self) decoder).
+//! that names it. Messages must be CDR-encoded ROS 2 messages (little or big endian), read
+//! by a small decoder of this module (`cdr.rs`).
 //!
 //! **Topics.** The scans are the one `sensor_msgs/msg/LaserScan` topic (or `scan_topic`).
 //! Odometry is the one `nav_msgs/msg/Odometry` topic (or `odom_topic`); when the bag has
@@ -59,6 +60,9 @@ use std::path::Path;
 const MAX_COORD: f64 = 1e6;
 /// Largest range, metres (the bound of every reader).
 const MAX_RANGE: f64 = 1000.0;
+/// Longest span of odometry stamps, nanoseconds (10⁷ s, about 116 days: the bound of
+/// every reader); a stamp outside it is a corrupted or unset (zero) stamp.
+const MAX_TIME_SPAN_NS: i64 = 10_000_000 * 1_000_000_000;
 /// Largest absolute beam angle, radians (one turn).
 const MAX_ANGLE: f64 = std::f64::consts::TAU;
 /// The `/tf` topics.
@@ -595,6 +599,20 @@ fn assemble(
         });
     }
     odom.sort_by_key(|p| p.stamp_ns);
+    let (first, last) = (odom[0].stamp_ns, odom[odom.len() - 1].stamp_ns);
+    if last - first > MAX_TIME_SPAN_NS {
+        return Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: odom_name,
+            what: format!(
+                "odometry stamps from {} s to {} s: expected a span within {} s (an unset or \
+                 corrupted header.stamp?)",
+                first as f64 * 1e-9,
+                last as f64 * 1e-9,
+                MAX_TIME_SPAN_NS / 1_000_000_000
+            ),
+        });
+    }
     let base_frame = odom[0].child.clone();
     let laser_frame = scans
         .first()
@@ -627,7 +645,7 @@ fn assemble(
         Ok(m)
     };
 
-    let (t_first, t_last) = (odom[0].stamp_ns, odom[odom.len() - 1].stamp_ns);
+    let (t_first, t_last) = (first, last);
     let mut outside = 0usize;
     let (mut no_return, mut invalid) = (0usize, 0usize);
     // (stamp, is_scan, record)
@@ -808,6 +826,27 @@ mod tests {
         assert!(
             (m.theta.abs() - std::f64::consts::PI).abs() < 1e-12,
             "{m:?}"
+        );
+    }
+
+    #[test]
+    fn odometry_spanning_decades_is_an_error() {
+        let odom = vec![sp(0, 0.0, 0.0), sp(976_052_857_000_000_000, 1.0, 0.0)];
+        let e = assemble(
+            Path::new("x.mcap"),
+            vec![],
+            "/scan".into(),
+            OdometrySource::Topic("/odom".into()),
+            odom,
+            vec![],
+            &[],
+            &BagOptions::default(),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("topic /odom: odometry stamps from 0 s"),
+            "{e}"
         );
     }
 
