@@ -19,8 +19,11 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// The four subcommands.
+/// The five subcommands.
 #[derive(Debug, Subcommand)]
+// The run options make `Run` large; a command is parsed once per process, so boxing it
+// would buy nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum Command {
     /// Run one filter on a simulated scenario or a dataset; write trajectory, map, picture and metrics.
     Run(RunArgs),
@@ -32,6 +35,16 @@ pub enum Command {
     Optimize(OptimizeArgs),
     /// List the filters and scenarios, and whether each is available in this build.
     List,
+    /// Say what a dataset holds (a ROS 2 bag's topics, counts, laser and odometry; a log's records).
+    Info(InfoArgs),
+}
+
+/// `slam info`.
+#[derive(Debug, Clone, Args)]
+pub struct InfoArgs {
+    /// The dataset: an MCAP file, a rosbag2 folder, a CARMEN log, a Freiburg or MRCLAM folder.
+    #[arg(value_name = "PATH")]
+    pub path: PathBuf,
 }
 
 /// `slam optimize`.
@@ -76,13 +89,27 @@ pub struct RunArgs {
     pub steps: Option<u64>,
 
     /// Dataset: a Freiburg folder (world.dat + sensor_data.dat), a CARMEN log (.log, .clf,
-    /// .gz) or an MRCLAM folder (with --robot).
+    /// .gz), an MRCLAM folder (with --robot), or a ROS 2 bag (an .mcap file or a folder with
+    /// metadata.yaml).
     #[arg(long, value_name = "PATH")]
     pub dataset: Option<PathBuf>,
 
     /// Robot number 1–5 for MRCLAM datasets.
     #[arg(long, value_name = "N", requires = "dataset")]
     pub robot: Option<u32>,
+
+    /// ROS 2 bags: the sensor_msgs/msg/LaserScan topic (needed when there are several).
+    #[arg(long, value_name = "TOPIC", requires = "dataset")]
+    pub scan_topic: Option<String>,
+
+    /// ROS 2 bags: the nav_msgs/msg/Odometry topic, or /tf for the odom → base transform.
+    #[arg(long, value_name = "TOPIC", requires = "dataset")]
+    pub odom_topic: Option<String>,
+
+    /// ROS 2 bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
+    /// radians); replaces /tf_static.
+    #[arg(long, value_name = "X,Y,THETA", requires = "dataset", value_parser = laser_pose, allow_hyphen_values = true)]
+    pub laser_pose: Option<slam_io::Pose2>,
 
     /// Number of particles (particle filters only); overrides the config file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -163,6 +190,24 @@ pub struct EvalArgs {
     /// Kümmerle et al. relations file: gives the relations metric.
     #[arg(long, value_name = "FILE")]
     pub relations: Option<PathBuf>,
+}
+
+/// `x,y,theta`: three finite numbers, |x|, |y| ≤ 100 m (a sensor on a robot), |θ| ≤ 2π.
+fn laser_pose(s: &str) -> Result<slam_io::Pose2, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected x,y,theta (three numbers), found {s:?}"))?;
+    match v.as_slice() {
+        [x, y, th] if x.abs() <= 100.0 && y.abs() <= 100.0 && th.abs() <= std::f64::consts::TAU => {
+            Ok(slam_io::Pose2::new(*x, *y, *th))
+        }
+        [_, _, _] => Err(format!(
+            "expected |x|, |y| ≤ 100 m and |theta| ≤ 2π rad (finite), found {s:?}"
+        )),
+        _ => Err(format!("expected x,y,theta (three numbers), found {s:?}")),
+    }
 }
 
 /// A cell size in metres: a finite number > 0 (and ≥ 1 mm, so that a map stays a

@@ -1,13 +1,15 @@
 //! # slam-cli: the `slam` program
 //!
 //! ```text
-//! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N])
+//! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N]
+//!           [--scan-topic T] [--odom-topic T] [--laser-pose x,y,θ])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
 //!           [--out <dir>] [--force] [--threads N] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam optimize <graph.g2o> --out <dir> [--config <file.toml>] [--kernel <name:param>]
 //! slam list
+//! slam info <path>
 //! ```
 //!
 //! The program is this library plus a thin `main`: [`main_with_args`] parses a command line,
@@ -29,6 +31,7 @@ mod config;
 pub mod error;
 pub mod eval;
 pub mod filters;
+mod info;
 mod list;
 pub mod metrics;
 pub mod optimize;
@@ -79,6 +82,8 @@ pub enum Outcome {
     Evaluated(EvalReport),
     /// `slam optimize` optimised a pose graph.
     Optimized(Box<OptimizeOutput>),
+    /// `slam info` described a dataset.
+    Described,
 }
 
 /// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
@@ -107,6 +112,7 @@ where
         cli::Command::Optimize(a) => {
             optimize::optimize(&a, out).map(|r| Outcome::Optimized(Box::new(r)))
         }
+        cli::Command::Info(a) => info::info(&a, out).map(|_| Outcome::Described),
         cli::Command::List => {
             list::list(out);
             Ok(Outcome::Listed)
@@ -118,7 +124,7 @@ where
 /// `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval, optimize or list (see `slam --help`)".into();
+        return "missing subcommand: run, sim, eval, optimize, info or list (see `slam --help`)".into();
     }
     let text = e.render().to_string();
     let first: Vec<&str> = text

@@ -319,7 +319,13 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
             "give either --sim <scenario> or --dataset <path>".into(),
         ));
     };
-    let (dataset, description) = slam_io::open_dataset(path, args.robot)?;
+    let options = slam_io::DatasetOptions {
+        robot: args.robot,
+        scan_topic: args.scan_topic.clone(),
+        odom_topic: args.odom_topic.clone(),
+        laser_pose: args.laser_pose,
+    };
+    let (dataset, description) = slam_io::open_dataset_with(path, &options)?;
     let stem = path
         .file_name()
         .map(|s| s.to_string_lossy().to_string())
@@ -328,6 +334,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
         .trim_end_matches(".gz")
         .trim_end_matches(".log")
         .trim_end_matches(".clf")
+        .trim_end_matches(".mcap")
         .to_string();
     let name_of = |n: &str| {
         if n.is_empty() {

@@ -1,8 +1,69 @@
 //! Opening a dataset by path, whatever its format.
 
 use crate::error::IoError;
-use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
+use slam_models::{LandmarkDataset, Pose2, ScanDataset, TimedPose};
 use std::path::Path;
+
+/// What [`open_dataset_with`] may need besides the path: the MRCLAM robot, and for ROS bags
+/// the topics and the laser mounting (see `rosbag::BagOptions`). Options that do not apply
+/// to the format found are an error, not ignored.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DatasetOptions {
+    /// MRCLAM robot number (default 1).
+    pub robot: Option<u32>,
+    /// ROS bags: the `sensor_msgs/msg/LaserScan` topic.
+    pub scan_topic: Option<String>,
+    /// ROS bags: the `nav_msgs/msg/Odometry` topic, or `/tf`.
+    pub odom_topic: Option<String>,
+    /// ROS bags: the laser's pose in the robot's base frame, replacing `/tf_static`.
+    pub laser_pose: Option<Pose2>,
+}
+
+impl DatasetOptions {
+    fn bag_option(&self) -> Option<&'static str> {
+        if self.scan_topic.is_some() {
+            Some("--scan-topic")
+        } else if self.odom_topic.is_some() {
+            Some("--odom-topic")
+        } else if self.laser_pose.is_some() {
+            Some("--laser-pose")
+        } else {
+            None
+        }
+    }
+}
+
+/// True when `path` is a ROS 2 bag: an MCAP file or a folder with `metadata.yaml`.
+fn is_bag(path: &Path) -> bool {
+    if path.is_dir() {
+        return path.join("metadata.yaml").is_file();
+    }
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+        .is_ok()
+        && magic == *b"\x89MCAP0\r\n"
+}
+
+#[cfg(feature = "rosbag")]
+fn open_bag(path: &Path, o: &DatasetOptions) -> Result<(Dataset, String), IoError> {
+    let opts = crate::rosbag::BagOptions {
+        scan_topic: o.scan_topic.clone(),
+        odom_topic: o.odom_topic.clone(),
+        laser_pose: o.laser_pose,
+    };
+    let bag = crate::rosbag::read_rosbag(path, &opts)?;
+    let msg = bag.summary(path);
+    Ok((Dataset::Scan(bag.dataset), msg))
+}
+
+#[cfg(not(feature = "rosbag"))]
+fn open_bag(path: &Path, _: &DatasetOptions) -> Result<(Dataset, String), IoError> {
+    Err(IoError::invalid(
+        path,
+        "a ROS 2 bag, but slam-io was built without its `rosbag` feature",
+    ))
+}
 
 /// A dataset of either kind.
 #[derive(Debug, Clone, PartialEq)]
@@ -13,8 +74,22 @@ pub enum Dataset {
     Scan(ScanDataset),
 }
 
+/// Opens `path` and says in one line what was found ([`open_dataset_with`] without ROS bag
+/// options).
+pub fn open_dataset(path: &Path, robot: Option<u32>) -> Result<(Dataset, String), IoError> {
+    open_dataset_with(
+        path,
+        &DatasetOptions {
+            robot,
+            ..Default::default()
+        },
+    )
+}
+
 /// Opens `path` and says in one line what was found.
 ///
+/// * an MCAP file (by its magic bytes) or a folder with `metadata.yaml` → a ROS 2 bag
+///   (`rosbag`, with the topic and mounting options);
 /// * a folder with `sensor_data.dat` → Freiburg course data ([`crate::freiburg`]);
 /// * a folder with `Barcodes.dat` → MRCLAM ([`crate::mrclam`]), robot `robot` (default 1);
 /// * a file → a CARMEN log, plain or gzip ([`crate::carmen`]).
@@ -32,13 +107,30 @@ pub enum Dataset {
 /// std::fs::write(dir.join("world.dat"), "1 2 1\n")?;
 /// std::fs::write(dir.join("sensor_data.dat"), "ODOMETRY 0 1 0\nSENSOR 1 1.0 0.5\n")?;
 /// let (data, what) = open_dataset(&dir, None)?;
+/// # let _ = slam_io::DatasetOptions::default();
 /// assert!(what.starts_with("Freiburg course data"));
 /// let Dataset::Landmark(d) = data else { unreachable!() };
 /// assert_eq!(d.steps.len(), 1);
 /// # std::fs::remove_dir_all(&dir)?;
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub fn open_dataset(path: &Path, robot: Option<u32>) -> Result<(Dataset, String), IoError> {
+pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, String), IoError> {
+    let robot = o.robot;
+    if is_bag(path) {
+        if robot.is_some() {
+            return Err(IoError::invalid(
+                path,
+                "--robot applies to MRCLAM folders; this is a ROS 2 bag",
+            ));
+        }
+        return open_bag(path, o);
+    }
+    if let Some(flag) = o.bag_option() {
+        return Err(IoError::invalid(
+            path,
+            format!("{flag} applies to ROS 2 bags (MCAP files or folders with metadata.yaml)"),
+        ));
+    }
     if path.is_dir() {
         if path.join("sensor_data.dat").is_file() {
             if robot.is_some() {
@@ -112,6 +204,53 @@ pub fn open_dataset(path: &Path, robot: Option<u32>) -> Result<(Dataset, String)
     let log = crate::carmen::read_carmen(path)?;
     let msg = log.summary(path);
     Ok((Dataset::Scan(log.dataset), msg))
+}
+
+/// A description of what the dataset at `path` holds, for `slam info`: for a ROS 2 bag its
+/// topics, types, counts, rates, span, laser geometry, odometry sources and static
+/// transforms; for a CARMEN log its record counts and laser geometry; for the landmark
+/// formats the line [`open_dataset`] prints.
+pub fn dataset_info(path: &Path) -> Result<String, IoError> {
+    if is_bag(path) {
+        #[cfg(feature = "rosbag")]
+        return crate::rosbag::describe_bag(path);
+        #[cfg(not(feature = "rosbag"))]
+        return open_bag(path, &DatasetOptions::default()).map(|(_, s)| s);
+    }
+    if path.is_dir() {
+        return open_dataset(path, None).map(|(_, s)| s);
+    }
+    let log = crate::carmen::read_carmen(path)?;
+    let mut s = log.summary(path);
+    let mut seen: Vec<(usize, u64, u64, u64)> = Vec::new();
+    for scan in log.dataset.records.iter().filter_map(|r| r.scan.as_ref()) {
+        let key = (
+            scan.len(),
+            scan.angle_min.to_bits(),
+            scan.angle_increment.to_bits(),
+            scan.max_range.to_bits(),
+        );
+        if seen.contains(&key) {
+            continue;
+        }
+        seen.push(key);
+        let p = scan.sensor_pose;
+        s.push_str(&format!(
+            "\nlaser: {} beams from {:.2}° by {:.3}°, no return at {} m, sensor at ({:.3}, {:.3}, {:.3}) in the robot frame",
+            scan.len(),
+            scan.angle_min.to_degrees(),
+            scan.angle_increment.to_degrees(),
+            scan.max_range,
+            p.x,
+            p.y,
+            p.theta
+        ));
+        if seen.len() == 4 {
+            s.push_str("\nlaser: … (more geometries)");
+            break;
+        }
+    }
+    Ok(s)
 }
 
 fn duration(a: Option<f64>, b: Option<f64>) -> f64 {

@@ -73,6 +73,17 @@ pub enum IoError {
         /// Why, in words.
         reason: String,
     },
+    /// A ROS bag's topic or message is not what the reader expects (a message that does not
+    /// decode, a value out of bounds, a missing transform).
+    #[error("{path}: topic {topic}: {what}")]
+    Bag {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// What was wrong and what was expected, in words.
+        what: String,
+    },
     /// A picture could not be drawn (nothing finite to draw).
     #[error("picture: {0}")]
     Picture(String),

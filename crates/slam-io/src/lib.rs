@@ -3,8 +3,9 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories), [`g2o`] (2-D pose graphs, read and written); [`open_dataset`] picks the
-//!   reader for a path.
+//!   trajectories), [`g2o`] (2-D pose graphs, read and written), `rosbag` (ROS 2 bags:
+//!   MCAP files and rosbag2 folders, feature `rosbag`, on by default); [`open_dataset`]
+//!   picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
 //!   [`carmen::write_carmen`], [`picture`] (PNG), [`g2o::write_g2o`], [`graph_picture`] (a
@@ -35,10 +36,15 @@ pub mod picture;
 pub mod relations;
 pub mod report;
 pub mod ros_map;
+#[cfg(feature = "rosbag")]
+pub mod rosbag;
 pub(crate) mod text;
 pub mod tum;
 
-pub use dataset::{dead_reckoning, odometry_trajectory, open_dataset, Dataset};
+pub use dataset::{
+    dataset_info, dead_reckoning, odometry_trajectory, open_dataset, open_dataset_with, Dataset,
+    DatasetOptions,
+};
 pub use error::IoError;
 pub use report::Skipped;
 

@@ -1,0 +1,263 @@
+//! `slam run` and `slam info` on ROS 2 bags (the fixtures of slam-io, written by the Python
+//! `rosbags` package from the first 875 lines of the real Intel log).
+
+use slam_cli::{main_with_args, CliError, Outcome};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../slam-io/tests/fixtures/rosbag")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("slam-cli-rosbag-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
+    let mut out = Vec::new();
+    let all = std::iter::once("slam").chain(args.iter().copied());
+    let r = main_with_args(all, &mut out);
+    (r, String::from_utf8(out).unwrap())
+}
+
+/// `../shared/datasets` beside the checkout (or `$SLAM_DATASETS`); `None` with a SKIPPED
+/// line when missing, a failure under `CI=true`.
+fn dataset(rel: &str) -> Option<PathBuf> {
+    let base = std::env::var_os("SLAM_DATASETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
+    let p = base.join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
+        panic!("dataset {} is missing and CI=true", p.display());
+    }
+    eprintln!("SKIPPED: dataset {} not found", p.display());
+    None
+}
+
+/// TUM lines → time in µs → (x, y, yaw), the last line of each time.
+fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut m = BTreeMap::new();
+    for l in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        let v: Vec<f64> = l.split_whitespace().map(|f| f.parse().unwrap()).collect();
+        let yaw = 2.0 * v[6].atan2(v[7]);
+        m.insert((v[0] * 1e6).round() as i64, (v[1], v[2], yaw));
+    }
+    m
+}
+
+#[test]
+fn gridfast_on_the_bag_follows_the_carmen_run_at_every_scan() {
+    let out = scratch("bag");
+    let bag = fixture("intel-odom.mcap");
+    let args = [
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        &bag,
+        "--laser-pose",
+        "0,0,0",
+        "--quiet",
+        "--out",
+    ];
+    let (r, text) = slam(&[&args[..], &[out.to_str().unwrap()]].concat());
+    r.unwrap();
+    assert!(
+        text.contains("ROS 2 bag")
+            && text.contains("scans /scan (40 scans, 180 beams")
+            && text.contains("odometry /odom")
+            && text.contains("(--laser-pose)"),
+        "{text}"
+    );
+    let Some(log) = dataset("bench/intel.log") else {
+        return;
+    };
+    // The lines the bag was made from, as a CARMEN log, through the same filter.
+    let src = std::fs::read_to_string(log).unwrap();
+    let head: String = src.lines().take(875).map(|l| format!("{l}\n")).collect();
+    let dir = scratch("carmen");
+    let log = dir.join("intel-head.log");
+    std::fs::write(&log, &head).unwrap();
+    let out2 = dir.join("out");
+    let (r, _) = slam(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        log.to_str().unwrap(),
+        "--quiet",
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    r.unwrap();
+    let (a, b) = (
+        tum(&out.join("trajectory.tum")),
+        tum(&out2.join("trajectory.tum")),
+    );
+    let scan_times: Vec<i64> = head
+        .lines()
+        .filter(|l| l.starts_with("FLASER"))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f[f.len() - 3].parse::<f64>().unwrap() * 1e6).round() as i64
+        })
+        .collect();
+    assert_eq!(scan_times.len(), 40);
+    // Same seed, same scans (to float32), same odometry: the same estimate at every scan.
+    for t in scan_times {
+        let (p, q) = (a[&t], b[&t]);
+        assert!(
+            (p.0 - q.0).abs() < 1e-5 && (p.1 - q.1).abs() < 1e-5 && (p.2 - q.2).abs() < 1e-5,
+            "at {t} µs: bag {p:?}, CARMEN {q:?}"
+        );
+    }
+}
+
+#[test]
+fn a_bag_folder_runs_and_info_describes_it() {
+    let out = scratch("folder");
+    let bag = fixture("intel-tf");
+    let (r, text) = slam(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        &bag,
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    r.unwrap();
+    assert!(
+        text.contains("odometry /tf odom → base_link") && text.contains("(/tf_static)"),
+        "{text}"
+    );
+    assert!(out.join("map.pgm").is_file());
+
+    let (r, text) = slam(&["info", &bag]);
+    assert!(matches!(r, Ok(Outcome::Described)));
+    for want in [
+        "3 topic(s), 872 message(s)",
+        "/scan       sensor_msgs/msg/LaserScan  cdr             40",
+        "/tf         tf2_msgs/msg/TFMessage     cdr            831",
+        "180 beams from -90.00° to 89.00° by 1.000°, range 0 … 81.83 m",
+        "odometry: /tf odom → base_link (831 transforms)",
+        "/tf_static: base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)",
+    ] {
+        assert!(text.contains(want), "{want:?} missing from\n{text}");
+    }
+    let (_, text) = slam(&["info", &fixture("intel-odom.mcap")]);
+    assert!(
+        text.contains("odometry: /odom (odom → base_link)"),
+        "{text}"
+    );
+}
+
+#[test]
+fn info_describes_the_other_formats() {
+    let Some(log) = dataset("bench/intel.log") else {
+        return;
+    };
+    let (r, text) = slam(&["info", log.to_str().unwrap()]);
+    r.unwrap();
+    assert!(
+        text.contains("910 FLASER, 13700 ODOM")
+            && text.contains("laser: 180 beams from -90.00° by 1.000°, no return at 81.83 m"),
+        "{text}"
+    );
+    let Some(dir) = dataset("freiburg-robot-mapping") else {
+        return;
+    };
+    let (r, text) = slam(&["info", dir.to_str().unwrap()]);
+    r.unwrap();
+    assert!(text.starts_with("Freiburg course data"), "{text}");
+}
+
+#[test]
+fn bag_mistakes_are_one_line_errors() {
+    let bin = env!("CARGO_BIN_EXE_slam");
+    let run = |args: &[&str]| {
+        let o = Command::new(bin).args(args).output().unwrap();
+        (
+            o.status.code().unwrap_or(-1),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let out = scratch("errors");
+    let o = out.to_str().unwrap();
+    let (code, err) = run(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        &fixture("bad-two-scans.mcap"),
+        "--out",
+        o,
+    ]);
+    assert_ne!(code, 0);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("/scan, /scan_rear") && err.contains("--scan-topic"),
+        "{err}"
+    );
+    let (code, err) = run(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        &fixture("bad-no-odom.mcap"),
+        "--out",
+        o,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("no odometry"), "{err}");
+    let (code, err) = run(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        &fixture("intel-odom.mcap"),
+        "--laser-pose",
+        "1,2",
+        "--out",
+        o,
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("x,y,theta"), "{err}");
+    // A bag option on a dataset that is not a bag is refused, not ignored.
+    let freiburg = scratch("freiburg");
+    std::fs::write(freiburg.join("world.dat"), "1 2 1\n").unwrap();
+    std::fs::write(
+        freiburg.join("sensor_data.dat"),
+        "ODOMETRY 0 1 0\nSENSOR 1 1.0 0.5\n",
+    )
+    .unwrap();
+    let (code, err) = run(&[
+        "run",
+        "--filter",
+        "ekf",
+        "--dataset",
+        freiburg.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--out",
+        o,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--scan-topic applies to ROS 2 bags"), "{err}");
+}

@@ -1,0 +1,873 @@
+//! ROS 2 bags: MCAP files and rosbag2 folders (`metadata.yaml` + MCAP storage) → the same
+//! [`ScanDataset`] as a CARMEN log gives.
+//!
+//! **Container.** MCAP, read with Foxglove's `mcap` crate (chunks uncompressed, zstd or
+//! lz4). A rosbag2 folder is read through its `metadata.yaml` (`storage_identifier: mcap`,
+//! the files of `relative_file_paths` in order); sqlite3 storage is refused with an error
+//! that names it. Messages must be CDR-encoded ROS 2 messages (little or big endian), read
+//! by a small decoder of this module (`cdr.rs`).
+//!
+//! **Topics.** The scans are the one `sensor_msgs/msg/LaserScan` topic (or `scan_topic`).
+//! Odometry is the one `nav_msgs/msg/Odometry` topic (or `odom_topic`); when the bag has
+//! none (or `odom_topic` is `/tf`) it is the `/tf` transform from the odometry frame
+//! (`odom`, REP 105) to the robot's base frame. Two candidates and no choice is an error that
+//! names them and the option to choose with; no odometry topic and no usable `/tf` is an
+//! error.
+//!
+//! **Laser mounting.** The scan's `header.frame_id` is located in the robot's base frame
+//! (the odometry's child frame) by composing the `/tf_static` transforms from the base frame
+//! to it; [`BagOptions::laser_pose`] replaces that (and is needed when `/tf_static` does
+//! not link the two frames). Poses are projected on the plane: x, y and the quaternion's
+//! yaw.
+//!
+//! **Time and pairing.** Every time is a message's `header.stamp` (not the recording
+//! clock). The odometry poses are sorted by stamp; a scan at time t with t₀ ≤ t ≤ t₁ for
+//! the odometry stamps t₀ < t₁ around it gets the linear interpolation
+//! x = x₀ + s(x₁ − x₀), y likewise, θ = θ₀ + s·wrap(θ₁ − θ₀), s = (t − t₀)/(t₁ − t₀);
+//! a scan stamped exactly at an odometry stamp gets that pose unchanged. A scan outside the
+//! odometry's time span is left out and counted in [`RosBag::scans_outside_odometry`]
+//! (and in the summary line); none inside is an error. The dataset holds one record per
+//! odometry message (no scan) and one per scan, in time order, as a CARMEN log holds `ODOM`
+//! and `FLASER` lines; an odometry message stamped exactly like a scan is that scan's
+//! record.
+//!
+//! **Readings** (as `sensor_msgs/msg/LaserScan` defines them). Beam k points at
+//! `angle_min + k·angle_increment`. A reading r with `range_min ≤ r < range_max` is a hit;
+//! `+∞` ("no return within range_max") and r ≥ `range_max` are no-return readings; `NaN`,
+//! `−∞` and r < `range_min` are invalid. Our [`LaserScan`] has no invalid marker, so
+//! invalid readings become no-return readings as ROS's `slam_gmapping` treats short
+//! readings; both kinds are stored as `range_max` and counted in the report.
+//!
+//! **Bounds**, as for the other readers: coordinates within ±10⁶ m, headings finite,
+//! `0 ≤ range_min < range_max ≤ 1000` m, beam angles within one turn, a non-zero angle
+//! increment; a value outside is an error naming the topic, the message and the bound.
+//! The whole file is read into memory; every length inside a message is checked against the
+//! bytes left before it is allocated.
+
+mod cdr;
+mod container;
+mod msgs;
+
+pub use container::TopicInfo;
+
+use crate::error::IoError;
+use msgs::{ScanMsg, StampedPose, LASER_SCAN, ODOMETRY, TF_MESSAGE};
+use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Largest absolute coordinate, metres (the bound of every reader).
+const MAX_COORD: f64 = 1e6;
+/// Largest range, metres (the bound of every reader).
+const MAX_RANGE: f64 = 1000.0;
+/// Longest span of odometry stamps, nanoseconds (10⁷ s, about 116 days: the bound of
+/// every reader); a stamp outside it is a corrupted or unset (zero) stamp.
+const MAX_TIME_SPAN_NS: i64 = 10_000_000 * 1_000_000_000;
+/// Largest absolute beam angle, radians (one turn).
+const MAX_ANGLE: f64 = std::f64::consts::TAU;
+/// The `/tf` topics.
+const TF: &str = "/tf";
+const TF_STATIC: &str = "/tf_static";
+
+/// Choices the bag reader cannot make alone.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BagOptions {
+    /// The `sensor_msgs/msg/LaserScan` topic to read (needed when the bag has several).
+    pub scan_topic: Option<String>,
+    /// The `nav_msgs/msg/Odometry` topic to read, or `/tf` for the odom → base transform
+    /// (needed when the bag has several odometry topics).
+    pub odom_topic: Option<String>,
+    /// The laser's pose in the robot's base frame (x, y metres, θ radians), replacing
+    /// `/tf_static`.
+    pub laser_pose: Option<Pose2>,
+}
+
+/// Where the odometry came from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum OdometrySource {
+    /// A `nav_msgs/msg/Odometry` topic.
+    Topic(String),
+    /// The `/tf` transform `parent → child`.
+    Tf {
+        /// The odometry frame (normally `odom`).
+        parent: String,
+        /// The robot's base frame.
+        child: String,
+    },
+}
+
+/// A ROS 2 bag as read: the dataset and what the reader chose and left out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RosBag {
+    /// One record per odometry message and per scan, in time order.
+    pub dataset: ScanDataset,
+    /// Every topic of the bag.
+    pub topics: Vec<TopicInfo>,
+    /// The scan topic read.
+    pub scan_topic: String,
+    /// The odometry read.
+    pub odometry: OdometrySource,
+    /// Number of odometry poses read (messages, or `/tf` transforms of the odometry edge).
+    pub odometry_poses: usize,
+    /// The scans' frame (`header.frame_id` of the first scan).
+    pub laser_frame: String,
+    /// The robot's base frame (the odometry's child frame).
+    pub base_frame: String,
+    /// The laser's pose in the base frame, and where it came from (`/tf_static`,
+    /// `--laser-pose`, or `same frame`).
+    pub laser_pose: (Pose2, &'static str),
+    /// Scans stamped before the first or after the last odometry pose (left out).
+    pub scans_outside_odometry: usize,
+    /// Readings `+∞` or ≥ `range_max` (kept as no return).
+    pub no_return_readings: usize,
+    /// Readings NaN, `−∞` or < `range_min` (kept as no return).
+    pub invalid_readings: usize,
+}
+
+impl RosBag {
+    /// One line: topics chosen, counts, laser geometry and mounting, what was left out.
+    pub fn summary(&self, path: &Path) -> String {
+        let recs = &self.dataset.records;
+        let scans: Vec<&LaserScan> = recs.iter().filter_map(|r| r.scan.as_ref()).collect();
+        let geometry = match scans.first() {
+            Some(s) => format!(
+                "{} beams from {:.1}° by {:.3}°, range_max {} m",
+                s.len(),
+                s.angle_min.to_degrees(),
+                s.angle_increment.to_degrees(),
+                s.max_range as f32
+            ),
+            None => "no scans".into(),
+        };
+        let odom = match &self.odometry {
+            OdometrySource::Topic(t) => format!("odometry {t}"),
+            OdometrySource::Tf { parent, child } => format!("odometry /tf {parent} → {child}"),
+        };
+        let poses = self.odometry_poses;
+        let (p, from) = self.laser_pose;
+        let span = match (recs.first(), recs.last()) {
+            (Some(a), Some(b)) => b.t - a.t,
+            _ => 0.0,
+        };
+        let mut s = format!(
+            "ROS 2 bag {}: scans {} ({} scans, {geometry}), {odom} ({poses} poses), over {span:.1} s; \
+             laser frame {} at ({:.4} m, {:.4} m, {:.4} rad) in {} ({from})",
+            path.display(),
+            self.scan_topic,
+            scans.len(),
+            self.laser_frame,
+            p.x,
+            p.y,
+            p.theta,
+            self.base_frame,
+        );
+        if self.scans_outside_odometry > 0 {
+            s.push_str(&format!(
+                "; {} scan(s) outside the odometry's time span left out",
+                self.scans_outside_odometry
+            ));
+        }
+        if self.invalid_readings > 0 {
+            s.push_str(&format!(
+                "; {} invalid reading(s) (NaN, -inf, < range_min) kept as no return",
+                self.invalid_readings
+            ));
+        }
+        s
+    }
+}
+
+/// Reads an MCAP file (or a rosbag2 folder) with the topics found automatically and the
+/// laser mounting from `/tf_static`: the dataset only. See [`read_rosbag`].
+pub fn read_mcap(path: &Path) -> Result<ScanDataset, IoError> {
+    Ok(read_rosbag(path, &BagOptions::default())?.dataset)
+}
+
+/// The topics of a bag (an MCAP file or a rosbag2 folder) with their types, encodings,
+/// counts and recording times, without decoding any message. A truncated or corrupt file
+/// is an error.
+pub fn bag_topics(path: &Path) -> Result<Vec<TopicInfo>, IoError> {
+    container::for_each_message(path, |_, _| Ok(()))
+}
+
+/// What `slam info` prints for a bag: every topic with its type, encoding, message count
+/// and rate; the span of the recording; the geometry of each laser topic (from its first
+/// message); the odometry sources (`nav_msgs/msg/Odometry` topics and the `/tf` edges);
+/// the `/tf_static` edges. A message of those topics that does not decode is an error.
+pub fn describe_bag(path: &Path) -> Result<String, IoError> {
+    use std::fmt::Write as _;
+    let mut first_scan: BTreeMap<String, ScanMsg> = BTreeMap::new();
+    let mut odom_frames: BTreeMap<String, (String, String)> = BTreeMap::new();
+    let mut edges: BTreeMap<(bool, String, String), (usize, Pose2)> = BTreeMap::new();
+    let topics = container::for_each_message(path, |file, m| {
+        if m.encoding != "cdr" {
+            return Ok(());
+        }
+        let fail = |e: cdr::CdrError| {
+            bad(
+                file,
+                m.topic,
+                m.index,
+                format!("does not decode as {}: {e}", m.msg_type),
+            )
+        };
+        match m.msg_type {
+            LASER_SCAN if !first_scan.contains_key(m.topic) => {
+                first_scan.insert(m.topic.to_string(), msgs::laser_scan(m.data).map_err(fail)?);
+            }
+            ODOMETRY if !odom_frames.contains_key(m.topic) => {
+                let p = msgs::odometry(m.data).map_err(fail)?;
+                odom_frames.insert(m.topic.to_string(), (p.parent, p.child));
+            }
+            TF_MESSAGE if m.topic == TF || m.topic == TF_STATIC => {
+                for p in msgs::tf_message(m.data).map_err(fail)? {
+                    let e = edges
+                        .entry((m.topic == TF_STATIC, p.parent, p.child))
+                        .or_insert((0, p.pose));
+                    e.0 += 1;
+                    e.1 = p.pose;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    let t0 = topics.iter().map(|t| t.log_time_ns.0).min().unwrap_or(0);
+    let t1 = topics.iter().map(|t| t.log_time_ns.1).max().unwrap_or(0);
+    let span = (t1 - t0) as f64 * 1e-9;
+    let count: usize = topics.iter().map(|t| t.count).sum();
+    let files = container::bag_files(path)?.len();
+    let mut s = format!(
+        "ROS 2 bag {} ({files} MCAP file(s)): {} topic(s), {count} message(s) over {span:.1} s \
+         (recorded from {:.3} s)\n",
+        path.display(),
+        topics.len(),
+        t0 as f64 * 1e-9
+    );
+    let w = topics
+        .iter()
+        .map(|t| t.topic.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    let wt = topics
+        .iter()
+        .map(|t| t.msg_type.len())
+        .max()
+        .unwrap_or(4)
+        .max(4);
+    let _ = writeln!(
+        s,
+        "  {:w$}  {:wt$}  encoding  messages  rate",
+        "topic", "type"
+    );
+    for t in &topics {
+        let dt = (t.log_time_ns.1 - t.log_time_ns.0) as f64 * 1e-9;
+        let rate = if t.count > 1 && dt > 0.0 {
+            format!("{:.1} Hz", (t.count - 1) as f64 / dt)
+        } else {
+            "-".into()
+        };
+        let _ = writeln!(
+            s,
+            "  {:w$}  {:wt$}  {:8}  {:8}  {rate}",
+            t.topic, t.msg_type, t.encoding, t.count
+        );
+    }
+    for (topic, m) in &first_scan {
+        let _ = writeln!(
+            s,
+            "laser {topic}: frame {:?}, {} beams from {:.2}° to {:.2}° by {:.3}°, range {} … {} m",
+            m.header.frame_id,
+            m.ranges.len(),
+            m.angle_min.to_degrees(),
+            m.angle_max.to_degrees(),
+            m.angle_increment.to_degrees(),
+            m.range_min as f32,
+            m.range_max as f32
+        );
+    }
+    if first_scan.is_empty() {
+        let _ = writeln!(s, "laser: no {LASER_SCAN} topic");
+    }
+    let mut odometry: Vec<String> = odom_frames
+        .iter()
+        .map(|(t, (p, c))| format!("{t} ({p} → {c})"))
+        .collect();
+    odometry.extend(
+        edges
+            .iter()
+            .filter(|((st, _, _), _)| !st)
+            .map(|((_, p, c), (n, _))| format!("/tf {p} → {c} ({n} transforms)")),
+    );
+    let _ = writeln!(
+        s,
+        "odometry: {}",
+        if odometry.is_empty() {
+            "none (no Odometry topic, no /tf)".into()
+        } else {
+            odometry.join("; ")
+        }
+    );
+    let statics: Vec<String> = edges
+        .iter()
+        .filter(|((st, _, _), _)| *st)
+        .map(|((_, p, c), (_, q))| {
+            format!(
+                "{p} → {c} at ({:.4} m, {:.4} m, {:.4} rad)",
+                q.x, q.y, q.theta
+            )
+        })
+        .collect();
+    let _ = write!(
+        s,
+        "/tf_static: {}",
+        if statics.is_empty() {
+            "none".into()
+        } else {
+            statics.join("; ")
+        }
+    );
+    Ok(s)
+}
+
+fn pick(
+    path: &Path,
+    topics: &[TopicInfo],
+    msg_type: &str,
+    chosen: Option<&str>,
+    flag: &str,
+) -> Result<Option<String>, IoError> {
+    let candidates: Vec<&TopicInfo> = topics.iter().filter(|t| t.msg_type == msg_type).collect();
+    if let Some(c) = chosen {
+        return match topics.iter().find(|t| t.topic == c) {
+            Some(t) if t.msg_type == msg_type => Ok(Some(c.to_string())),
+            Some(t) => Err(IoError::Bag {
+                path: path.to_path_buf(),
+                topic: c.to_string(),
+                what: format!("{flag} names a {} topic, expected {msg_type}", t.msg_type),
+            }),
+            None => Err(IoError::Bag {
+                path: path.to_path_buf(),
+                topic: c.to_string(),
+                what: format!(
+                    "{flag} names a topic the bag does not have; {msg_type} topics: {}",
+                    names(&candidates)
+                ),
+            }),
+        };
+    }
+    match candidates.as_slice() {
+        [] => Ok(None),
+        [one] => Ok(Some(one.topic.clone())),
+        many => Err(IoError::invalid(
+            path,
+            format!(
+                "{} {msg_type} topics ({}); choose one with {flag}",
+                many.len(),
+                names(many)
+            ),
+        )),
+    }
+}
+
+fn names(t: &[&TopicInfo]) -> String {
+    if t.is_empty() {
+        return "none".into();
+    }
+    t.iter()
+        .map(|t| t.topic.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn check_cdr(path: &Path, t: &TopicInfo) -> Result<(), IoError> {
+    if t.encoding != "cdr" {
+        return Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: t.topic.clone(),
+            what: format!(
+                "message encoding {:?} is not supported (expected cdr, the ROS 2 encoding)",
+                t.encoding
+            ),
+        });
+    }
+    Ok(())
+}
+
+fn bad(path: &Path, topic: &str, index: usize, what: impl std::fmt::Display) -> IoError {
+    IoError::Bag {
+        path: path.to_path_buf(),
+        topic: topic.to_string(),
+        what: format!("message {}: {what}", index + 1),
+    }
+}
+
+fn check_pose(path: &Path, topic: &str, index: usize, p: &StampedPose) -> Result<(), IoError> {
+    for (v, what) in [(p.pose.x, "x"), (p.pose.y, "y")] {
+        if !(v.is_finite() && v.abs() <= MAX_COORD) {
+            return Err(bad(
+                path,
+                topic,
+                index,
+                format!(
+                    "{} → {} {what} = {v} m is outside ±{MAX_COORD} m",
+                    p.parent, p.child
+                ),
+            ));
+        }
+    }
+    if !p.pose.theta.is_finite() {
+        return Err(bad(path, topic, index, "heading is not finite"));
+    }
+    Ok(())
+}
+
+/// Reads a ROS 2 bag (an MCAP file or a rosbag2 folder) into a [`ScanDataset`] by the
+/// rules of this module's documentation.
+///
+/// Errors name the file, the topic and what was expected: two candidate topics without a
+/// choice, no odometry, an unknown message encoding, a message that does not decode (its
+/// number on the topic and the byte where decoding stopped), a value out of bounds, a
+/// truncated file (messages read before the damage), no scan within the odometry's time.
+pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError> {
+    let topics = bag_topics(path)?;
+    let scan_topic = pick(
+        path,
+        &topics,
+        LASER_SCAN,
+        options.scan_topic.as_deref(),
+        "--scan-topic",
+    )?
+    .ok_or_else(|| {
+        IoError::invalid(
+            path,
+            format!(
+                "no {LASER_SCAN} topic (topics: {})",
+                names(&topics.iter().collect::<Vec<_>>())
+            ),
+        )
+    })?;
+    let tf_topic = topics
+        .iter()
+        .find(|t| t.topic == TF && t.msg_type == TF_MESSAGE);
+    let odom_topic = match options.odom_topic.as_deref() {
+        Some(TF) => None,
+        chosen => pick(path, &topics, ODOMETRY, chosen, "--odom-topic")?,
+    };
+    if odom_topic.is_none() && tf_topic.is_none() {
+        return Err(IoError::invalid(
+            path,
+            format!("no odometry: no {ODOMETRY} topic and no {TF} topic (odom → base_link)"),
+        ));
+    }
+    for t in &topics {
+        let used = t.topic == scan_topic
+            || Some(&t.topic) == odom_topic.as_ref()
+            || (odom_topic.is_none() && t.topic == TF)
+            || (t.topic == TF_STATIC && t.msg_type == TF_MESSAGE);
+        if used {
+            check_cdr(path, t)?;
+        }
+    }
+
+    let mut scans: Vec<ScanMsg> = Vec::new();
+    let mut odom: Vec<StampedPose> = Vec::new();
+    let mut tf: Vec<StampedPose> = Vec::new();
+    let mut statics: Vec<StampedPose> = Vec::new();
+    container::for_each_message(path, |file, m| {
+        let fail = |e: cdr::CdrError| {
+            bad(
+                file,
+                m.topic,
+                m.index,
+                format!(
+                    "(logged at {} s) does not decode as {}: {e}",
+                    m.log_time_ns as f64 * 1e-9,
+                    m.msg_type
+                ),
+            )
+        };
+        if m.topic == scan_topic {
+            scans.push(msgs::laser_scan(m.data).map_err(fail)?);
+        } else if Some(m.topic) == odom_topic.as_deref() {
+            let p = msgs::odometry(m.data).map_err(fail)?;
+            check_pose(file, m.topic, m.index, &p)?;
+            odom.push(p);
+        } else if m.topic == TF && m.msg_type == TF_MESSAGE && odom_topic.is_none() {
+            for p in msgs::tf_message(m.data).map_err(fail)? {
+                check_pose(file, m.topic, m.index, &p)?;
+                tf.push(p);
+            }
+        } else if m.topic == TF_STATIC && m.msg_type == TF_MESSAGE {
+            for p in msgs::tf_message(m.data).map_err(fail)? {
+                check_pose(file, m.topic, m.index, &p)?;
+                statics.push(p);
+            }
+        }
+        Ok(())
+    })?;
+
+    let (source, odom) = match odom_topic {
+        Some(t) => (OdometrySource::Topic(t), odom),
+        None => {
+            let (parent, child) = tf_odometry_edge(path, &tf)?;
+            let poses = tf
+                .into_iter()
+                .filter(|p| p.parent == parent && p.child == child)
+                .collect();
+            (OdometrySource::Tf { parent, child }, poses)
+        }
+    };
+    assemble(
+        path, topics, scan_topic, source, odom, scans, &statics, options,
+    )
+}
+
+/// The `/tf` edge that is the odometry: `odom → X` when there is exactly one such edge,
+/// else the only edge of `/tf`.
+fn tf_odometry_edge(path: &Path, tf: &[StampedPose]) -> Result<(String, String), IoError> {
+    let mut edges: Vec<(String, String)> = tf
+        .iter()
+        .map(|p| (p.parent.clone(), p.child.clone()))
+        .collect();
+    edges.sort();
+    edges.dedup();
+    let odom: Vec<&(String, String)> = edges.iter().filter(|(p, _)| p == "odom").collect();
+    let one = match (odom.as_slice(), edges.as_slice()) {
+        ([one], _) => Some(*one),
+        ([], [one]) => Some(one),
+        _ => None,
+    };
+    match one {
+        Some(one) => Ok(one.clone()),
+        None => Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: TF.into(),
+            what: format!(
+                "expected one odom → base transform, found {}",
+                if edges.is_empty() {
+                    "no transform".to_string()
+                } else {
+                    edges
+                        .iter()
+                        .map(|(p, c)| format!("{p} → {c}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            ),
+        }),
+    }
+}
+
+/// The pose of `frame` in `base` through the static transforms (parent → child edges).
+fn static_chain(statics: &[StampedPose], base: &str, frame: &str) -> Option<Pose2> {
+    // Walk up from `frame` to `base`; each frame has one parent in a tf tree.
+    let mut pose = Pose2::IDENTITY;
+    let mut at = frame.to_string();
+    for _ in 0..=statics.len() {
+        if at == base {
+            return Some(pose);
+        }
+        let edge = statics.iter().rev().find(|p| p.child == at)?;
+        pose = edge.pose.compose(&pose);
+        at = edge.parent.clone();
+    }
+    None
+}
+
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    path: &Path,
+    topics: Vec<TopicInfo>,
+    scan_topic: String,
+    source: OdometrySource,
+    mut odom: Vec<StampedPose>,
+    scans: Vec<ScanMsg>,
+    statics: &[StampedPose],
+    options: &BagOptions,
+) -> Result<RosBag, IoError> {
+    let odom_name = match &source {
+        OdometrySource::Topic(t) => t.clone(),
+        OdometrySource::Tf { .. } => TF.to_string(),
+    };
+    if odom.is_empty() {
+        return Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: odom_name,
+            what: "no odometry pose".into(),
+        });
+    }
+    odom.sort_by_key(|p| p.stamp_ns);
+    let (first, last) = (odom[0].stamp_ns, odom[odom.len() - 1].stamp_ns);
+    if last - first > MAX_TIME_SPAN_NS {
+        return Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: odom_name,
+            what: format!(
+                "odometry stamps from {} s to {} s: expected a span within {} s (an unset or \
+                 corrupted header.stamp?)",
+                first as f64 * 1e-9,
+                last as f64 * 1e-9,
+                MAX_TIME_SPAN_NS / 1_000_000_000
+            ),
+        });
+    }
+    let base_frame = odom[0].child.clone();
+    let laser_frame = scans
+        .first()
+        .map(|s| s.header.frame_id.clone())
+        .unwrap_or_default();
+    let mut mounts: BTreeMap<String, (Pose2, &'static str)> = BTreeMap::new();
+    let mut mount = |frame: &str| -> Result<(Pose2, &'static str), IoError> {
+        if let Some(m) = mounts.get(frame) {
+            return Ok(*m);
+        }
+        let m = match options.laser_pose {
+            Some(p) => (p, "--laser-pose"),
+            None if frame == base_frame => (Pose2::IDENTITY, "same frame"),
+            None => match static_chain(statics, &base_frame, frame) {
+                Some(p) => (p, "/tf_static"),
+                None => {
+                    return Err(IoError::Bag {
+                        path: path.to_path_buf(),
+                        topic: TF_STATIC.into(),
+                        what: format!(
+                            "no static transform chain from the base frame {base_frame:?} to the \
+                             laser frame {frame:?}; give the laser's mounting with \
+                             --laser-pose x,y,theta"
+                        ),
+                    })
+                }
+            },
+        };
+        mounts.insert(frame.to_string(), m);
+        Ok(m)
+    };
+
+    let (t_first, t_last) = (first, last);
+    let mut outside = 0usize;
+    let (mut no_return, mut invalid) = (0usize, 0usize);
+    // (stamp, is_scan, record)
+    let mut timed: Vec<(i64, ScanRecord)> = Vec::with_capacity(odom.len() + scans.len());
+    let mut scan_stamps = Vec::new();
+    let mut first_mount = None;
+    for (k, s) in scans.into_iter().enumerate() {
+        let t = s.header.stamp_ns;
+        if t < t_first || t > t_last {
+            outside += 1;
+            continue;
+        }
+        let m = mount(&s.header.frame_id)?;
+        first_mount.get_or_insert(m);
+        let scan = convert_scan(path, &scan_topic, k, s, m.0, &mut no_return, &mut invalid)?;
+        scan_stamps.push(t);
+        timed.push((
+            t,
+            ScanRecord {
+                t: t as f64 * 1e-9,
+                odometry: interpolate(&odom, t),
+                scan: Some(scan),
+            },
+        ));
+    }
+    if timed.is_empty() {
+        return Err(IoError::Bag {
+            path: path.to_path_buf(),
+            topic: scan_topic,
+            what: format!(
+                "no scan within the odometry's time span ({} … {} s; {outside} scan(s) outside)",
+                t_first as f64 * 1e-9,
+                t_last as f64 * 1e-9
+            ),
+        });
+    }
+    scan_stamps.sort_unstable();
+    for p in &odom {
+        if scan_stamps.binary_search(&p.stamp_ns).is_err() {
+            timed.push((
+                p.stamp_ns,
+                ScanRecord {
+                    t: p.stamp_ns as f64 * 1e-9,
+                    odometry: p.pose,
+                    scan: None,
+                },
+            ));
+        }
+    }
+    // Stable: at equal stamps, scans (pushed first) come before odometry records.
+    timed.sort_by_key(|(t, _)| *t);
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    Ok(RosBag {
+        dataset: ScanDataset {
+            name,
+            records: timed.into_iter().map(|(_, r)| r).collect(),
+            ground_truth: None,
+        },
+        topics,
+        scan_topic,
+        odometry: source,
+        odometry_poses: odom.len(),
+        laser_frame,
+        base_frame,
+        laser_pose: first_mount.unwrap_or((Pose2::IDENTITY, "same frame")),
+        scans_outside_odometry: outside,
+        no_return_readings: no_return,
+        invalid_readings: invalid,
+    })
+}
+
+/// The odometry pose at `t` (within the span of `odom`, sorted by stamp): linear in x, y
+/// and in the wrapped heading difference; exact at an odometry stamp (the last of equal
+/// stamps).
+fn interpolate(odom: &[StampedPose], t: i64) -> Pose2 {
+    let i = odom.partition_point(|p| p.stamp_ns <= t);
+    // odom[i - 1].stamp ≤ t < odom[i].stamp (i ≥ 1 since t ≥ the first stamp).
+    let a = &odom[i.saturating_sub(1)];
+    if a.stamp_ns == t || i >= odom.len() {
+        return a.pose;
+    }
+    let b = &odom[i];
+    let s = (t - a.stamp_ns) as f64 / (b.stamp_ns - a.stamp_ns) as f64;
+    Pose2::new(
+        a.pose.x + s * (b.pose.x - a.pose.x),
+        a.pose.y + s * (b.pose.y - a.pose.y),
+        normalize_angle(a.pose.theta + s * normalize_angle(b.pose.theta - a.pose.theta)),
+    )
+}
+
+fn convert_scan(
+    path: &Path,
+    topic: &str,
+    index: usize,
+    s: ScanMsg,
+    sensor_pose: Pose2,
+    no_return: &mut usize,
+    invalid: &mut usize,
+) -> Result<LaserScan, IoError> {
+    let fail = |what: String| bad(path, topic, index, what);
+    if !(s.range_max.is_finite() && s.range_max > 0.0 && s.range_max <= MAX_RANGE) {
+        return Err(fail(format!(
+            "range_max = {} m, expected 0 < range_max ≤ {MAX_RANGE} m",
+            s.range_max
+        )));
+    }
+    if !(s.range_min >= 0.0 && s.range_min < s.range_max) {
+        return Err(fail(format!(
+            "range_min = {} m, expected 0 ≤ range_min < range_max = {} m",
+            s.range_min, s.range_max
+        )));
+    }
+    for (v, what) in [(s.angle_min, "angle_min"), (s.angle_max, "angle_max")] {
+        if !(v.is_finite() && v.abs() <= MAX_ANGLE) {
+            return Err(fail(format!("{what} = {v} rad is outside ±2π")));
+        }
+    }
+    let n = s.ranges.len();
+    let last = s.angle_min + s.angle_increment * n.saturating_sub(1) as f64;
+    if !(s.angle_increment.is_finite()
+        && (n <= 1 || s.angle_increment != 0.0)
+        && last.abs() <= 2.0 * MAX_ANGLE)
+    {
+        return Err(fail(format!(
+            "angle_increment = {} rad for {n} beams from angle_min = {} rad, expected a non-zero \
+             increment whose beams stay within ±2 turns",
+            s.angle_increment, s.angle_min
+        )));
+    }
+    let ranges = s
+        .ranges
+        .iter()
+        .map(|&r| {
+            if r.is_nan() || r < s.range_min {
+                *invalid += 1;
+                s.range_max
+            } else if r >= s.range_max {
+                *no_return += 1;
+                s.range_max
+            } else {
+                r
+            }
+        })
+        .collect();
+    Ok(LaserScan {
+        angle_min: s.angle_min,
+        angle_increment: s.angle_increment,
+        ranges,
+        max_range: s.range_max,
+        sensor_pose,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sp(t: i64, x: f64, th: f64) -> StampedPose {
+        StampedPose {
+            stamp_ns: t,
+            parent: "odom".into(),
+            child: "base_link".into(),
+            pose: Pose2::new(x, 0.0, th),
+        }
+    }
+
+    #[test]
+    fn interpolation_is_exact_at_stamps_and_wraps_heading() {
+        let o = [sp(0, 0.0, 3.0), sp(10, 1.0, -3.0)];
+        assert_eq!(interpolate(&o, 0), o[0].pose);
+        assert_eq!(interpolate(&o, 10), o[1].pose);
+        let m = interpolate(&o, 5);
+        assert!((m.x - 0.5).abs() < 1e-15);
+        // Half-way from 3 rad to −3 rad the short way round is ±π, not 0.
+        assert!(
+            (m.theta.abs() - std::f64::consts::PI).abs() < 1e-12,
+            "{m:?}"
+        );
+    }
+
+    #[test]
+    fn odometry_spanning_decades_is_an_error() {
+        let odom = vec![sp(0, 0.0, 0.0), sp(976_052_857_000_000_000, 1.0, 0.0)];
+        let e = assemble(
+            Path::new("x.mcap"),
+            vec![],
+            "/scan".into(),
+            OdometrySource::Topic("/odom".into()),
+            odom,
+            vec![],
+            &[],
+            &BagOptions::default(),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("topic /odom: odometry stamps from 0 s"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn static_chain_composes_parent_to_child() {
+        let e = |p: &str, c: &str, x: f64, th: f64| StampedPose {
+            stamp_ns: 0,
+            parent: p.into(),
+            child: c.into(),
+            pose: Pose2::new(x, 0.0, th),
+        };
+        let statics = [
+            e("base_link", "mount", 1.0, std::f64::consts::FRAC_PI_2),
+            e("mount", "laser", 2.0, 0.0),
+        ];
+        let p = static_chain(&statics, "base_link", "laser").unwrap();
+        // The mount looks along +y, so 2 m along it is (1, 2) in the base frame.
+        assert!(
+            (p.x - 1.0).abs() < 1e-12 && (p.y - 2.0).abs() < 1e-12,
+            "{p:?}"
+        );
+        assert!(static_chain(&statics, "base_link", "camera").is_none());
+    }
+}
