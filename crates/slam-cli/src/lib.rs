@@ -3,7 +3,7 @@
 //! ```text
 //! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
-//!           [--out <dir>] [--force] [--threads N] [--quiet]
+//!           [--out <dir>] [--force] [--threads N] [--frames <dir> [--frame-every K]] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam list
@@ -31,6 +31,7 @@ pub mod filters;
 mod list;
 pub mod metrics;
 mod outdir;
+mod pictures;
 mod progress;
 pub mod run;
 pub mod sim;

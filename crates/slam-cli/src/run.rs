@@ -22,10 +22,10 @@ use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
 use crate::metrics::{self, Metrics};
 use crate::outdir::{OutDir, Owner};
+use crate::pictures;
 use crate::progress::Progress;
 use crate::sim::{generate_exact, replay_map, scenario_options};
 use slam_io::eval;
-use slam_io::picture::{Picture, Rgb};
 use slam_io::Dataset;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
@@ -97,6 +97,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             name: info.name.to_string(),
             reason: why.to_string(),
         });
+    }
+    if args.frames.is_some() && info.kind != DataKind::Landmark {
+        return Err(CliError::InvalidArgument(format!(
+            "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
+            info.name
+        )));
     }
     if args.map_resolution.is_some() && info.kind != DataKind::Laser {
         return Err(CliError::InvalidArgument(format!(
@@ -403,9 +409,6 @@ fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
     }
 }
 
-/// Orange for the estimated trajectory.
-const ESTIMATE: Rgb = Rgb([230, 110, 0]);
-
 fn run_landmark(
     ctx: &RunContext<'_>,
     name: &str,
@@ -432,6 +435,26 @@ fn run_landmark(
         g.len() == steps.len() && g.iter().zip(steps).all(|(p, s)| (p.t - s.t).abs() < 1e-9)
     });
 
+    let particle_count = filter.particles().map(|p| p.len());
+    let seeded = sim_models.is_some() || particle_count.is_some();
+    let title = pictures::title(
+        info.name,
+        name,
+        particle_count,
+        seeded.then_some(ctx.args.seed),
+    );
+    let mut frames = match &ctx.args.frames {
+        Some(dir) => Some(pictures::Frames::new(
+            dir,
+            ctx.args.frame_every as usize,
+            ground_truth.map(Vec::as_slice),
+            dataset.landmarks.as_deref(),
+        )?),
+        None => None,
+    };
+    // Drawing frames is output, not filtering: its time is taken off the run's wall time.
+    let mut frame_time = std::time::Duration::ZERO;
+
     let mut trajectory = Vec::with_capacity(steps.len());
     let mut nees = Vec::new();
     let mut progress = Progress::new(steps.len(), ctx.args.quiet);
@@ -457,9 +480,22 @@ fn run_landmark(
             let (mean, cov) = filter.pose_gaussian();
             nees.push(eval::nees_pose(&mean, &cov, &truth[k].pose));
         }
+        if let Some(f) = &mut frames {
+            let t0 = Instant::now();
+            f.step(
+                k,
+                steps.len(),
+                &title,
+                filter.as_ref(),
+                &trajectory,
+                ground_truth.map(Vec::as_slice),
+                dataset.landmarks.as_deref(),
+            )?;
+            frame_time += t0.elapsed();
+        }
         progress.set(k + 1);
     }
-    let wall = start.elapsed().as_secs_f64();
+    let wall = start.elapsed().saturating_sub(frame_time).as_secs_f64();
     progress.finish();
 
     let landmarks = filter.landmarks();
@@ -519,18 +555,25 @@ fn run_landmark(
     slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
     files.push(p);
     let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let mut pic = Picture::new();
-    if let Some(gt) = ground_truth {
-        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
-        pic = pic.ground_truth(&gt);
-    }
-    if let Some(truth) = &dataset.landmarks {
-        pic = pic.true_landmarks(truth);
-    }
-    pic = pic.trajectory(&poses, ESTIMATE).landmarks(&landmarks);
-    if let Some(cloud) = &particles {
-        pic = pic.particles(cloud);
-    }
+    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    // Particle filters: the written path is, at each step, the pose of the particle best
+    // at that step (an online estimate). Every particle's path and landmark means are not
+    // yet available from the filter, so those layers stay empty.
+    let pic = pictures::landmark_picture(&pictures::LandmarkLayers {
+        title,
+        estimate: &poses,
+        estimate_label: if particles.is_some() {
+            "online estimate (best particle at each step)"
+        } else {
+            "estimate"
+        },
+        particle_paths: &[],
+        particle_landmarks: &[],
+        landmarks: &landmarks,
+        particles: particles.as_deref(),
+        ground_truth: gt_poses.as_deref(),
+        true_landmarks: dataset.landmarks.as_deref(),
+    });
     let p = dir.join("map.png");
     pic.save_png(&p)?;
     files.push(p);
@@ -658,15 +701,28 @@ fn run_scan(
     files.push(dir.join("map.pgm"));
     files.push(dir.join("map.yaml"));
     let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let mut pic = Picture::new().map(&map);
-    if let Some(gt) = ground_truth {
-        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
-        pic = pic.ground_truth(&gt);
-    }
-    pic = pic.trajectory(&poses, ESTIMATE);
-    if let Some(cloud) = &particles {
-        pic = pic.particles(cloud);
-    }
+    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    let particle_count = particles.as_ref().map(Vec::len);
+    let title = pictures::title(
+        info.name,
+        name,
+        particle_count,
+        particle_count.map(|_| ctx.args.seed),
+    );
+    let pic = pictures::laser_picture(
+        title,
+        &map,
+        &poses,
+        gt_poses.as_deref().map(|g| {
+            let label = if ctx.ground_truth.is_some() {
+                "reference (--ground-truth)"
+            } else {
+                "ground truth"
+            };
+            (g, label)
+        }),
+        particles.as_deref(),
+    );
     let p = dir.join("map.png");
     pic.save_png(&p)?;
     files.push(p);
