@@ -20,6 +20,10 @@
 //! ([`Metrics`], a fixed set of keys, `null` where a figure cannot be computed), written
 //! last: a folder with `metrics.json` holds one complete run (see `outdir` for the rules on
 //! whose folder may be written and how an interrupted run leaves nothing behind).
+//! `map.png` has a title (filter, data, particle count, seed), a legend, and axes and a
+//! scale bar in metres. With `--frames DIR` a landmark run also writes
+//! `DIR/frame-000001.png`, … every `--frame-every` steps, the frames of an animation of the
+//! run.
 
 #![warn(missing_docs)]
 

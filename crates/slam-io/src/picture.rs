@@ -4,7 +4,8 @@
 //!
 //! A map picture has a title band on top, the plot framed by axes with ticks labelled in
 //! metres (x under it, y on its left), a scale bar under its right end and a legend naming
-//! every layer drawn (in the plot's corner that hides the least), set in DejaVu Sans (compiled in, see `fonts/`). The view fits every
+//! every layer drawn (in the plot's corner that hides the least; left out when the plot is
+//! too small to hold it), set in DejaVu Sans (compiled in, see `fonts/`). The view fits every
 //! layer (5 % margin; landmark estimates by their means, so the huge ellipses of freshly
 //! initialised landmarks are clipped rather than shrinking the map), or a window the caller
 //! fixes ([`Picture::fit_to`], for animation frames); it keeps the aspect ratio (one scale
@@ -505,10 +506,13 @@ impl Picture {
         self.draw_legend(&mut plot, &background);
 
         // The whole picture: title band, plot, frame, ticks and their labels.
-        let (iw, ih) = (
-            layout.left + w + MARGIN_RIGHT,
-            layout.top + h + MARGIN_BOTTOM,
-        );
+        // Wide enough for the title too (a tall, narrow map would cut it off).
+        let title_w = self
+            .title
+            .as_ref()
+            .map_or(0.0, |t| text_size(t, TITLE_PX).0.ceil()) as u32;
+        let iw = layout.left + w.max(title_w) + MARGIN_RIGHT;
+        let ih = layout.top + h + MARGIN_BOTTOM;
         let mut img = RgbImage::from_pixel(iw, ih, WHITE);
         image::imageops::replace(&mut img, &plot, layout.left as i64, layout.top as i64);
         let (l, t) = (layout.left as f64, layout.top as f64);
@@ -1331,6 +1335,22 @@ mod tests {
         let titled = plain.clone().title("fastslam2 on loop, 100 particles");
         assert_eq!(ink(&plain), 0);
         assert!(ink(&titled) > 150, "{}", ink(&titled));
+        // A tall, narrow plot (1 m wide, 10 m high: 100 px wide) widens the image for a
+        // long title rather than cutting it.
+        let up: Vec<Pose2> = (0..=10).map(|i| Pose2::new(0.0, i as f64, 0.0)).collect();
+        let long = "gridfast on belgioioso, 30 particles, seed 0";
+        let (tw, _) = text_size(long, TITLE_PX);
+        let narrow = Picture::new()
+            .size(300)
+            .title(long)
+            .trajectory(&up, RED, "e");
+        let (img, l) = (narrow.render().unwrap(), narrow.layout().unwrap());
+        assert!(l.width < 60, "{}", l.width);
+        assert!(
+            img.width() as f64 >= l.left as f64 + tw,
+            "{} {tw}",
+            img.width()
+        );
     }
 
     /// The course's FastSLAM picture: the best path red with an arrow along its final
