@@ -342,9 +342,10 @@ fn pictures_and_writers_on_real_data() {
             })
             .collect();
         Picture::new()
-            .trajectory(&dr, picture::RED)
+            .title("Freiburg course data: dead reckoning")
+            .trajectory(&dr, picture::RED, "dead reckoning")
             .true_landmarks(&lms)
-            .landmarks(&est)
+            .landmarks(&est, "synthetic estimates, 95 %")
             .particles(&parts)
             .save_png(&out.join("freiburg.png"))
             .unwrap();
@@ -375,8 +376,9 @@ fn pictures_and_writers_on_real_data() {
             .map(|p| p.pose)
             .collect();
         Picture::new()
+            .title("MRCLAM 1, robot 1: dead reckoning")
             .ground_truth(&gt)
-            .trajectory(&dr, picture::RED)
+            .trajectory(&dr, picture::RED, "dead reckoning")
             .true_landmarks(d.landmarks.as_ref().unwrap())
             .save_png(&out.join("mrclam-robot1.png"))
             .unwrap();
@@ -420,8 +422,9 @@ fn pictures_and_writers_on_real_data() {
         let refp: Vec<Pose2> = reference.iter().map(|p| p.pose).collect();
         Picture::new()
             .map(&map)
-            .trajectory(&refp, picture::RED)
-            .trajectory(&odo, picture::PURPLE)
+            .title("bench/intel.log: scan end points at GMapping's poses")
+            .trajectory(&refp, picture::RED, "GMapping")
+            .trajectory(&odo, picture::PURPLE, "odometry")
             .save_png(&out.join("intel.png"))
             .unwrap();
         slam::io::ros_map::write_ros_map(&out, "intel-map", &map).unwrap();

@@ -19,7 +19,7 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// The five subcommands.
+/// The six subcommands.
 #[derive(Debug, Subcommand)]
 // The run options make `Run` large; a command is parsed once per process, so boxing it
 // would buy nothing.
@@ -145,6 +145,18 @@ pub struct RunArgs {
     /// Worker threads for the parallel parts of a filter (results do not depend on it).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=1024))]
     pub threads: Option<u64>,
+
+    /// Landmark filters: write one picture every --frame-every steps (and after the last)
+    /// into this new or empty folder, numbered `frame-000001.png`, `frame-000002.png`, …, to
+    /// make an animation of the run (e.g. `ffmpeg -framerate 10 -i DIR/frame-%06d.png
+    /// run.mp4`). Every frame has the same window and size.
+    #[arg(long, value_name = "DIR")]
+    pub frames: Option<PathBuf>,
+
+    /// With --frames: steps between two frames.
+    #[arg(long, value_name = "K", default_value_t = 10, requires = "frames",
+          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub frame_every: u64,
 
     /// No progress bar.
     #[arg(long)]

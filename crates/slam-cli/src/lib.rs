@@ -4,7 +4,7 @@
 //! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N]
 //!           [--scan-topic T] [--odom-topic T] [--laser-pose x,y,θ])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
-//!           [--out <dir>] [--force] [--threads N] [--quiet]
+//!           [--out <dir>] [--force] [--threads N] [--frames <dir> [--frame-every K]] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam optimize <graph.g2o> --out <dir> [--config <file.toml>] [--kernel <name:param>]
@@ -23,6 +23,10 @@
 //! ([`Metrics`], a fixed set of keys, `null` where a figure cannot be computed), written
 //! last: a folder with `metrics.json` holds one complete run (see `outdir` for the rules on
 //! whose folder may be written and how an interrupted run leaves nothing behind).
+//! `map.png` has a title (filter, data, particle count, seed), a legend, and axes and a
+//! scale bar in metres. With `--frames DIR` a landmark run also writes
+//! `DIR/frame-000001.png`, … every `--frame-every` steps, the frames of an animation of the
+//! run.
 
 #![warn(missing_docs)]
 
@@ -36,6 +40,7 @@ mod list;
 pub mod metrics;
 pub mod optimize;
 mod outdir;
+mod pictures;
 mod progress;
 pub mod run;
 pub mod sim;
@@ -124,7 +129,8 @@ where
 /// `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval, optimize, info or list (see `slam --help`)".into();
+        return "missing subcommand: run, sim, eval, optimize, info or list (see `slam --help`)"
+            .into();
     }
     let text = e.render().to_string();
     let first: Vec<&str> = text

@@ -28,11 +28,11 @@ use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
 use crate::metrics::{self, Metrics};
 use crate::outdir::{OutDir, Owner};
+use crate::pictures;
 use crate::progress::Progress;
 use crate::sim::{generate_exact, replay_map, scenario_options};
 use slam_io::estimates_csv::PoseEstimateRow;
 use slam_io::eval;
-use slam_io::picture::{Picture, Rgb};
 use slam_io::Dataset;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
@@ -104,6 +104,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
             name: info.name.to_string(),
             reason: why.to_string(),
         });
+    }
+    if args.frames.is_some() && info.kind != DataKind::Landmark {
+        return Err(CliError::InvalidArgument(format!(
+            "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
+            info.name
+        )));
     }
     if args.map_resolution.is_some() && info.kind != DataKind::Laser {
         return Err(CliError::InvalidArgument(format!(
@@ -417,9 +423,6 @@ fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
     }
 }
 
-/// Orange for the estimated trajectory.
-const ESTIMATE: Rgb = Rgb([230, 110, 0]);
-
 fn run_landmark(
     ctx: &RunContext<'_>,
     name: &str,
@@ -445,6 +448,26 @@ fn run_landmark(
     let truth_per_step = ground_truth.filter(|g| {
         g.len() == steps.len() && g.iter().zip(steps).all(|(p, s)| (p.t - s.t).abs() < 1e-9)
     });
+
+    let particle_count = filter.particles().map(|p| p.len());
+    let seeded = sim_models.is_some() || particle_count.is_some();
+    let title = pictures::title(
+        info.name,
+        name,
+        particle_count,
+        seeded.then_some(ctx.args.seed),
+    );
+    let mut frames = match &ctx.args.frames {
+        Some(dir) => Some(pictures::Frames::new(
+            dir,
+            ctx.args.frame_every as usize,
+            ground_truth.map(Vec::as_slice),
+            dataset.landmarks.as_deref(),
+        )?),
+        None => None,
+    };
+    // Drawing frames is output, not filtering: its time is taken off the run's wall time.
+    let mut frame_time = std::time::Duration::ZERO;
 
     let mut online = Vec::with_capacity(steps.len());
     let mut estimates = Vec::with_capacity(steps.len());
@@ -477,9 +500,22 @@ fn run_landmark(
             covariance,
             nees: truth_per_step.map(|truth| eval::nees_pose(&mean, &covariance, &truth[k].pose)),
         });
+        if let Some(f) = &mut frames {
+            let t0 = Instant::now();
+            f.step(
+                k,
+                steps.len(),
+                &title,
+                filter.as_ref(),
+                &online,
+                ground_truth.map(Vec::as_slice),
+                dataset.landmarks.as_deref(),
+            )?;
+            frame_time += t0.elapsed();
+        }
         progress.set(k + 1);
     }
-    let wall = start.elapsed().as_secs_f64();
+    let wall = start.elapsed().saturating_sub(frame_time).as_secs_f64();
     progress.finish();
 
     // The full-SLAM path (entry 0 the initial pose, entry k the pose after step k, by the
@@ -558,18 +594,45 @@ fn run_landmark(
     slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
     files.push(p);
     let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let mut pic = Picture::new();
-    if let Some(gt) = ground_truth {
-        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
-        pic = pic.ground_truth(&gt);
-    }
-    if let Some(truth) = &dataset.landmarks {
-        pic = pic.true_landmarks(truth);
-    }
-    pic = pic.trajectory(&poses, ESTIMATE).landmarks(&landmarks);
-    if let Some(cloud) = &particles {
-        pic = pic.particles(cloud);
-    }
+    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    // Particle filters: every particle's path (grey) and landmark means (dots) from the
+    // filter's path tree and maps; the estimate is the path written to trajectory.tum.
+    // Paths are drawn only while they fit a bounded number of poses (shared history is
+    // repeated once per particle when flattened).
+    const MAX_DRAWN_POSES: usize = 2_000_000;
+    let particle_paths: Vec<Vec<slam_models::Pose2>> = match filter.particle_paths() {
+        Some(pp) if pp.leaves.len().saturating_mul(steps.len() + 1) <= MAX_DRAWN_POSES => {
+            (0..pp.leaves.len()).map(|k| pp.path_of(k)).collect()
+        }
+        Some(_) => {
+            notes.push(format!(
+                "map.png: particle paths not drawn (more than {MAX_DRAWN_POSES} poses)"
+            ));
+            Vec::new()
+        }
+        None => Vec::new(),
+    };
+    let particle_landmarks: Vec<slam_models::Point2> = filter
+        .particle_landmarks()
+        .map(|maps| maps.iter().flatten().map(|l| l.mean).collect())
+        .unwrap_or_default();
+    let pic = pictures::landmark_picture(&pictures::LandmarkLayers {
+        title,
+        estimate: &poses,
+        estimate_label: if full.is_some() {
+            "best particle's path (full SLAM)"
+        } else if particles.is_some() {
+            "online estimate (best particle at each step)"
+        } else {
+            "estimate"
+        },
+        particle_paths: &particle_paths,
+        particle_landmarks: &particle_landmarks,
+        landmarks: &landmarks,
+        particles: particles.as_deref(),
+        ground_truth: gt_poses.as_deref(),
+        true_landmarks: dataset.landmarks.as_deref(),
+    });
     let p = dir.join("map.png");
     pic.save_png(&p)?;
     files.push(p);
@@ -721,15 +784,28 @@ fn run_scan(
     files.push(dir.join("map.pgm"));
     files.push(dir.join("map.yaml"));
     let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let mut pic = Picture::new().map(&map);
-    if let Some(gt) = ground_truth {
-        let gt: Vec<_> = gt.iter().map(|t| t.pose).collect();
-        pic = pic.ground_truth(&gt);
-    }
-    pic = pic.trajectory(&poses, ESTIMATE);
-    if let Some(cloud) = &particles {
-        pic = pic.particles(cloud);
-    }
+    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    let particle_count = particles.as_ref().map(Vec::len);
+    let title = pictures::title(
+        info.name,
+        name,
+        particle_count,
+        particle_count.map(|_| ctx.args.seed),
+    );
+    let pic = pictures::laser_picture(
+        title,
+        &map,
+        &poses,
+        gt_poses.as_deref().map(|g| {
+            let label = if ctx.ground_truth.is_some() {
+                "reference (--ground-truth)"
+            } else {
+                "ground truth"
+            };
+            (g, label)
+        }),
+        particles.as_deref(),
+    );
     let p = dir.join("map.png");
     pic.save_png(&p)?;
     files.push(p);

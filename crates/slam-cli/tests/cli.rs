@@ -999,3 +999,144 @@ fn map_resolution_rerenders_gridfast_maps_and_is_refused_elsewhere() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--frames DIR --frame-every K`: a frame every K steps and after the last, numbered
+/// consecutively, all the same size; the estimated path grows from frame to frame. A
+/// folder that is not empty, a laser filter and `--frame-every` alone are refused.
+#[test]
+fn frames_make_an_animation_of_a_landmark_run() {
+    let base = scratch("frames");
+    let (out, frames) = (base.join("out"), base.join("frames"));
+    let args = |frames: &Path| {
+        vec![
+            "run".to_string(),
+            "--filter".into(),
+            "fastslam1".into(),
+            "--sim".into(),
+            "loop".into(),
+            "--steps".into(),
+            "25".into(),
+            "--particles".into(),
+            "20".into(),
+            "--quiet".into(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+            "--frames".into(),
+            frames.to_str().unwrap().into(),
+            "--frame-every".into(),
+            "10".into(),
+        ]
+    };
+    let a = args(&frames);
+    let (r, text) = slam(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+    let mut names: Vec<String> = std::fs::read_dir(&frames)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    // Steps 10, 20 and 25 (the last).
+    assert_eq!(
+        names,
+        ["frame-000001.png", "frame-000002.png", "frame-000003.png"]
+    );
+    let imgs: Vec<image::RgbImage> = names
+        .iter()
+        .map(|n| image::open(frames.join(n)).unwrap().to_rgb8())
+        .collect();
+    let red = |img: &image::RgbImage| img.pixels().filter(|p| p.0 == [220, 30, 30]).count();
+    let green = |img: &image::RgbImage| img.pixels().filter(|p| p.0 == [0, 160, 0]).count();
+    for img in &imgs {
+        assert_eq!(img.dimensions(), imgs[0].dimensions());
+        assert_eq!(
+            img.width() % 2 + img.height() % 2,
+            0,
+            "even sizes for video"
+        );
+        assert!(red(img) > 0 && green(img) > 0);
+    }
+    // The path of 10 steps is shorter than that of 25 (the same window in both): fewer red
+    // and green pixels, beyond the arrow and start disc common to both.
+    assert!(
+        red(&imgs[0]) < red(&imgs[2]),
+        "{} {}",
+        red(&imgs[0]),
+        red(&imgs[2])
+    );
+    assert!(green(&imgs[0]) < green(&imgs[2]));
+
+    // The folder now holds frames: a second run is refused before it starts.
+    let _ = std::fs::remove_dir_all(&out);
+    let (r, _) = slam(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    match r {
+        Err(CliError::InvalidArgument(msg)) => assert!(msg.contains("not empty"), "{msg}"),
+        other => panic!("{other:?}"),
+    }
+    let (code, _, err) = slam_bin(&[
+        "run",
+        "--filter",
+        "ekf",
+        "--sim",
+        "loop",
+        "--frame-every",
+        "3",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--frames"), "{err}");
+    let other = base.join("laser-frames");
+    let (r, _) = slam(&[
+        "run",
+        "--filter",
+        "scanmatch",
+        "--sim",
+        "office",
+        "--steps",
+        "5",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+        "--frames",
+        other.to_str().unwrap(),
+    ]);
+    match r {
+        Err(CliError::InvalidArgument(msg)) => assert!(msg.contains("--frames"), "{msg}"),
+        other => panic!("{other:?}"),
+    }
+    assert!(!other.exists(), "nothing made for a refused run");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `map.png` of a landmark run carries a title (text in the band above the plot) and the
+/// picture's colours: the estimate red, the truth green, landmark ellipses blue.
+#[test]
+fn landmark_map_png_has_title_and_layers() {
+    let out = scratch("map-png");
+    let (r, text) = slam(&[
+        "run",
+        "--filter",
+        "ekf",
+        "--sim",
+        "loop",
+        "--steps",
+        "60",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+    let img = image::open(out.join("map.png")).unwrap().to_rgb8();
+    // The title band: the top 40 rows right of the y tick labels.
+    let ink = (0..40)
+        .flat_map(|y| (80..img.width()).map(move |x| (x, y)))
+        .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 100)
+        .count();
+    assert!(ink > 100, "title ink {ink}");
+    for (name, c) in [
+        ("red", [220, 30, 30]),
+        ("green", [0, 160, 0]),
+        ("blue", [30, 60, 230]),
+    ] {
+        assert!(img.pixels().any(|p| p.0 == c), "no {name} pixel");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}

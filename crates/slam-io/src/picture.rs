@@ -1,25 +1,33 @@
-//! PNG pictures of a SLAM result: occupancy map, trajectories, ground truth, landmark 95 %
-//! error ellipses, true landmarks and the particle cloud; and a simple series plot (for
-//! NEES curves with their chi-square band).
+//! PNG pictures of a SLAM result (occupancy map, trajectories, ground truth, landmark 95 %
+//! error ellipses, true landmarks, the particle cloud, every particle's path and landmark
+//! estimates) and a simple series plot (for NEES curves with their chi-square band).
 //!
-//! The view fits every layer automatically (5 % margin; landmark estimates by their means,
-//! so the huge ellipses of freshly initialised landmarks are clipped rather than shrinking
-//! the map), keeps the aspect ratio (one
-//! scale for x and y) and puts **y up** (world y grows towards the top of the image). No
-//! text is drawn; layers have fixed, distinct colours:
+//! A map picture has a title band on top, the plot framed by axes with ticks labelled in
+//! metres (x under it, y on its left), a scale bar under its right end and a legend naming
+//! every layer drawn (in the plot's corner that hides the least; left out when the plot is
+//! too small to hold it), set in DejaVu Sans (compiled in, see `fonts/`). The view fits every
+//! layer (5 % margin; landmark estimates by their means, so the huge ellipses of freshly
+//! initialised landmarks are clipped rather than shrinking the map), or a window the caller
+//! fixes ([`Picture::fit_to`], for animation frames); it keeps the aspect ratio (one scale
+//! for x and y) and puts **y up**. Layers, from bottom to top:
 //!
-//! | layer | colour |
-//! |---|---|
-//! | map | grey levels: white free, black occupied, light grey unknown |
-//! | metric grid (when there is no map) | very light grey lines at a 1-2-5 step |
-//! | estimated trajectory | the caller's colour (e.g. [`RED`]), start marked by a disc |
-//! | ground truth | green |
-//! | landmark estimates | blue 95 % ellipses with a dot at the mean |
-//! | true landmarks | black crosses |
-//! | particles | teal dots |
+//! | layer | look | legend |
+//! |---|---|---|
+//! | map | grey levels: white free, black occupied, light grey unknown | occupied / free / unknown |
+//! | metric grid (when there is no map) | very light grey lines at the ticks | — |
+//! | every particle's path | grey, 1 px | particle paths |
+//! | ground truth | green, 2 px | ground truth |
+//! | every particle's landmark estimates | small light-blue dots | landmarks of every particle |
+//! | landmark estimates | blue 95 % ellipses with a dot at the mean | the caller's label |
+//! | true landmarks | black crosses | true landmarks |
+//! | estimated trajectories | the caller's colour, 2 px, a disc at the start and an arrow along the final heading | the caller's label |
+//! | particles | teal dots | particles, now |
+//!
+//! Coordinates beyond ±[`MAX_COORDINATE_M`] are an error ([`IoError::PictureExtent`]):
+//! there an f64 cannot resolve the axes' metre grid. Non-finite points are skipped.
 
 use crate::error::IoError;
-use crate::glyphs;
+use crate::font::{self, draw_text, text_size};
 use image::RgbImage;
 use slam_models::{GridMap, LandmarkEstimate, LandmarkId, Point2, Pose2, WeightedPose};
 use std::path::Path;
@@ -37,7 +45,7 @@ impl From<Rgb> for image::Rgb<u8> {
     }
 }
 
-/// Estimated trajectory default colour.
+/// Estimated trajectory colour (the course exercise's best particle).
 pub const RED: Rgb = Rgb([220, 30, 30]);
 /// Ground-truth colour.
 pub const GREEN: Rgb = Rgb([0, 160, 0]);
@@ -49,11 +57,81 @@ pub const BLACK: Rgb = Rgb([0, 0, 0]);
 pub const TEAL: Rgb = Rgb([0, 160, 170]);
 /// A fourth trajectory colour (e.g. raw odometry).
 pub const PURPLE: Rgb = Rgb([150, 50, 180]);
+/// Colour of every particle's path.
+pub const GREY: Rgb = Rgb([165, 165, 165]);
+/// Colour of every particle's landmark estimates.
+pub const LIGHT_BLUE: Rgb = Rgb([120, 160, 245]);
 const WHITE: Px = image::Rgb([255, 255, 255]);
 const GRID: Px = image::Rgb([232, 232, 232]);
+const FRAME: Px = image::Rgb([60, 60, 60]);
+const LABEL: Px = image::Rgb([40, 40, 40]);
+const UNKNOWN_GREY: u8 = 205;
 
 /// χ²₂ 95 % quantile: the 95 % ellipse is {x : (x − μ)ᵀΣ⁻¹(x − μ) ≤ 5.991}.
 const CHI2_2_95: f64 = 5.991_464_547;
+
+/// The largest |x| or |y| in metres a picture draws: ten times the ±1e6 m the dataset readers
+/// accept, so whatever a reader passes can be drawn; beyond it (a diverged filter) f64
+/// resolves the world only to about 1e-9 of the coordinate and the axes' ticks would stop
+/// being distinct, so it is an error instead.
+pub const MAX_COORDINATE_M: f64 = 1e7;
+
+/// The most ticks one axis gets. Ticks are counted by integer index from the first
+/// multiple of the step inside the view, so the count is bounded whatever the coordinates
+/// (a loop adding a step smaller than one ulp of the coordinate would never end).
+pub const MAX_TICKS: usize = 100;
+
+/// Text sizes in pixels.
+const TITLE_PX: f32 = 21.0;
+const LABEL_PX: f32 = 15.0;
+const LEGEND_PX: f32 = 15.0;
+
+/// Margins around the plot: left for the y tick labels, bottom for the x tick labels and
+/// the x axis name, top for the title and the y axis name.
+const MARGIN_LEFT: u32 = 76;
+const MARGIN_RIGHT: u32 = 24;
+const MARGIN_BOTTOM: u32 = 48;
+const MARGIN_TOP_TITLE: u32 = 52;
+const MARGIN_TOP: u32 = 26;
+
+/// Where the plot sits in a rendered picture and how world metres map to its pixels:
+/// pixel (u, v) of world point (x, y) is (`left` + (x − `min_x`)·`px_per_m`,
+/// `top` + (`max_y` − y)·`px_per_m`), y up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layout {
+    /// Left edge of the plot area, pixels from the image's left.
+    pub left: u32,
+    /// Top edge of the plot area, pixels from the image's top.
+    pub top: u32,
+    /// Plot area width, pixels.
+    pub width: u32,
+    /// Plot area height, pixels.
+    pub height: u32,
+    /// World x at the plot's left edge, metres.
+    pub min_x: f64,
+    /// World y at the plot's top edge, metres.
+    pub max_y: f64,
+    /// Pixels per metre, the same along x and y.
+    pub px_per_m: f64,
+}
+
+impl Layout {
+    /// Image pixel coordinates (fractional) of world point `p`.
+    pub fn pixel(&self, p: &Point2) -> (f64, f64) {
+        (
+            self.left as f64 + (p.x - self.min_x) * self.px_per_m,
+            self.top as f64 + (self.max_y - p.y) * self.px_per_m,
+        )
+    }
+}
+
+/// An estimated trajectory layer.
+#[derive(Debug, Clone)]
+struct Track {
+    poses: Vec<Pose2>,
+    colour: Rgb,
+    label: String,
+}
 
 /// A picture under construction (builder style); see the module docs for the layers.
 ///
@@ -63,18 +141,31 @@ const CHI2_2_95: f64 = 5.991_464_547;
 /// use slam_io::picture::{Picture, RED};
 /// use slam_models::Pose2;
 /// let path: Vec<Pose2> = (0..50).map(|i| Pose2::new(0.1 * i as f64, (0.1 * i as f64).sin(), 0.0)).collect();
-/// let img = Picture::new().size(200).ground_truth(&path).trajectory(&path, RED).render()?;
-/// assert_eq!(img.width(), 200);
+/// let img = Picture::new()
+///     .title("a sine")
+///     .size(200)
+///     .ground_truth(&path)
+///     .trajectory(&path, RED, "estimate")
+///     .render()?;
+/// // The plot is 200 px on its longer side, plus margins for the axes and the title.
+/// assert!(img.width() > 200);
 /// # Ok::<(), slam_io::IoError>(())
 /// ```
 #[derive(Debug, Clone)]
 pub struct Picture {
+    title: Option<String>,
     map: Option<GridMap>,
-    trajectories: Vec<(Vec<Pose2>, Rgb)>,
+    trajectories: Vec<Track>,
     ground_truth: Vec<Pose2>,
+    ground_truth_label: String,
     landmarks: Vec<LandmarkEstimate>,
+    landmarks_label: String,
     true_landmarks: Vec<Point2>,
     particles: Vec<WeightedPose>,
+    particle_paths: Vec<Vec<Pose2>>,
+    particle_landmarks: Vec<Point2>,
+    fit: Option<Vec<Point2>>,
+    square: bool,
     max_size: u32,
 }
 
@@ -84,7 +175,7 @@ impl Default for Picture {
     }
 }
 
-/// World → pixel mapping with y up.
+/// World → plot-pixel mapping with y up (plot pixels: (0, 0) at the plot's top-left).
 #[derive(Clone, Copy)]
 struct View {
     min_x: f64,
@@ -104,25 +195,69 @@ impl View {
     fn world(&self, px: f64, py: f64) -> Point2 {
         Point2::new(self.min_x + px / self.scale, self.max_y - py / self.scale)
     }
+    fn max_x(&self) -> f64 {
+        self.min_x + self.w as f64 / self.scale
+    }
+    fn min_y(&self) -> f64 {
+        self.max_y - self.h as f64 / self.scale
+    }
+}
+
+/// A legend entry's symbol.
+#[derive(Clone, Copy)]
+enum Swatch {
+    Line(Px, f64),
+    Dot(Px, f64),
+    Cross(Px),
+    Ellipse(Px),
+    Square(Px),
 }
 
 impl Picture {
-    /// An empty picture, at most 1000 px on its longer side.
+    /// An empty picture whose plot is at most 1000 px on its longer side.
     pub fn new() -> Self {
         Self {
+            title: None,
             map: None,
             trajectories: Vec::new(),
             ground_truth: Vec::new(),
+            ground_truth_label: "ground truth".into(),
             landmarks: Vec::new(),
+            landmarks_label: "landmarks, 95 % ellipses".into(),
             true_landmarks: Vec::new(),
             particles: Vec::new(),
+            particle_paths: Vec::new(),
+            particle_landmarks: Vec::new(),
+            fit: None,
+            square: false,
             max_size: 1000,
         }
     }
 
-    /// The longer side in pixels (clamped to 100…8000).
+    /// The title, drawn in the band above the plot (e.g. filter, data, particle count).
+    pub fn title(mut self, title: impl Into<String>) -> Self {
+        self.title = Some(title.into());
+        self
+    }
+
+    /// The plot's longer side in pixels (clamped to 100…8000); the margins for the axes,
+    /// their labels and the title come on top.
     pub fn size(mut self, max_size: u32) -> Self {
         self.max_size = max_size.clamp(100, 8000);
+        self
+    }
+
+    /// Frames these world points (plus a 5 % margin) instead of the drawn layers; what lies
+    /// outside is clipped. Animation frames use it so that every frame shows the same window.
+    pub fn fit_to(mut self, points: &[Point2]) -> Self {
+        self.fit = Some(points.to_vec());
+        self
+    }
+
+    /// Widens the view to a square about its centre, so that the image's size in pixels
+    /// does not depend on the content (every frame of an animation the same size).
+    pub fn square(mut self, square: bool) -> Self {
+        self.square = square;
         self
     }
 
@@ -132,9 +267,14 @@ impl Picture {
         self
     }
 
-    /// An estimated trajectory in `colour` (may be called several times).
-    pub fn trajectory(mut self, poses: &[Pose2], colour: Rgb) -> Self {
-        self.trajectories.push((poses.to_vec(), colour));
+    /// An estimated trajectory in `colour`, named `label` in the legend (may be called
+    /// several times); a disc marks its start and an arrow its final pose and heading.
+    pub fn trajectory(mut self, poses: &[Pose2], colour: Rgb, label: &str) -> Self {
+        self.trajectories.push(Track {
+            poses: poses.to_vec(),
+            colour,
+            label: label.to_string(),
+        });
         self
     }
 
@@ -144,9 +284,18 @@ impl Picture {
         self
     }
 
-    /// Landmark estimates, drawn as their 95 % error ellipses (blue).
-    pub fn landmarks(mut self, l: &[LandmarkEstimate]) -> Self {
+    /// The legend's name for the green path ("ground truth" unless set; e.g. "reference"
+    /// for another program's trajectory).
+    pub fn ground_truth_label(mut self, label: &str) -> Self {
+        self.ground_truth_label = label.to_string();
+        self
+    }
+
+    /// Landmark estimates, drawn as their 95 % error ellipses (blue), named `label` in the
+    /// legend (e.g. "best particle's landmarks, 95 %").
+    pub fn landmarks(mut self, l: &[LandmarkEstimate], label: &str) -> Self {
         self.landmarks = l.to_vec();
+        self.landmarks_label = label.to_string();
         self
     }
 
@@ -162,18 +311,24 @@ impl Picture {
         self
     }
 
-    /// World bounding box of everything drawn (finite values only).
-    fn bounds(&self) -> Option<(f64, f64, f64, f64)> {
-        let mut b: Option<(f64, f64, f64, f64)> = None;
-        let mut add = |p: Point2| {
-            if !(p.x.is_finite() && p.y.is_finite()) {
-                return;
-            }
-            b = Some(match b {
-                None => (p.x, p.y, p.x, p.y),
-                Some((a, c, d, e)) => (a.min(p.x), c.min(p.y), d.max(p.x), e.max(p.y)),
-            });
-        };
+    /// Every particle's path x₀:ₜ (FastSLAM's full-SLAM hypotheses, Montemerlo et al. 2002),
+    /// thin grey lines under everything else.
+    pub fn particle_paths(mut self, paths: &[Vec<Pose2>]) -> Self {
+        self.particle_paths = paths.to_vec();
+        self
+    }
+
+    /// Every particle's landmark means, all particles' together (small light-blue dots):
+    /// the spread shows how far the particles disagree about the map.
+    pub fn particle_landmarks(mut self, means: &[Point2]) -> Self {
+        self.particle_landmarks = means.to_vec();
+        self
+    }
+
+    /// Every finite point drawn, with the name of its layer (for the extent check).
+    fn points(&self) -> Vec<(String, Point2)> {
+        let mut out: Vec<(String, Point2)> = Vec::new();
+        let mut add = |layer: &str, p: Point2| out.push((layer.to_string(), p));
         if let Some(m) = &self.map {
             // The extent of the known cells (unknown borders are not worth the space).
             let (mut lo, mut hi) = ((usize::MAX, usize::MAX), (0, 0));
@@ -187,81 +342,212 @@ impl Picture {
             }
             if lo.0 != usize::MAX {
                 let r = m.resolution;
-                add(Point2::new(
-                    m.origin.x + lo.0 as f64 * r,
-                    m.origin.y + lo.1 as f64 * r,
-                ));
-                add(Point2::new(
-                    m.origin.x + (hi.0 + 1) as f64 * r,
-                    m.origin.y + (hi.1 + 1) as f64 * r,
-                ));
+                add(
+                    "map",
+                    Point2::new(m.origin.x + lo.0 as f64 * r, m.origin.y + lo.1 as f64 * r),
+                );
+                add(
+                    "map",
+                    Point2::new(
+                        m.origin.x + (hi.0 + 1) as f64 * r,
+                        m.origin.y + (hi.1 + 1) as f64 * r,
+                    ),
+                );
             }
         }
-        for (t, _) in &self.trajectories {
-            t.iter().for_each(|p| add(p.translation()));
+        for t in &self.trajectories {
+            let layer = format!("trajectory `{}`", t.label);
+            t.poses.iter().for_each(|p| add(&layer, p.translation()));
         }
-        self.ground_truth.iter().for_each(|p| add(p.translation()));
-        self.true_landmarks.iter().for_each(|p| add(*p));
-        self.particles
-            .iter()
-            .for_each(|p| add(p.pose.translation()));
+        for p in &self.ground_truth {
+            add("ground truth", p.translation());
+        }
+        for p in &self.true_landmarks {
+            add("true landmarks", *p);
+        }
+        for p in &self.particles {
+            add("particles", p.pose.translation());
+        }
+        for path in &self.particle_paths {
+            path.iter()
+                .for_each(|p| add("particle paths", p.translation()));
+        }
+        for p in &self.particle_landmarks {
+            add("landmarks of every particle", *p);
+        }
         for l in &self.landmarks {
-            add(l.mean);
+            add("landmark estimates", l.mean);
         }
-        b
+        out.retain(|(_, p)| p.x.is_finite() && p.y.is_finite());
+        out
     }
 
-    /// Renders the picture to an image.
-    pub fn render(&self) -> Result<RgbImage, IoError> {
-        let Some((x0, y0, x1, y1)) = self.bounds() else {
+    /// The world window shown, as (min x, min y, max x, max y), after checking every point
+    /// against [`MAX_COORDINATE_M`].
+    fn window(&self) -> Result<(f64, f64, f64, f64), IoError> {
+        let points = self.points();
+        let fitted = self
+            .fit
+            .iter()
+            .flatten()
+            .map(|p| ("window".to_string(), *p));
+        for (layer, p) in points.iter().cloned().chain(fitted) {
+            if p.x.abs() > MAX_COORDINATE_M || p.y.abs() > MAX_COORDINATE_M {
+                return Err(IoError::PictureExtent {
+                    layer,
+                    x: p.x,
+                    y: p.y,
+                    bound: MAX_COORDINATE_M,
+                });
+            }
+        }
+        let framed: Vec<Point2> = match &self.fit {
+            Some(f) => f
+                .iter()
+                .copied()
+                .filter(|p| p.x.is_finite() && p.y.is_finite())
+                .collect(),
+            None => points.into_iter().map(|(_, p)| p).collect(),
+        };
+        let Some(first) = framed.first() else {
             return Err(IoError::Picture(
                 "nothing to draw (all layers empty or non-finite)".into(),
             ));
         };
+        let (mut x0, mut y0, mut x1, mut y1) = (first.x, first.y, first.x, first.y);
+        for p in &framed {
+            (x0, y0, x1, y1) = (x0.min(p.x), y0.min(p.y), x1.max(p.x), y1.max(p.y));
+        }
+        // At least 1 m across, so a single point still gets a metre grid.
         let span = (x1 - x0).max(y1 - y0).max(1.0);
         let pad = 0.05 * span;
-        let (x0, y0, x1, y1) = (x0 - pad, y0 - pad, x1 + pad, y1 + pad);
+        let grow = |lo: f64, hi: f64| {
+            let extra = 0.5 * (span - (hi - lo)).max(0.0) * if self.square { 1.0 } else { 0.0 };
+            (lo - pad - extra, hi + pad + extra)
+        };
+        let ((x0, x1), (y0, y1)) = (grow(x0, x1), grow(y0, y1));
+        Ok((x0, y0, x1, y1))
+    }
+
+    /// Where the plot lies in the picture [`render`](Self::render) makes, and its scale.
+    pub fn layout(&self) -> Result<Layout, IoError> {
+        let (x0, y0, x1, y1) = self.window()?;
         let scale = self.max_size as f64 / (x1 - x0).max(y1 - y0);
-        let w = (((x1 - x0) * scale).ceil() as u32).clamp(1, self.max_size);
-        let h = (((y1 - y0) * scale).ceil() as u32).clamp(1, self.max_size);
-        let view = View {
+        let w = (((x1 - x0) * scale).round() as u32).clamp(1, self.max_size);
+        let h = (((y1 - y0) * scale).round() as u32).clamp(1, self.max_size);
+        Ok(Layout {
+            left: MARGIN_LEFT,
+            top: if self.title.is_some() {
+                MARGIN_TOP_TITLE
+            } else {
+                MARGIN_TOP
+            },
+            width: w,
+            height: h,
             min_x: x0,
             max_y: y1,
-            scale,
-            w,
-            h,
+            px_per_m: scale,
+        })
+    }
+
+    /// Renders the picture to an image.
+    pub fn render(&self) -> Result<RgbImage, IoError> {
+        let layout = self.layout()?;
+        let view = View {
+            min_x: layout.min_x,
+            max_y: layout.max_y,
+            scale: layout.px_per_m,
+            w: layout.width,
+            h: layout.height,
         };
-        let mut img = RgbImage::from_pixel(w, h, WHITE);
+        let (w, h) = (view.w, view.h);
+        let xticks = tick_values(view.min_x, view.max_x(), w as f64 / 90.0);
+        let yticks = tick_values(view.min_y(), view.max_y, h as f64 / 70.0);
+
+        // The plot, drawn on its own canvas so that every layer is clipped to it.
+        let mut plot = RgbImage::from_pixel(w, h, WHITE);
         match &self.map {
-            Some(m) => draw_map(&mut img, &view, m),
-            None => draw_grid(&mut img, &view),
+            Some(m) => draw_map(&mut plot, &view, m),
+            None => draw_grid(&mut plot, &view, &xticks, &yticks),
         }
-        for p in &self.particles {
-            let (u, v) = view.px(&p.pose.translation());
-            disc(&mut img, u, v, 1.5, TEAL.into());
+        let background = plot.clone();
+        for path in &self.particle_paths {
+            polyline(&mut plot, &view, path, GREY.into(), 1.0);
         }
         if !self.ground_truth.is_empty() {
-            polyline(&mut img, &view, &self.ground_truth, GREEN.into());
+            polyline(&mut plot, &view, &self.ground_truth, GREEN.into(), 2.0);
         }
-        for (t, c) in &self.trajectories {
-            polyline(&mut img, &view, t, (*c).into());
-            if let Some(p) = t.first() {
-                let (u, v) = view.px(&p.translation());
-                disc(&mut img, u, v, 4.0, (*c).into());
-            }
+        for p in &self.particle_landmarks {
+            let (u, v) = view.px(p);
+            disc(&mut plot, u, v, 1.2, LIGHT_BLUE.into());
         }
         for l in &self.landmarks {
-            ellipse(&mut img, &view, l);
+            ellipse(&mut plot, &view, l);
         }
         for p in &self.true_landmarks {
             let (u, v) = view.px(p);
-            for d in -5..=5 {
-                let d = d as f64;
-                for o in [-0.5, 0.5] {
-                    put(&mut img, u + d, v + d + o, BLACK.into());
-                    put(&mut img, u + d, v - d + o, BLACK.into());
-                }
+            cross(&mut plot, u, v, 5.0, BLACK.into());
+        }
+        for t in &self.trajectories {
+            polyline(&mut plot, &view, &t.poses, t.colour.into(), 2.0);
+            if let Some(p) = t.poses.first() {
+                let (u, v) = view.px(&p.translation());
+                disc(&mut plot, u, v, 4.0, t.colour.into());
             }
+            if let Some(p) = t.poses.last() {
+                arrow(&mut plot, &view, p, t.colour.into());
+            }
+        }
+        // The cloud on top: it gathers about the final pose, under the arrow otherwise.
+        for p in &self.particles {
+            let (u, v) = view.px(&p.pose.translation());
+            disc(&mut plot, u, v, 1.5, TEAL.into());
+        }
+        self.draw_legend(&mut plot, &background);
+
+        // The whole picture: title band, plot, frame, ticks and their labels.
+        // Wide enough for the title too (a tall, narrow map would cut it off).
+        let title_w = self
+            .title
+            .as_ref()
+            .map_or(0.0, |t| text_size(t, TITLE_PX).0.ceil()) as u32;
+        let iw = layout.left + w.max(title_w) + MARGIN_RIGHT;
+        let ih = layout.top + h + MARGIN_BOTTOM;
+        let mut img = RgbImage::from_pixel(iw, ih, WHITE);
+        image::imageops::replace(&mut img, &plot, layout.left as i64, layout.top as i64);
+        let (l, t) = (layout.left as f64, layout.top as f64);
+        let (r, b) = (l + w as f64, t + h as f64);
+        for (a, c) in [((l - 1.0, t - 1.0), (r, t - 1.0)), ((l - 1.0, b), (r, b))] {
+            segment(&mut img, a, c, FRAME, 1.0);
+        }
+        for (a, c) in [((l - 1.0, t - 1.0), (l - 1.0, b)), ((r, t - 1.0), (r, b))] {
+            segment(&mut img, a, c, FRAME, 1.0);
+        }
+        for (x, text) in &xticks {
+            let u = l + (x - view.min_x) * view.scale;
+            segment(&mut img, (u, b), (u, b + 5.0), FRAME, 1.0);
+            let (tw, _) = text_size(text, LABEL_PX);
+            draw_text(&mut img, u - tw / 2.0, b + 7.0, text, LABEL_PX, LABEL);
+        }
+        for (y, text) in &yticks {
+            let v = t + (view.max_y - y) * view.scale;
+            segment(&mut img, (l - 6.0, v), (l - 1.0, v), FRAME, 1.0);
+            let (tw, th) = text_size(text, LABEL_PX);
+            draw_text(&mut img, l - 9.0 - tw, v - th / 2.0, text, LABEL_PX, LABEL);
+        }
+        draw_text(&mut img, l, b + 25.0, "x (m)", LABEL_PX, LABEL);
+        draw_scale_bar(&mut img, r, b + 36.0, w as f64, view.scale);
+        let (yw, yh) = text_size("y (m)", LABEL_PX);
+        draw_text(
+            &mut img,
+            l - 9.0 - yw,
+            t - 6.0 - yh,
+            "y (m)",
+            LABEL_PX,
+            LABEL,
+        );
+        if let Some(title) = &self.title {
+            draw_text(&mut img, l, 10.0, title, TITLE_PX, image::Rgb([0, 0, 0]));
         }
         Ok(img)
     }
@@ -272,6 +558,175 @@ impl Picture {
         img.save_with_format(path, image::ImageFormat::Png)
             .map_err(|e| IoError::invalid(path, format!("cannot write PNG: {e}")))
     }
+
+    /// The legend's entries: one per layer drawn.
+    fn legend(&self) -> Vec<(Swatch, String)> {
+        let mut out = Vec::new();
+        if self.map.is_some() {
+            out.push((Swatch::Square(image::Rgb([0, 0, 0])), "occupied".into()));
+            out.push((Swatch::Square(WHITE), "free".into()));
+            let u = UNKNOWN_GREY;
+            out.push((Swatch::Square(image::Rgb([u, u, u])), "unknown".into()));
+        }
+        if !self.particle_paths.is_empty() {
+            let n = self.particle_paths.len();
+            out.push((
+                Swatch::Line(GREY.into(), 1.0),
+                format!("paths of the {n} particles"),
+            ));
+        }
+        if !self.ground_truth.is_empty() {
+            out.push((
+                Swatch::Line(GREEN.into(), 2.0),
+                self.ground_truth_label.clone(),
+            ));
+        }
+        for t in &self.trajectories {
+            out.push((Swatch::Line(t.colour.into(), 2.0), t.label.clone()));
+        }
+        if !self.particles.is_empty() {
+            let n = self.particles.len();
+            out.push((Swatch::Dot(TEAL.into(), 1.5), format!("{n} particles, now")));
+        }
+        if !self.particle_landmarks.is_empty() {
+            out.push((
+                Swatch::Dot(LIGHT_BLUE.into(), 1.2),
+                "landmarks of every particle".into(),
+            ));
+        }
+        if !self.landmarks.is_empty() {
+            out.push((Swatch::Ellipse(BLUE.into()), self.landmarks_label.clone()));
+        }
+        if !self.true_landmarks.is_empty() {
+            out.push((Swatch::Cross(BLACK.into()), "true landmarks".into()));
+        }
+        out
+    }
+
+    /// Draws the legend in the corner of the plot that covers the fewest drawn pixels
+    /// (compared with `background`, the plot before the layers); returns the corner
+    /// (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right), or `None` with no legend.
+    fn draw_legend(&self, plot: &mut RgbImage, background: &RgbImage) -> Option<usize> {
+        let entries = self.legend();
+        if entries.is_empty() {
+            return None;
+        }
+        let (pad, swatch_w, row) = (7.0, 26.0, 19.0);
+        let text_w = entries
+            .iter()
+            .map(|(_, t)| text_size(t, LEGEND_PX).0)
+            .fold(0.0, f64::max);
+        let bw = (pad + swatch_w + 6.0 + text_w + pad).ceil();
+        let bh = (2.0 * pad + row * entries.len() as f64).ceil();
+        let (pw, ph) = (plot.width() as f64, plot.height() as f64);
+        if bw + 16.0 > pw || bh + 16.0 > ph {
+            return None;
+        }
+        let corners = [
+            (8.0, 8.0),
+            (pw - bw - 8.0, 8.0),
+            (8.0, ph - bh - 8.0),
+            (pw - bw - 8.0, ph - bh - 8.0),
+        ];
+        // Drawn pixels under each corner: layer pixels, and occupied map cells.
+        let covered = |&(x0, y0): &(f64, f64)| -> usize {
+            let mut n = 0;
+            for y in y0 as u32..(y0 + bh) as u32 {
+                for x in x0 as u32..(x0 + bw) as u32 {
+                    let p = plot.get_pixel(x, y);
+                    if p != background.get_pixel(x, y) || p.0[0] < 100 {
+                        n += 1;
+                    }
+                }
+            }
+            n
+        };
+        // Prefer the top-right corner on ties (the usual place of a legend).
+        let order = [1usize, 0, 3, 2];
+        let corner = order
+            .into_iter()
+            .min_by_key(|&c| covered(&corners[c]))
+            .unwrap_or(1);
+        let (x0, y0) = corners[corner];
+        for y in y0 as u32..(y0 + bh) as u32 {
+            for x in x0 as u32..(x0 + bw) as u32 {
+                let p = plot.get_pixel_mut(x, y);
+                // 85 % white over whatever lies beneath.
+                for k in 0..3 {
+                    p.0[k] = (0.85 * 255.0 + 0.15 * p.0[k] as f64).round() as u8;
+                }
+            }
+        }
+        let border = image::Rgb([150, 150, 150]);
+        let (x1, y1) = (x0 + bw - 1.0, y0 + bh - 1.0);
+        segment(plot, (x0, y0), (x1, y0), border, 1.0);
+        segment(plot, (x0, y1), (x1, y1), border, 1.0);
+        segment(plot, (x0, y0), (x0, y1), border, 1.0);
+        segment(plot, (x1, y0), (x1, y1), border, 1.0);
+        for (i, (swatch, text)) in entries.iter().enumerate() {
+            let cy = y0 + pad + row * (i as f64 + 0.5);
+            let (sx0, sx1) = (x0 + pad, x0 + pad + swatch_w);
+            let mid = 0.5 * (sx0 + sx1);
+            match *swatch {
+                Swatch::Line(c, width) => segment(plot, (sx0, cy), (sx1, cy), c, width),
+                Swatch::Dot(c, r) => {
+                    for dx in [-8.0, 0.0, 8.0] {
+                        disc(plot, mid + dx, cy, r, c);
+                    }
+                }
+                Swatch::Cross(c) => cross(plot, mid, cy, 5.0, c),
+                Swatch::Ellipse(c) => {
+                    disc(plot, mid, cy, 2.0, c);
+                    let n = 36;
+                    for k in 0..n {
+                        let a = |k: usize| k as f64 / n as f64 * std::f64::consts::TAU;
+                        let p = |t: f64| (mid + 11.0 * t.cos(), cy + 5.5 * t.sin());
+                        segment(plot, p(a(k)), p(a(k + 1)), c, 1.0);
+                    }
+                }
+                Swatch::Square(c) => {
+                    for y in (cy - 6.0) as u32..(cy + 6.0) as u32 {
+                        for x in (mid - 6.0) as u32..(mid + 6.0) as u32 {
+                            plot.put_pixel(x, y, c);
+                        }
+                    }
+                    let (a, b) = ((mid - 6.0, cy - 6.0), (mid + 5.0, cy + 5.0));
+                    segment(plot, a, (b.0, a.1), border, 1.0);
+                    segment(plot, (a.0, b.1), b, border, 1.0);
+                    segment(plot, a, (a.0, b.1), border, 1.0);
+                    segment(plot, (b.0, a.1), b, border, 1.0);
+                }
+            }
+            let (_, th) = text_size(text, LEGEND_PX);
+            draw_text(plot, sx1 + 6.0, cy - th / 2.0, text, LEGEND_PX, LABEL);
+        }
+        Some(corner)
+    }
+}
+
+/// The scale bar, under the plot's right end (so that it never hides data): a black bar of
+/// a 1-2-5 length near an eighth of the plot's width, `len` px long at `px_per_m`, ending at
+/// pixel column `right`, its label ("5 m") on its left, in the row of pixels `y`.
+fn draw_scale_bar(img: &mut RgbImage, right: f64, y: f64, plot_w: f64, px_per_m: f64) {
+    let metres = nice_step(plot_w / px_per_m, 8.0);
+    let len = metres * px_per_m;
+    if !(len.is_finite() && len >= 10.0 && len < plot_w) {
+        return;
+    }
+    let black = image::Rgb([0, 0, 0]);
+    let x0 = right - len;
+    // The bar: rows y − 1 and y, exactly `len` pixels from x0; end marks 5 px high.
+    for row in [y - 1.0, y] {
+        for px in x0.round() as u32..right.round() as u32 {
+            put(img, px as f64, row, black);
+        }
+    }
+    for end in [x0, right - 1.0] {
+        segment(img, (end, y - 5.0), (end, y), black, 1.0);
+    }
+    let label = format!("{} m", font::format_tick(metres, metres));
+    let (tw, th) = text_size(&label, LABEL_PX);
+    draw_text(img, x0 - 6.0 - tw, y - 0.6 * th, &label, LABEL_PX, LABEL);
 }
 
 fn put(img: &mut RgbImage, u: f64, v: f64, c: Px) {
@@ -291,7 +746,20 @@ fn disc(img: &mut RgbImage, u: f64, v: f64, r: f64, c: Px) {
     }
 }
 
-/// A 2-px wide segment (sampled at half-pixel steps).
+/// A cross (×) of half-size `r` pixels, 2 px thick.
+fn cross(img: &mut RgbImage, u: f64, v: f64, r: f64, c: Px) {
+    let n = r as i64;
+    for d in -n..=n {
+        let d = d as f64;
+        for o in [-0.5, 0.5] {
+            put(img, u + d, v + d + o, c);
+            put(img, u + d, v - d + o, c);
+        }
+    }
+}
+
+/// A segment `width` px wide (sampled at half-pixel steps); segments longer than 1e5 px
+/// (far outside the image) are skipped, which bounds the work.
 fn segment(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Px, width: f64) {
     let len = (b.0 - a.0).hypot(b.1 - a.1);
     if !len.is_finite() || len > 1e5 {
@@ -309,15 +777,45 @@ fn segment(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: Px, width: f64) 
     }
 }
 
-fn polyline(img: &mut RgbImage, view: &View, poses: &[Pose2], c: Px) {
+fn polyline(img: &mut RgbImage, view: &View, poses: &[Pose2], c: Px, width: f64) {
     for w in poses.windows(2) {
         segment(
             img,
             view.px(&w[0].translation()),
             view.px(&w[1].translation()),
             c,
-            2.0,
+            width,
         );
+    }
+}
+
+/// A filled arrowhead on `pose`, pointing along its heading θ (counter-clockwise from +x;
+/// y is up in the world and down in the image, hence the sign of the v component): the tip
+/// 20 px ahead of the pose, the base 7 px behind it and 16 px wide.
+fn arrow(img: &mut RgbImage, view: &View, pose: &Pose2, c: Px) {
+    let (u, v) = view.px(&pose.translation());
+    if !(u.is_finite() && v.is_finite() && pose.theta.is_finite()) {
+        return;
+    }
+    let (s, co) = pose.theta.sin_cos();
+    let (fx, fy) = (co, -s);
+    let (lx, ly) = (-fy, fx);
+    let tip = (u + 20.0 * fx, v + 20.0 * fy);
+    let b1 = (u - 7.0 * fx + 8.0 * lx, v - 7.0 * fy + 8.0 * ly);
+    let b2 = (u - 7.0 * fx - 8.0 * lx, v - 7.0 * fy - 8.0 * ly);
+    let edge = |a: (f64, f64), b: (f64, f64), p: (f64, f64)| {
+        (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0)
+    };
+    let (x0, x1) = (u - 21.0, u + 21.0);
+    let (y0, y1) = (v - 21.0, v + 21.0);
+    for py in y0.floor() as i64..=y1.ceil() as i64 {
+        for px in x0.floor() as i64..=x1.ceil() as i64 {
+            let p = (px as f64 + 0.5, py as f64 + 0.5);
+            let (e1, e2, e3) = (edge(tip, b1, p), edge(b1, b2, p), edge(b2, tip, p));
+            if (e1 >= 0.0 && e2 >= 0.0 && e3 >= 0.0) || (e1 <= 0.0 && e2 <= 0.0 && e3 <= 0.0) {
+                put(img, p.0, p.1, c);
+            }
+        }
     }
 }
 
@@ -359,7 +857,7 @@ fn ellipse(img: &mut RgbImage, view: &View, l: &LandmarkEstimate) {
 fn draw_map(img: &mut RgbImage, view: &View, m: &GridMap) {
     let grey = |v: i8| {
         let g = if v < 0 {
-            205
+            UNKNOWN_GREY
         } else {
             255 - (v.min(100) as u32 * 255 / 100) as u8
         };
@@ -416,42 +914,60 @@ fn pooled_value(m: &GridMap, corner: Point2, side: f64) -> Option<i8> {
     })
 }
 
-/// The 1-2-5 step giving about `target` intervals over `span`.
-fn nice_step(span: f64, target: f64) -> f64 {
-    let raw = span / target;
+/// The 1-2-5 step giving about `target` intervals over `span`; `None` when span or target
+/// is not a positive finite number.
+fn nice_step_checked(span: f64, target: f64) -> Option<f64> {
+    let raw = span / target.max(1.0);
+    if !(raw.is_finite() && raw > 0.0) {
+        return None;
+    }
     let mag = 10f64.powf(raw.log10().floor());
-    [1.0, 2.0, 5.0, 10.0]
+    let step = [1.0, 2.0, 5.0, 10.0]
         .into_iter()
         .map(|k| k * mag)
         .find(|s| *s >= raw)
-        .unwrap_or(10.0 * mag)
+        .unwrap_or(10.0 * mag);
+    (step.is_finite() && step > 0.0).then_some(step)
 }
 
-fn draw_grid(img: &mut RgbImage, view: &View) {
+/// [`nice_step_checked`], with NaN for no step (whose uses then draw nothing).
+fn nice_step(span: f64, target: f64) -> f64 {
+    nice_step_checked(span, target).unwrap_or(f64::NAN)
+}
+
+/// Ticks on [lo, hi] at a 1-2-5 step giving about `target` intervals, as (value, label).
+/// The k-th tick is (k₀ + k)·step with k counted as an integer, and there are at most
+/// [`MAX_TICKS`]; none when the step does not resolve the range (the ticks would not be
+/// distinct) or the range is not finite.
+fn tick_values(lo: f64, hi: f64, target: f64) -> Vec<(f64, String)> {
+    let Some(step) = nice_step_checked(hi - lo, target) else {
+        return Vec::new();
+    };
+    let (k0, k1) = ((lo / step).ceil(), (hi / step + 1e-9).floor());
+    // Beyond 2^52 consecutive multiples of the step are no longer distinct f64 values.
+    if !(k0.is_finite() && k1.is_finite() && k0.abs() < 4.5e15 && k1.abs() < 4.5e15) {
+        return Vec::new();
+    }
+    let (k0, k1) = (k0 as i64, k1 as i64);
+    (k0..=k1)
+        .take(MAX_TICKS)
+        .map(|k| {
+            let v = k as f64 * step;
+            (v, font::format_tick(v, step))
+        })
+        .collect()
+}
+
+fn draw_grid(img: &mut RgbImage, view: &View, xticks: &[(f64, String)], yticks: &[(f64, String)]) {
     let (w, h) = (view.w as f64, view.h as f64);
-    let tl = view.world(0.0, 0.0);
-    let br = view.world(w, h);
-    let step = nice_step((br.x - tl.x).max(tl.y - br.y), 8.0);
-    let label = image::Rgb([120, 120, 120]);
-    let mut x = (tl.x / step).ceil() * step;
-    while x <= br.x {
-        let (u, _) = view.px(&Point2::new(x, 0.0));
+    for (x, _) in xticks {
+        let (u, _) = view.px(&Point2::new(*x, 0.0));
         segment(img, (u, 0.0), (u, h), GRID, 1.0);
-        // World x in metres along the bottom edge.
-        let text = glyphs::format_tick(x, step);
-        glyphs::draw_text(img, u as i64 + 3, h as i64 - 13, &text, label, 2);
-        x += step;
     }
-    let mut y = (br.y / step).ceil() * step;
-    while y <= tl.y {
-        let (_, v) = view.px(&Point2::new(0.0, y));
+    for (y, _) in yticks {
+        let (_, v) = view.px(&Point2::new(0.0, *y));
         segment(img, (0.0, v), (w, v), GRID, 1.0);
-        // World y in metres along the left edge.
-        let text = glyphs::format_tick(y, step);
-        glyphs::draw_text(img, 3, v as i64 - 12, &text, label, 2);
-        y += step;
     }
-    glyphs::draw_text(img, w as i64 - 12, h as i64 - 26, "m", label, 2);
 }
 
 /// One curve of a [`plot_series`] plot.
@@ -503,14 +1019,7 @@ pub fn plot_series(
 fn ticks(scale: Scale, lo: f64, hi: f64, target: f64) -> Vec<(f64, String)> {
     let mut out = Vec::new();
     match scale {
-        Scale::Linear => {
-            let step = nice_step(hi - lo, target);
-            let mut g = (lo / step).ceil() * step;
-            while g <= hi + 1e-9 * step {
-                out.push((g, glyphs::format_tick(g, step)));
-                g += step;
-            }
-        }
+        Scale::Linear => out = tick_values(lo, hi, target),
         Scale::Log10 => {
             let mults: &[f64] = if hi - lo > 3.0 {
                 &[1.0]
@@ -523,7 +1032,7 @@ fn ticks(scale: Scale, lo: f64, hi: f64, target: f64) -> Vec<(f64, String)> {
                     let v = m * decade;
                     let p = v.log10();
                     if p >= lo - 1e-9 && p <= hi + 1e-9 {
-                        out.push((p, glyphs::format_tick(v, decade)));
+                        out.push((p, font::format_tick(v, decade)));
                     }
                 }
             }
@@ -609,20 +1118,27 @@ pub fn plot_series_with(
     for (g, text) in ticks(axes.y, y0, y1, 6.0) {
         let (_, v) = to_px(x0, g);
         segment(&mut img, (ml, v), (w as f64 - m, v), GRID, 1.0);
-        let tw = glyphs::text_width(&text, 2) as i64;
-        glyphs::draw_text(&mut img, ml as i64 - 6 - tw, v as i64 - 5, &text, label, 2);
+        let (tw, th) = text_size(&text, LABEL_PX);
+        draw_text(
+            &mut img,
+            ml - 6.0 - tw,
+            v - th / 2.0,
+            &text,
+            LABEL_PX,
+            label,
+        );
     }
     // x labels: a 1-2-5 grid of ticks under the axis.
     for (gx, text) in ticks(axes.x, x0, x1, 8.0) {
         let (u, _) = to_px(gx, y0);
-        let tw = glyphs::text_width(&text, 2) as i64;
-        glyphs::draw_text(
+        let (tw, _) = text_size(&text, LABEL_PX);
+        draw_text(
             &mut img,
-            u as i64 - tw / 2,
-            h as i64 - mb as i64 + 8,
+            u - tw / 2.0,
+            h as f64 - mb + 6.0,
             &text,
+            LABEL_PX,
             label,
-            2,
         );
     }
     if let Some((lo, hi)) = band.filter(|(lo, hi)| lo.is_finite() && hi.is_finite() && lo <= hi) {
@@ -668,26 +1184,268 @@ mod tests {
     use super::*;
     use slam_models::Matrix2;
 
+    /// Pixels of exactly colour `c` in the plot area of `img`.
+    fn plot_pixels(img: &RgbImage, l: &Layout, c: Rgb) -> Vec<(u32, u32)> {
+        img.enumerate_pixels()
+            .filter(|(x, y, p)| {
+                p.0 == c.0
+                    && (l.left..l.left + l.width).contains(x)
+                    && (l.top..l.top + l.height).contains(y)
+            })
+            .map(|(x, y, _)| (x, y))
+            .collect()
+    }
+
+    /// Whether a pixel of colour `c` lies within `r` px of (u, v).
+    fn has_colour_near(img: &RgbImage, (u, v): (f64, f64), r: i64, c: Rgb) -> bool {
+        (-r..=r).any(|dy| {
+            (-r..=r).any(|dx| {
+                let (x, y) = (u as i64 + dx, v as i64 + dy);
+                x >= 0
+                    && y >= 0
+                    && (x as u32) < img.width()
+                    && (y as u32) < img.height()
+                    && img.get_pixel(x as u32, y as u32).0 == c.0
+            })
+        })
+    }
+
     #[test]
     fn y_is_up_and_layers_have_their_colours() {
-        // A trajectory going up (y grows): its end must be near the top of the image.
+        // A trajectory going up (y grows), heading +x: its end must be near the top of the
+        // plot with the arrow pointing right, its start disc near the bottom. With a landmark
+        // at (10, 0) the window is x and y −0.5…10.5 m over 200 px.
         let traj: Vec<Pose2> = (0..=10).map(|i| Pose2::new(0.0, i as f64, 0.0)).collect();
-        let img = Picture::new()
+        let pic = Picture::new()
             .size(200)
-            .trajectory(&traj, RED)
-            .render()
-            .unwrap();
-        let red_rows: Vec<u32> = img
-            .enumerate_pixels()
-            .filter(|(_, _, p)| p.0 == RED.0)
-            .map(|(_, y, _)| y)
-            .collect();
-        assert!(!red_rows.is_empty());
-        // The start disc (bigger) is at the bottom: more red pixels in the lower part.
-        let lower = red_rows.iter().filter(|&&y| y > img.height() / 2).count();
-        let upper = red_rows.len() - lower;
-        assert!(lower > upper);
-        assert!(red_rows.iter().min().unwrap() < &(img.height() / 10 + 2));
+            .true_landmarks(&[(LandmarkId(0), Point2::new(10.0, 0.0))])
+            .trajectory(&traj, RED, "up");
+        let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
+        let scale = 200.0 / 11.0;
+        let u = l.left as f64 + 0.5 * scale;
+        let (v_end, v_start) = (l.top as f64 + 0.5 * scale, l.top as f64 + 10.5 * scale);
+        assert!(has_colour_near(&img, (u, v_end), 0, RED));
+        assert!(has_colour_near(&img, (u + 12.0, v_end), 0, RED));
+        assert!(!has_colour_near(&img, (u - 12.0, v_end), 1, RED));
+        // The start disc is 4 px in radius; the line alone is 2 px wide.
+        assert!(has_colour_near(&img, (u + 3.0, v_start), 0, RED));
+        assert!(!has_colour_near(&img, (u + 3.0, v_start - 30.0), 0, RED));
+        assert!(plot_pixels(&img, &l, GREEN).is_empty());
+    }
+
+    /// The world-to-pixel mapping checked against the picture's own frame and ticks: the
+    /// points (0, 0) and (20, 10) in a 500 px plot give a window of x −1…21 m and y −1…11 m
+    /// (5 % of the longer, 20 m span on each side), 500/22 px per metre, and ticks every 5 m
+    /// on both axes (about one every 90 and 70 px).
+    #[test]
+    fn axes_frame_and_ticks_sit_at_their_world_positions() {
+        let pts = [
+            (LandmarkId(0), Point2::new(0.0, 0.0)),
+            (LandmarkId(1), Point2::new(20.0, 10.0)),
+        ];
+        let pic = Picture::new().size(500).true_landmarks(&pts);
+        let img = pic.render().unwrap();
+        let scale = 500.0 / 22.0;
+        let l = pic.layout().unwrap();
+        assert!((l.px_per_m - scale).abs() < 1e-9);
+        assert_eq!(l.width, 500);
+        assert_eq!(l.height, (12.0f64 * scale).round() as u32);
+        // The frame: dark columns just left and right of the plot, dark rows above and below.
+        // (Half-way down is y = 5 m, a tick: look 7 px below it.)
+        let mid_y = l.top + l.height / 2 + 7;
+        let dark = |x: u32, y: u32| img.get_pixel(x, y).0 == FRAME.0;
+        assert!(dark(l.left - 1, mid_y) && dark(l.left + l.width, mid_y));
+        assert!(!dark(l.left + 3, mid_y) && !dark(l.left - 4, mid_y));
+        let bottom = l.top + l.height;
+        // x ticks under the frame at x = 0, 5, …, 20 m; none in between.
+        for k in 0..=4 {
+            let u = l.left as f64 + (5.0 * k as f64 + 1.0) * scale;
+            assert!(dark(u as u32, bottom + 3), "no tick at x = {} m", 5 * k);
+            if k < 4 {
+                assert!(!dark((u + 0.5 * 5.0 * scale) as u32, bottom + 3));
+            }
+        }
+        // y ticks left of the frame at y = 0, 5, 10 m; none in between.
+        for k in 0..=2 {
+            let v = l.top as f64 + (11.0 - 5.0 * k as f64) * scale;
+            assert!(dark(l.left - 4, v as u32), "no tick at y = {} m", 5 * k);
+            assert!(!dark(l.left - 4, (v - 2.5 * scale) as u32));
+        }
+        // The crosses at their world positions.
+        for (_, p) in &pts {
+            let (u, v) = l.pixel(p);
+            assert_eq!(img.get_pixel(u as u32, v as u32).0, BLACK.0);
+        }
+        // Tick labels: dark text pixels under the x ticks.
+        let label_ink = (bottom + 8..bottom + 24)
+            .flat_map(|y| (l.left..l.left + l.width).map(move |x| (x, y)))
+            .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 128)
+            .count();
+        assert!(label_ink > 50, "{label_ink}");
+    }
+
+    /// The scale bar: for the 22 m wide window of 500 px above, a 1-2-5 length near an
+    /// eighth of the width is 5 m, 5·500/22 = 113.6 px long, ending under the plot's right
+    /// edge.
+    #[test]
+    fn scale_bar_has_the_length_of_its_label() {
+        let pts = [
+            (LandmarkId(0), Point2::new(0.0, 0.0)),
+            (LandmarkId(1), Point2::new(20.0, 10.0)),
+        ];
+        let pic = Picture::new().size(500).true_landmarks(&pts);
+        let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
+        let y = l.top + l.height + 36;
+        let (mut best, mut run, mut end) = (0, 0, 0);
+        for x in 0..img.width() {
+            run = if img.get_pixel(x, y).0 == [0, 0, 0] {
+                run + 1
+            } else {
+                0
+            };
+            if run > best {
+                (best, end) = (run, x + 1);
+            }
+        }
+        let expected = 5.0 * 500.0 / 22.0;
+        assert!((best as f64 - expected).abs() <= 1.5, "bar {best} px");
+        assert!(end.abs_diff(l.left + l.width) <= 1, "bar ends at {end}");
+        // Its label ("5 m") on its left.
+        let x0 = end - best;
+        let ink = (y - 12..y + 10)
+            .flat_map(|yy| (x0 - 40..x0 - 2).map(move |x| (x, yy)))
+            .filter(|&(x, yy)| img.get_pixel(x, yy).0[0] < 128)
+            .count();
+        assert!(ink > 15, "{ink}");
+    }
+
+    #[test]
+    fn the_title_band_holds_text_only_when_there_is_a_title() {
+        let traj: Vec<Pose2> = (0..=10).map(|i| Pose2::new(i as f64, 0.0, 0.0)).collect();
+        let ink = |pic: &Picture| {
+            let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
+            // Above the plot's frame, from its left edge to its right: the y axis name is
+            // further left.
+            (0..l.top - 1)
+                .flat_map(|y| (l.left..l.left + l.width).map(move |x| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 128)
+                .count()
+        };
+        let plain = Picture::new().size(300).trajectory(&traj, RED, "e");
+        let titled = plain.clone().title("fastslam2 on loop, 100 particles");
+        assert_eq!(ink(&plain), 0);
+        assert!(ink(&titled) > 150, "{}", ink(&titled));
+        // A tall, narrow plot (1 m wide, 10 m high: 100 px wide) widens the image for a
+        // long title rather than cutting it.
+        let up: Vec<Pose2> = (0..=10).map(|i| Pose2::new(0.0, i as f64, 0.0)).collect();
+        let long = "gridfast on belgioioso, 30 particles, seed 0";
+        let (tw, _) = text_size(long, TITLE_PX);
+        let narrow = Picture::new()
+            .size(300)
+            .title(long)
+            .trajectory(&up, RED, "e");
+        let (img, l) = (narrow.render().unwrap(), narrow.layout().unwrap());
+        assert!(l.width < 60, "{}", l.width);
+        assert!(
+            img.width() as f64 >= l.left as f64 + tw,
+            "{} {tw}",
+            img.width()
+        );
+    }
+
+    /// The course's FastSLAM picture: the best path red with an arrow along its final
+    /// heading, every particle's path grey, the truth green, every particle's landmarks as
+    /// light-blue dots, true landmarks as crosses; the legend names each layer.
+    #[test]
+    fn fastslam_picture_draws_each_layer_at_its_geometry() {
+        // Best path along +x to (10, 0), turning to face +y (θ = π/2) at the end.
+        let mut best: Vec<Pose2> = (0..=10).map(|i| Pose2::new(i as f64, 0.0, 0.0)).collect();
+        best.push(Pose2::new(10.0, 0.0, std::f64::consts::FRAC_PI_2));
+        let truth: Vec<Pose2> = (0..=10).map(|i| Pose2::new(i as f64, -3.0, 0.0)).collect();
+        let other: Vec<Pose2> = (0..=10).map(|i| Pose2::new(i as f64, 4.0, 0.0)).collect();
+        let tl = [(LandmarkId(0), Point2::new(5.0, 8.0))];
+        let dots = [Point2::new(2.0, 6.0), Point2::new(8.0, 6.0)];
+        let pic = Picture::new()
+            .size(600)
+            .title("fastslam2 on test, 2 particles")
+            .particle_paths(&[best.clone(), other.clone()])
+            .ground_truth(&truth)
+            .particle_landmarks(&dots)
+            .true_landmarks(&tl)
+            .trajectory(&best, RED, "best particle");
+        let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
+        // Red at the final pose, and along its heading (up in the image) up to the tip
+        // 20 px ahead; not behind it (below), where no layer is drawn.
+        let (u, v) = l.pixel(&Point2::new(10.0, 0.0));
+        assert_eq!(img.get_pixel(u as u32, v as u32).0, RED.0);
+        assert_eq!(img.get_pixel(u as u32, (v - 16.0) as u32).0, RED.0);
+        assert_ne!(img.get_pixel(u as u32, (v + 12.0) as u32).0, RED.0);
+        // Along +x the path is red before the end, but the arrow is narrow: 12 px to the
+        // right of the final pose is not red.
+        assert_ne!(img.get_pixel((u + 12.0) as u32, v as u32).0, RED.0);
+        // Green along the truth, grey along the other particle's path.
+        for i in 0..10 {
+            let x = i as f64 + 0.5;
+            assert!(has_colour_near(
+                &img,
+                l.pixel(&Point2::new(x, -3.0)),
+                1,
+                GREEN
+            ));
+            assert!(has_colour_near(
+                &img,
+                l.pixel(&Point2::new(x, 4.0)),
+                1,
+                GREY
+            ));
+        }
+        for p in &dots {
+            assert!(has_colour_near(&img, l.pixel(p), 0, LIGHT_BLUE));
+        }
+        assert_eq!(
+            img.get_pixel(l.pixel(&tl[0].1).0 as u32, l.pixel(&tl[0].1).1 as u32)
+                .0,
+            BLACK.0
+        );
+        let names: Vec<String> = pic.legend().into_iter().map(|(_, t)| t).collect();
+        assert_eq!(
+            names,
+            [
+                "paths of the 2 particles",
+                "ground truth",
+                "best particle",
+                "landmarks of every particle",
+                "true landmarks"
+            ]
+        );
+    }
+
+    #[test]
+    fn the_legend_avoids_the_data() {
+        // Data fills the top-right quarter (and a point at the origin): the legend goes to
+        // another corner, whose plot pixels then show its swatches.
+        let mut cloud = vec![(LandmarkId(0), Point2::new(0.0, 0.0))];
+        for i in 0..20 {
+            for j in 0..20 {
+                let p = Point2::new(5.0 + 0.25 * i as f64, 5.0 + 0.25 * j as f64);
+                cloud.push((LandmarkId(1), p));
+            }
+        }
+        let pic = Picture::new().size(400).true_landmarks(&cloud);
+        let mut plot = RgbImage::from_pixel(400, 400, WHITE);
+        let view = View {
+            min_x: -0.5,
+            max_y: 10.5,
+            scale: 400.0 / 11.0,
+            w: 400,
+            h: 400,
+        };
+        let background = plot.clone();
+        for (_, p) in &cloud {
+            let (u, v) = view.px(p);
+            cross(&mut plot, u, v, 5.0, BLACK.into());
+        }
+        assert_ne!(pic.draw_legend(&mut plot, &background), Some(1));
     }
 
     #[test]
@@ -704,13 +1462,16 @@ mod tests {
         ];
         let pic = Picture::new()
             .size(500)
-            .landmarks(&[l])
+            .landmarks(&[l], "estimates")
             .true_landmarks(&corners);
-        let img = pic.render().unwrap();
-        let blue: Vec<(u32, u32)> = img
-            .enumerate_pixels()
-            .filter(|(_, _, p)| p.0 == BLUE.0)
-            .map(|(x, y, _)| (x, y))
+        let (img, lay) = (pic.render().unwrap(), pic.layout().unwrap());
+        // 11 m span (10 + 5 % margins) over 500 px: 45.45 px/m. Only the blue within 3 m
+        // of the mean (the legend's swatch lies in a corner).
+        let scale = 500.0 / 11.0;
+        let (cu, cv) = lay.pixel(&l.mean);
+        let blue: Vec<(u32, u32)> = plot_pixels(&img, &lay, BLUE)
+            .into_iter()
+            .filter(|&(x, y)| (x as f64 - cu).hypot(y as f64 - cv) < 3.0 * scale)
             .collect();
         let (min_x, max_x) = (
             blue.iter().map(|b| b.0).min().unwrap(),
@@ -720,8 +1481,6 @@ mod tests {
             blue.iter().map(|b| b.1).min().unwrap(),
             blue.iter().map(|b| b.1).max().unwrap(),
         );
-        // 11 m span (10 + 5 % margins) over 500 px: 45.45 px/m.
-        let scale = 500.0 / 11.0;
         let wx = (max_x - min_x) as f64 / scale;
         let wy = (max_y - min_y) as f64 / scale;
         assert!((wx - 2.0 * CHI2_2_95.sqrt()).abs() < 0.1, "{wx}");
@@ -742,16 +1501,17 @@ mod tests {
             // A wall one cell thick at x = 2.505 m.
             m.cells[iy * n + 250] = 100;
         }
-        let img = Picture::new().size(100).map(&m).render().unwrap();
+        let pic = Picture::new().size(100).map(&m);
+        let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
         // The picture spans the known cells (x 0–5 m, y 0–10 m) padded by 5 % of the longer
-        // side: 11 m over the 100 px height.
-        let view_x = |x: f64| ((x + 0.5) / 11.0 * img.height() as f64) as u32;
+        // side: 11 m over the 100 px plot height.
+        let view_x = |x: f64| l.left + ((x + 0.5) / 11.0 * l.height as f64) as u32;
         let wall_px = view_x(2.505);
-        let dark_rows = (10..img.height() - 10)
+        let dark_rows = (l.top + 10..l.top + l.height - 10)
             .filter(|&py| img.get_pixel(wall_px, py).0 == [0, 0, 0])
             .count();
-        assert_eq!(dark_rows, (img.height() - 20) as usize, "the wall has gaps");
-        let mid = img.height() / 2;
+        assert_eq!(dark_rows, (l.height - 20) as usize, "the wall has gaps");
+        let mid = l.top + l.height / 2;
         assert_eq!(*img.get_pixel(view_x(1.0), mid), WHITE);
         assert_eq!(img.get_pixel(view_x(5.3), mid).0, [205, 205, 205]);
     }
@@ -760,11 +1520,12 @@ mod tests {
     fn map_grey_levels_and_errors() {
         let mut m = GridMap::unknown(1.0, Point2::new(0.0, 0.0), 2, 1);
         m.cells = vec![0, 100];
-        let img = Picture::new().size(100).map(&m).render().unwrap();
+        let pic = Picture::new().size(100).map(&m);
+        let (img, l) = (pic.render().unwrap(), pic.layout().unwrap());
         // Left half free (white), right half occupied (black), y up irrelevant here.
-        let mid = img.height() / 2;
-        assert_eq!(*img.get_pixel(20, mid), WHITE);
-        assert_eq!(img.get_pixel(img.width() - 20, mid).0, [0, 0, 0]);
+        let mid = l.top + l.height / 2;
+        assert_eq!(*img.get_pixel(l.left + 20, mid), WHITE);
+        assert_eq!(img.get_pixel(l.left + l.width - 20, mid).0, [0, 0, 0]);
         assert!(Picture::new().render().is_err());
         let p = std::env::temp_dir().join(format!("slam-io-plot-{}.png", std::process::id()));
         assert!(plot_series(
@@ -788,6 +1549,53 @@ mod tests {
         )
         .unwrap();
         std::fs::remove_file(&p).ok();
+    }
+
+    /// Issue 17: with every point about 1e16 m from the origin the old tick loop
+    /// (`x += step` with a step below one ulp of x) never ended. The tick count is now
+    /// bounded for any range, and such a picture is a clear error, returned in time.
+    #[test]
+    fn huge_coordinates_give_bounded_ticks_and_an_error_not_a_hang() {
+        for (lo, hi) in [
+            (1e16, 1e16 + 4.0),
+            (-1e300, 1e300),
+            (0.0, f64::MAX),
+            (1e16, 1e16),
+            (5.0, f64::NAN),
+        ] {
+            assert!(tick_values(lo, hi, 8.0).len() <= MAX_TICKS, "{lo} {hi}");
+        }
+        // 1e16 + 4 m over 8 intervals: multiples of 0.5 m are not distinct f64 values there.
+        assert!(tick_values(1e16, 1e16 + 4.0, 8.0).is_empty());
+        // Ordinary ranges still get every tick.
+        let t: Vec<f64> = tick_values(-1.0, 21.0, 5.5)
+            .into_iter()
+            .map(|(v, _)| v)
+            .collect();
+        assert_eq!(t, [0.0, 5.0, 10.0, 15.0, 20.0]);
+
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let far: Vec<Pose2> = (0..10)
+                .map(|i| Pose2::new(1e16 + i as f64, 1e16, 0.0))
+                .collect();
+            let r = Picture::new().trajectory(&far, RED, "far").render();
+            tx.send(r.map(|_| ())).ok();
+        });
+        let r = rx
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("drawing a 1e16 m trajectory did not finish within 60 s");
+        let e = r.expect_err("1e16 m is beyond the drawable extent");
+        assert!(matches!(e, IoError::PictureExtent { .. }), "{e}");
+        assert!(e.to_string().contains("trajectory `far`"), "{e}");
+        // Just inside the bound, a 10 m trajectory is drawn with its ticks.
+        let near: Vec<Pose2> = (0..10)
+            .map(|i| Pose2::new(9e6 + i as f64, -9e6, 0.0))
+            .collect();
+        let pic = Picture::new().size(300).trajectory(&near, RED, "near");
+        pic.render().unwrap();
+        let l = pic.layout().unwrap();
+        assert!(tick_values(l.min_x, l.min_x + 300.0 / l.px_per_m, 3.3).len() >= 2);
     }
 
     #[test]

@@ -1,0 +1,228 @@
+//! What `slam run`'s pictures show: `map.png` for landmark and laser filters, and the
+//! `--frames` animation frames of a landmark run. The drawing itself is
+//! [`slam_io::picture::Picture`]; this module picks the layers, their legend labels and the
+//! title (filter, data, particle count, seed).
+
+use crate::error::CliError;
+use slam_io::picture::{Picture, RED};
+use slam_models::{
+    GridMap, LandmarkEstimate, LandmarkId, LandmarkSlam, Point2, Pose2, TimedPose, WeightedPose,
+};
+use std::path::{Path, PathBuf};
+
+/// The title of a picture: "fastslam2 on loop, 100 particles, seed 0" (the particle count
+/// only for particle filters, the seed only where it changes the result: a simulated
+/// scenario or a particle filter).
+pub(crate) fn title(
+    filter: &str,
+    data: &str,
+    particles: Option<usize>,
+    seed: Option<u64>,
+) -> String {
+    let mut t = format!("{filter} on {data}");
+    if let Some(n) = particles {
+        t += &format!(", {n} particle{}", if n == 1 { "" } else { "s" });
+    }
+    if let Some(s) = seed {
+        t += &format!(", seed {s}");
+    }
+    t
+}
+
+/// The layers of a landmark filter's picture, as plain data.
+pub(crate) struct LandmarkLayers<'a> {
+    /// The picture's title.
+    pub title: String,
+    /// The estimated path: the EKF's estimate, or FastSLAM's best particle's path.
+    pub estimate: &'a [Pose2],
+    /// Its legend label.
+    pub estimate_label: &'a str,
+    /// Every particle's path x₀:ₜ (FastSLAM's full-SLAM hypotheses); empty when the filter
+    /// does not provide them.
+    pub particle_paths: &'a [Vec<Pose2>],
+    /// Every particle's landmark means; empty when the filter does not provide them.
+    pub particle_landmarks: &'a [Point2],
+    /// The map drawn with 95 % ellipses: the EKF's, or the best particle's.
+    pub landmarks: &'a [LandmarkEstimate],
+    /// The particle cloud now (particle filters).
+    pub particles: Option<&'a [WeightedPose]>,
+    /// Ground truth path, when known.
+    pub ground_truth: Option<&'a [Pose2]>,
+    /// True landmarks, when known.
+    pub true_landmarks: Option<&'a [(LandmarkId, Point2)]>,
+}
+
+/// The picture of a landmark filter's run: for FastSLAM as the Freiburg course exercise
+/// draws it (every particle's path grey, the best particle's path red with an arrow on its
+/// final pose, each particle's landmark means as dots, the best particle's 95 % ellipses,
+/// true landmarks as crosses, ground truth green); for the EKF its estimate, its landmarks'
+/// ellipses and the truth.
+pub(crate) fn landmark_picture(l: &LandmarkLayers<'_>) -> Picture {
+    let particle_filter = l.particles.is_some();
+    let mut pic = Picture::new().title(l.title.clone());
+    pic = pic
+        .particle_paths(l.particle_paths)
+        .particle_landmarks(l.particle_landmarks);
+    if let Some(gt) = l.ground_truth {
+        pic = pic.ground_truth(gt);
+    }
+    if let Some(t) = l.true_landmarks {
+        pic = pic.true_landmarks(t);
+    }
+    let label = if particle_filter {
+        "best particle's landmarks, 95 %"
+    } else {
+        "landmarks, 95 % ellipses"
+    };
+    pic = pic.landmarks(l.landmarks, label);
+    if let Some(p) = l.particles {
+        pic = pic.particles(p);
+    }
+    pic.trajectory(l.estimate, RED, l.estimate_label)
+}
+
+/// The picture of a laser filter's run: the map, the estimated trajectory (red, an arrow on
+/// its final pose), the ground truth with its legend label (green; a `--ground-truth` file
+/// for the bench logs is GMapping's trajectory, a reference rather than the truth) and the
+/// particles, if any.
+pub(crate) fn laser_picture(
+    title: String,
+    map: &GridMap,
+    trajectory: &[Pose2],
+    ground_truth: Option<(&[Pose2], &str)>,
+    particles: Option<&[WeightedPose]>,
+) -> Picture {
+    let mut pic = Picture::new().title(title).map(map);
+    if let Some((gt, label)) = ground_truth {
+        pic = pic.ground_truth(gt).ground_truth_label(label);
+    }
+    if let Some(p) = particles {
+        pic = pic.particles(p);
+    }
+    pic.trajectory(trajectory, RED, "estimate")
+}
+
+/// `--frames DIR --frame-every K`: one PNG every K steps of a landmark run (and after the
+/// last step), `DIR/frame-000001.png`, `frame-000002.png`, … numbered consecutively (as
+/// video tools expect; the step is in each frame's title), for making an animation. Every frame
+/// shows the same square window (the ground truth and true landmarks when known, otherwise
+/// whatever has been drawn so far) so that the images all have one size.
+pub(crate) struct Frames {
+    dir: PathBuf,
+    every: usize,
+    /// The points framed by every frame's window (ground truth and true landmarks).
+    window: Vec<Point2>,
+    /// Frames written so far.
+    written: usize,
+}
+
+impl Frames {
+    /// Prepares `dir`: it is created if missing, and must otherwise be empty (frames of an
+    /// earlier run would mix with this one's, and nothing of the user's is overwritten).
+    pub(crate) fn new(
+        dir: &Path,
+        every: usize,
+        ground_truth: Option<&[TimedPose]>,
+        true_landmarks: Option<&[(LandmarkId, Point2)]>,
+    ) -> Result<Self, CliError> {
+        let write_err = |source| CliError::Write {
+            path: dir.to_path_buf(),
+            source,
+        };
+        if dir.exists() {
+            let mut entries = std::fs::read_dir(dir).map_err(write_err)?;
+            if entries.next().is_some() {
+                return Err(CliError::InvalidArgument(format!(
+                    "--frames {}: the folder is not empty (give a new or empty folder)",
+                    dir.display()
+                )));
+            }
+        } else {
+            std::fs::create_dir_all(dir).map_err(write_err)?;
+        }
+        let mut window: Vec<Point2> = ground_truth
+            .unwrap_or(&[])
+            .iter()
+            .map(|p| p.pose.translation())
+            .collect();
+        window.extend(true_landmarks.unwrap_or(&[]).iter().map(|(_, p)| *p));
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            every: every.max(1),
+            window,
+            written: 0,
+        })
+    }
+
+    /// Writes the frame of step `k` (0-based) of `steps` when it is due: every `every`
+    /// steps and after the last. `trajectory` holds the online estimates up to step k, and
+    /// the ground truth is drawn up to step k's time `t`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn step(
+        &mut self,
+        k: usize,
+        steps: usize,
+        title: &str,
+        filter: &dyn LandmarkSlam,
+        trajectory: &[TimedPose],
+        ground_truth: Option<&[TimedPose]>,
+        true_landmarks: Option<&[(LandmarkId, Point2)]>,
+    ) -> Result<(), CliError> {
+        if (k + 1) % self.every != 0 && k + 1 != steps {
+            return Ok(());
+        }
+        let t = trajectory.last().map_or(f64::NEG_INFINITY, |p| p.t);
+        let estimate: Vec<Pose2> = trajectory.iter().map(|p| p.pose).collect();
+        let truth: Option<Vec<Pose2>> = ground_truth.map(|g| {
+            g.iter()
+                .filter(|p| p.t <= t + 1e-9)
+                .map(|p| p.pose)
+                .collect()
+        });
+        let landmarks = filter.landmarks();
+        let particles = filter.particles();
+        let label = if particles.is_some() {
+            "online estimate (best particle at each step)"
+        } else {
+            "estimate"
+        };
+        let mut pic = landmark_picture(&LandmarkLayers {
+            title: format!("{title}, step {} of {steps}", k + 1),
+            estimate: &estimate,
+            estimate_label: label,
+            particle_paths: &[],
+            particle_landmarks: &[],
+            landmarks: &landmarks,
+            particles: particles.as_deref(),
+            ground_truth: truth.as_deref(),
+            true_landmarks,
+        })
+        .square(true)
+        .size(800);
+        if !self.window.is_empty() {
+            pic = pic.fit_to(&self.window);
+        }
+        self.written += 1;
+        let path = self.dir.join(format!("frame-{:06}.png", self.written));
+        pic.save_png(&path)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn titles_name_filter_data_particles_and_seed() {
+        assert_eq!(title("ekf", "loop", None, None), "ekf on loop");
+        assert_eq!(
+            title("fastslam2", "loop", Some(100), Some(0)),
+            "fastslam2 on loop, 100 particles, seed 0"
+        );
+        assert_eq!(
+            title("gridfast", "intel", Some(1), None),
+            "gridfast on intel, 1 particle"
+        );
+    }
+}
