@@ -25,27 +25,52 @@
 //! ([`LaserScan::flaser_geometry`]); a rear laser looks backwards (sensor heading π).
 //!
 //! **No return.** `ROBOTLASER1` gives `max_range`, and readings ≥ it are no-return. For
-//! `FLASER`/`RLASER` the log's largest reading is the no-return value (81.83, 81.91, 51.1,
-//! … in the Radish logs; the SICK maximum), so `max_range` = that value and readings equal
-//! to it are no-return, distinct from hits. If that largest reading is below 20 m the log
-//! is taken to hold no no-return reading and `max_range` = 81.91 m.
+//! `FLASER`/`RLASER` the no-return value is inferred from the log: the logger writes the
+//! laser's maximum code for every beam without an echo (81.83, 81.91, 51.1, … in the Radish
+//! logs), so it is a reading of at least 20 m that **recurs**: the largest far reading
+//! (≥ 20 m) that occurs at least twice and at least 1/100 as often as the most frequent far
+//! reading. `max_range` = that value; readings at or above it are no-return, readings below
+//! it hits. A reading that occurs once (a glitch, a corrupted value) therefore never moves
+//! the threshold of the whole log: above the code it is itself no-return, below it a hit.
+//! When no far reading recurs that often, the most frequent one is taken (the larger on a
+//! tie); when no reading reaches 20 m the log is taken to hold no no-return reading and
+//! `max_range` = 81.91 m (the SICK code). On the Radish logs this gives the tables' values
+//! except for Acapulco, whose largest reading, 51.25 m, occurs once among 9,264 readings of
+//! 51.15 m, the value chosen.
+//!
+//! **Bounds** ([`crate::bounds`]): poses within ±10⁶ m and headings within ±10⁴ rad;
+//! readings and `max_range` within 0 … 1000 m (`max_range` > 0); a stated start angle within
+//! ±2π, field of view within 0 … 2π + 0.1 rad, angular resolution within ±π, non-zero, and
+//! consistent with the field of view and N (see `check_geometry`); `tv`, `rv`, `accel`
+//! within ±100 m/s, rad/s, m/s²; `ipc_timestamp` within ±10¹⁰ s (no span check: the real
+//! GMapping logs hold single records stamped 0, −2.88 or 7e-77 among Unix times, kept in
+//! file order as every time is); laser offset PARAMs within
+//! ±10 m; every other number within ±10¹²; N and M at most 100,000. A violation is an error naming the file, line, field and bound.
 //!
 //! **Laser offset.** The sensor pose in the robot frame is the laser pose ⊖ the robot
 //! (odometry) pose of the same line. If those two poses are more than 1 m apart they are not
 //! in the same frame, and the `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM
 //! (forward offset, metres; 0 when absent) is used instead.
 
+use crate::bounds::{MAX_RANGE, MAX_SPEED, MAX_TIME, MAX_TURN_RATE};
 use crate::error::IoError;
 use crate::text::{read_text, write_text, Line, TextFile};
 use slam_models::{LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::f64::consts::{PI, TAU};
 use std::fmt::Write as _;
 use std::path::Path;
 
 /// Largest reading below which a FLASER log is taken to have no no-return readings, m.
 const NO_RETURN_MIN: f64 = 20.0;
+/// A no-return code occurs at least 1/this as often as the most frequent far reading.
+const NO_RETURN_SHARE: usize = 100;
 /// The SICK LMS no-return reading, used when a log shows none, m.
 const SICK_NO_RETURN: f64 = 81.91;
+/// Largest field of view of a stated beam geometry, rad: one turn plus a beam's width.
+const MAX_FOV: f64 = TAU + 0.1;
+/// Largest `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM, m.
+const MAX_PARAM_OFFSET: f64 = 10.0;
 /// Laser and robot poses further apart than this are in different frames, m.
 const MAX_LASER_OFFSET: f64 = 1.0;
 
@@ -124,18 +149,25 @@ enum Laser {
 }
 
 fn pose(l: &mut Line<'_>, what: &str) -> Result<Pose2, IoError> {
-    let x = l.f64(&format!("{what} x"))?;
-    let y = l.f64(&format!("{what} y"))?;
-    let th = l.f64(&format!("{what} theta"))?;
+    let x = l.coord(&format!("{what} x"))?;
+    let y = l.coord(&format!("{what} y"))?;
+    let th = l.heading(&format!("{what} theta"))?;
     Ok(Pose2::new(x, y, th))
 }
 
 /// `ipc_timestamp hostname logger_timestamp` → the ipc timestamp.
 fn stamp(l: &mut Line<'_>) -> Result<f64, IoError> {
-    let t = l.f64("ipc_timestamp")?;
+    let t = l.f64_in("ipc_timestamp", -MAX_TIME, MAX_TIME, "s")?;
     l.word("hostname")?;
-    l.f64("logger_timestamp")?;
+    l.f64_in("logger_timestamp", -MAX_TIME, MAX_TIME, "s")?;
     Ok(t)
+}
+
+/// `tv rv` (m/s, rad/s) within [`MAX_SPEED`] and [`MAX_TURN_RATE`].
+fn velocities(l: &mut Line<'_>) -> Result<(), IoError> {
+    l.f64_in("tv", -MAX_SPEED, MAX_SPEED, "m/s")?;
+    l.f64_in("rv", -MAX_TURN_RATE, MAX_TURN_RATE, "rad/s")?;
+    Ok(())
 }
 
 fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
@@ -149,13 +181,69 @@ fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
 fn ranges(l: &mut Line<'_>, n: usize) -> Result<Vec<f64>, IoError> {
     let mut r = Vec::with_capacity(n);
     for k in 0..n {
-        let v = l.f64(&format!("range reading {} of {n}", k + 1))?;
+        let v = l.range(&format!("range reading {} of {n}", k + 1))?;
         if v < 0.0 {
             return Err(l.error("a non-negative range reading", &v.to_string()));
         }
         r.push(v);
     }
     Ok(r)
+}
+
+/// The no-return value of a FLASER/RLASER log (see the module docs): the largest reading
+/// of at least [`NO_RETURN_MIN`] that occurs at least `max(2, mode_count / 100)` times,
+/// where `mode_count` is how often the most frequent such reading occurs; the most frequent
+/// reading itself (the larger on a tie) when none does; [`SICK_NO_RETURN`] when no reading
+/// is that far. Deterministic: the choice depends on the counts only.
+fn no_return_value(far_readings: &HashMap<u64, usize>) -> f64 {
+    let by_count = |a: &(usize, f64), b: &(usize, f64)| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1));
+    let counted = || {
+        far_readings
+            .iter()
+            .map(|(&bits, &n)| (n, f64::from_bits(bits)))
+    };
+    let Some(mode) = counted().max_by(by_count) else {
+        return SICK_NO_RETURN;
+    };
+    let need = (mode.0 / NO_RETURN_SHARE).max(2);
+    counted()
+        .filter(|&(n, _)| n >= need)
+        .map(|(_, v)| v)
+        .max_by(f64::total_cmp)
+        .unwrap_or(mode.1)
+}
+
+/// Checks a stated beam geometry: for N ≥ 2 beams the angular resolution is non-zero, the
+/// N − 1 steps span at most one turn, and the field of view agrees with it
+/// (|fov − (N−1)·|res|| ≤ 2·|res|, which admits both the fov = N·res and the
+/// fov = (N−1)·res conventions of CARMEN loggers).
+fn check_geometry(l: &Line<'_>, fov: f64, res: f64, n: usize) -> Result<(), IoError> {
+    if n < 2 {
+        return Ok(());
+    }
+    let steps = (n - 1) as f64;
+    if res == 0.0 || steps * res.abs() > TAU + 1e-9 {
+        return Err(l.out_of_bounds(
+            "angular_res",
+            res,
+            format!(
+                "a non-zero resolution whose {} steps span at most 2π rad",
+                n - 1
+            ),
+        ));
+    }
+    if (fov - steps * res.abs()).abs() > 2.0 * res.abs() + 1e-9 {
+        return Err(l.out_of_bounds(
+            "fov",
+            fov,
+            format!(
+                "(N−1)·|angular_res| ± 2·|angular_res| = {} ± {} rad for N = {n}",
+                steps * res.abs(),
+                2.0 * res.abs()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A pending FLASER/RLASER scan whose `max_range` is set after the whole log is read.
@@ -173,7 +261,8 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
     let mut params: BTreeMap<String, String> = BTreeMap::new();
     let mut pending: Vec<Pending> = Vec::new();
-    let mut flaser_max = f64::NEG_INFINITY;
+    // FLASER/RLASER readings ≥ NO_RETURN_MIN: bit pattern → count (for the mode).
+    let mut far_readings: HashMap<u64, usize> = HashMap::new();
     for mut l in f.data_lines() {
         let kind = l.word("a record type")?;
         match kind {
@@ -184,7 +273,9 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                 let odom = pose(&mut l, "odometry pose")?;
                 let t = stamp(&mut l)?;
                 l.end("the FLASER fields")?;
-                flaser_max = r.iter().copied().fold(flaser_max, f64::max);
+                for &v in r.iter().filter(|&&v| v >= NO_RETURN_MIN) {
+                    *far_readings.entry(v.to_bits()).or_insert(0) += 1;
+                }
                 let (angle_min, angle_increment) = LaserScan::flaser_geometry(n);
                 pending.push(Pending {
                     record: records.len(),
@@ -209,13 +300,14 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             }
             "ROBOTLASER1" => {
                 l.f64("laser_type")?;
-                let angle_min = l.f64("start_angle")?;
-                l.f64("fov")?;
-                let angle_increment = l.f64("angular_res")?;
-                let max_range = l.f64("max_range")?;
+                let angle_min = l.angle("start_angle")?;
+                let fov = l.f64_in("fov", 0.0, MAX_FOV, "rad")?;
+                let angle_increment = l.f64_in("angular_res", -PI, PI, "rad")?;
+                let max_range = l.f64_in("max_range", 0.0, MAX_RANGE, "m")?;
                 l.f64("accuracy")?;
                 l.f64("remission_mode")?;
                 let n = count(&mut l, "number of readings N")?;
+                check_geometry(&l, fov, angle_increment, n)?;
                 let r = ranges(&mut l, n)?;
                 let m = count(&mut l, "number of remissions M")?;
                 for k in 0..m {
@@ -223,13 +315,8 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                 }
                 let laser_pose = pose(&mut l, "laser pose")?;
                 let robot = pose(&mut l, "robot pose")?;
-                for w in [
-                    "tv",
-                    "rv",
-                    "forward_safety_dist",
-                    "side_safety_dist",
-                    "turn_axis",
-                ] {
+                velocities(&mut l)?;
+                for w in ["forward_safety_dist", "side_safety_dist", "turn_axis"] {
                     l.f64(w)?;
                 }
                 let t = stamp(&mut l)?;
@@ -251,9 +338,8 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             }
             "ODOM" => {
                 let odom = pose(&mut l, "odometry pose")?;
-                for w in ["tv", "rv", "accel"] {
-                    l.f64(w)?;
-                }
+                velocities(&mut l)?;
+                l.f64_in("accel", -MAX_SPEED, MAX_SPEED, "m/s²")?;
                 let t = stamp(&mut l)?;
                 l.end("the ODOM fields")?;
                 records.push(ScanRecord {
@@ -272,6 +358,18 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             "PARAM" => {
                 let name = l.word("parameter name")?;
                 let value = l.word("parameter value")?;
+                if name == "robot_frontlaser_offset" || name == "robot_rearlaser_offset" {
+                    let v: f64 = value
+                        .parse()
+                        .map_err(|_| l.error(format!("{name} (a number, m)"), value))?;
+                    if !(v.abs() <= MAX_PARAM_OFFSET) {
+                        return Err(l.out_of_bounds(
+                            name,
+                            v,
+                            format!("-{MAX_PARAM_OFFSET} … {MAX_PARAM_OFFSET} m"),
+                        ));
+                    }
+                }
                 params.insert(name.to_string(), value.to_string());
             }
             other => {
@@ -301,16 +399,12 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             expected: "at least one FLASER, RLASER, ROBOTLASER1 or ODOM record".into(),
         });
     }
-    let flaser_max_range = (!pending.is_empty()).then_some(if flaser_max >= NO_RETURN_MIN {
-        flaser_max
-    } else {
-        SICK_NO_RETURN
-    });
+    let flaser_max_range = (!pending.is_empty()).then(|| no_return_value(&far_readings));
+    // Checked on their PARAM lines: numbers within ±MAX_PARAM_OFFSET.
     let param_offset = |name: &str| -> f64 {
         params
             .get(name)
             .and_then(|v| v.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
             .unwrap_or(0.0)
     };
     let front = Pose2::new(param_offset("robot_frontlaser_offset"), 0.0, 0.0);
@@ -509,7 +603,7 @@ mod tests {
             ("FLASER 2 1 -2 0 0 0 0 0 0 1 h 1\n", "non-negative range"),
             ("FLASER x\n", "number of readings N"),
             (
-                "ROBOTLASER1 0 -1.5 3.1 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0\n",
+                "ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0\n",
                 "tv",
             ),
         ] {

@@ -2,6 +2,7 @@
 //! recognised by its magic bytes), comment skipping, and field parsing whose every error
 //! names the file, the 1-based line number and what was expected.
 
+use crate::bounds;
 use crate::error::IoError;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -108,7 +109,8 @@ impl<'a> Line<'a> {
         }
     }
 
-    /// The next field as a finite f64.
+    /// The next field as a finite f64 of magnitude at most [`bounds::MAX_MAGNITUDE`] (the
+    /// catch-all bound; the typed readers below are stricter).
     pub fn f64(&mut self, what: &str) -> Result<f64, IoError> {
         let w = self.word(&format!("{what} (a number)"))?;
         let v: f64 = w
@@ -122,7 +124,63 @@ impl<'a> Line<'a> {
                 value: v,
             });
         }
+        if v.abs() > bounds::MAX_MAGNITUDE {
+            return Err(self.out_of_bounds(
+                what,
+                v,
+                format!("|value| ≤ {:e}", bounds::MAX_MAGNITUDE),
+            ));
+        }
         Ok(v)
+    }
+
+    /// A value-out-of-bounds error on this line.
+    pub fn out_of_bounds(&self, what: &str, value: f64, bound: impl Into<String>) -> IoError {
+        IoError::OutOfBounds {
+            path: self.path.to_path_buf(),
+            line: self.no,
+            what: what.to_string(),
+            value,
+            bound: bound.into(),
+        }
+    }
+
+    /// The next field as a number in `[lo, hi]`; `unit` names the unit in the error.
+    pub fn f64_in(&mut self, what: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, IoError> {
+        let v = self.f64(what)?;
+        if !(lo..=hi).contains(&v) {
+            return Err(self.out_of_bounds(what, v, format!("{lo} … {hi} {unit}")));
+        }
+        Ok(v)
+    }
+
+    /// A coordinate, metres, within ±[`bounds::MAX_COORD`].
+    pub fn coord(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_COORD, bounds::MAX_COORD, "m")
+    }
+
+    /// A robot heading, radians, within ±[`bounds::MAX_HEADING`].
+    pub fn heading(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_HEADING, bounds::MAX_HEADING, "rad")
+    }
+
+    /// A relative angle, radians, within ±[`bounds::MAX_ANGLE`] (one turn).
+    pub fn angle(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_ANGLE, bounds::MAX_ANGLE, "rad")
+    }
+
+    /// A range reading, metres, at most [`bounds::MAX_RANGE`] in magnitude (the sign is
+    /// the caller's to judge: some readers list negative ranges rather than fail).
+    pub fn range(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_RANGE, bounds::MAX_RANGE, "m")
+    }
+
+    /// A time, seconds, within ±[`bounds::MAX_TIME`] and, through `span`, consistent with
+    /// the file's other times (see [`bounds::TimeSpan`]).
+    pub fn time(&mut self, what: &str, span: &mut bounds::TimeSpan) -> Result<f64, IoError> {
+        let t = self.f64_in(what, -bounds::MAX_TIME, bounds::MAX_TIME, "s")?;
+        span.check(t).map_err(|b| self.out_of_bounds(what, t, b))?;
+        Ok(t)
     }
 
     /// The next field as an unsigned integer.
