@@ -8,23 +8,39 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// A text file loaded into memory.
+#[derive(Debug)]
 pub(crate) struct TextFile {
     pub path: PathBuf,
     pub text: String,
 }
 
-/// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, and a truncated or
-/// corrupt stream is an error. Non-UTF-8 content is an error naming the line.
+/// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, every member of a
+/// multi-member file (`gzip >>` appends one) in turn, and a truncated or corrupt stream is
+/// an error. At most [`bounds::MAX_TEXT_BYTES`] are read, plain or decompressed
+/// ([`IoError::TooLarge`] beyond). Non-UTF-8 content is an error naming the line.
 pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    read_text_limited(path, bounds::MAX_TEXT_BYTES)
+}
+
+/// [`read_text`] with a byte limit (tests use a small one).
+pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoError> {
+    let bytes = read_bytes_limited(path, limit)?;
     let bytes = if bytes.len() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b {
-        let mut out = Vec::with_capacity(bytes.len() * 4);
-        flate2::read::GzDecoder::new(&bytes[..])
+        let mut out = Vec::with_capacity(bytes.len().saturating_mul(4).min(limit as usize));
+        flate2::read::MultiGzDecoder::new(&bytes[..])
+            .take(limit.saturating_add(1))
             .read_to_end(&mut out)
             .map_err(|source| IoError::Decompress {
                 path: path.to_path_buf(),
                 source,
             })?;
+        if out.len() as u64 > limit {
+            return Err(IoError::TooLarge {
+                path: path.to_path_buf(),
+                what: "decompressed gzip data".into(),
+                limit,
+            });
+        }
         out
     } else {
         bytes
@@ -43,6 +59,24 @@ pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
         path: path.to_path_buf(),
         text,
     })
+}
+
+/// Reads at most `limit` bytes of `path` ([`IoError::TooLarge`] if it holds more).
+pub(crate) fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>, IoError> {
+    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut bytes = Vec::with_capacity(size.min(limit) as usize);
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| IoError::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(IoError::TooLarge {
+            path: path.to_path_buf(),
+            what: "file".into(),
+            limit,
+        });
+    }
+    Ok(bytes)
 }
 
 /// Writes `content` to `path`, gzip-compressed when the name ends in `.gz`.
@@ -272,6 +306,43 @@ mod tests {
         assert!(matches!(read_text(&q), Err(IoError::Decompress { .. })));
         std::fs::write(&q, [b'a', 0xff, b'\n']).unwrap();
         assert!(matches!(read_text(&q), Err(IoError::Parse { line: 1, .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn multi_member_gzip_is_read_whole_and_capped() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-mm-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Two members, as `gzip -c a >> log.gz; gzip -c b >> log.gz` makes.
+        let (a, b) = ("ODOM 1 0 0\n".repeat(300), "ODOM 2 0 0\n".repeat(500));
+        let gz = |s: &str| {
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            e.write_all(s.as_bytes()).unwrap();
+            e.finish().unwrap()
+        };
+        let p = dir.join("two.log.gz");
+        std::fs::write(&p, [gz(&a), gz(&b)].concat()).unwrap();
+        assert_eq!(read_text(&p).unwrap().text, format!("{a}{b}"));
+        // The cap applies to the decompressed size of all members together…
+        let whole = (a.len() + b.len()) as u64;
+        assert!(read_text_limited(&p, whole).is_ok());
+        let e = read_text_limited(&p, whole - 1).unwrap_err();
+        assert!(
+            matches!(e, IoError::TooLarge { limit, .. } if limit == whole - 1),
+            "{e}"
+        );
+        assert!(e.to_string().contains("decompressed gzip data"), "{e}");
+        // …and to a plain file's size.
+        let q = dir.join("plain.log");
+        std::fs::write(&q, &a).unwrap();
+        let e = read_text_limited(&q, 10).unwrap_err().to_string();
+        assert!(
+            e.contains("plain.log") && e.contains("larger than the limit of 10"),
+            "{e}"
+        );
+        // A member followed by garbage is an error, not a silently shortened log.
+        std::fs::write(&p, [gz(&a), b"garbage".to_vec()].concat()).unwrap();
+        assert!(matches!(read_text(&p), Err(IoError::Decompress { .. })));
         std::fs::remove_dir_all(&dir).ok();
     }
 }
