@@ -17,7 +17,8 @@ pub(crate) struct TextFile {
 /// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, every member of a
 /// multi-member file (`gzip >>` appends one) in turn, and a truncated or corrupt stream is
 /// an error. At most [`bounds::MAX_TEXT_BYTES`] are read, plain or decompressed
-/// ([`IoError::TooLarge`] beyond). Non-UTF-8 content is an error naming the line.
+/// ([`IoError::TooLarge`] beyond). A UTF-8 byte-order mark at the start is skipped; CRLF
+/// line ends are handled by the line iterator. Non-UTF-8 content is an error naming the line.
 pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
     read_text_limited(path, bounds::MAX_TEXT_BYTES)
 }
@@ -45,6 +46,10 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoE
     } else {
         bytes
     };
+    let mut bytes = bytes;
+    if bytes.starts_with(UTF8_BOM) {
+        bytes.drain(..UTF8_BOM.len());
+    }
     let text = String::from_utf8(bytes).map_err(|e| {
         let good = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count() + 1;
@@ -60,6 +65,9 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoE
         text,
     })
 }
+
+/// The UTF-8 encoding of U+FEFF, which some editors put at the start of a text file.
+const UTF8_BOM: &[u8] = &[0xef, 0xbb, 0xbf];
 
 /// Reads at most `limit` bytes of `path` ([`IoError::TooLarge`] if it holds more).
 pub(crate) fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>, IoError> {
@@ -343,6 +351,36 @@ mod tests {
         // A member followed by garbage is an error, not a silently shortened log.
         std::fs::write(&p, [gz(&a), b"garbage".to_vec()].concat()).unwrap();
         assert!(matches!(read_text(&p), Err(IoError::Decompress { .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn byte_order_mark_and_crlf_are_accepted() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-bom-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("bom.tum");
+        let body = "# t x y z qx qy qz qw\r\n1 2 3 0 0 0 0 1\r\n\r\n2 4 5 0 0 0 0 1\r\n";
+        std::fs::write(&p, [UTF8_BOM, body.as_bytes()].concat()).unwrap();
+        let f = read_text(&p).unwrap();
+        assert!(f.text.starts_with('#'), "BOM kept: {:?}", &f.text[..4]);
+        let t = crate::tum::read_tum(&p).unwrap();
+        assert_eq!(t.len(), 2);
+        assert_eq!((t[1].t, t[1].pose.x, t[1].pose.y), (2.0, 4.0, 5.0));
+        // Gzip of a BOM file: the mark is skipped after decompression too.
+        let q = dir.join("bom.tum.gz");
+        write_text(&q, &format!("\u{feff}{body}")).unwrap();
+        assert_eq!(crate::tum::read_tum(&q).unwrap(), t);
+        // A BOM before the CSV header is not part of the header.
+        let c = dir.join("l.csv");
+        std::fs::write(&c, "\u{feff}id,x,y,cxx,cxy,cyy\r\n3,1,2,0.1,0,0.1\r\n").unwrap();
+        assert_eq!(
+            crate::landmarks_csv::read_landmarks_csv(&c).unwrap().len(),
+            1
+        );
+        // A mark anywhere but at the start is content (here: not a number).
+        std::fs::write(&p, "1 2 3 0 0 0 0 1\n\u{feff}2 4 5 0 0 0 0 1\n").unwrap();
+        let e = crate::tum::read_tum(&p).unwrap_err().to_string();
+        assert!(e.contains("bom.tum:2"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }
