@@ -50,7 +50,7 @@ pub enum IoError {
         value: f64,
     },
     /// A finite number outside the physical bound of its field (see [`crate::bounds`]).
-    #[error("{path}:{line}: {what} = {value} is out of bounds: expected {bound}")]
+    #[error("{path}:{line}: {what} = {value:?} is out of bounds: expected {bound}")]
     OutOfBounds {
         /// The file.
         path: PathBuf,
