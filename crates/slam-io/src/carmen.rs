@@ -9,6 +9,9 @@
 //!             N r_1 … r_N  M rem_1 … rem_M  laser_x laser_y laser_θ  robot_x robot_y robot_θ
 //!             tv rv forward_safety_dist side_safety_dist turn_axis
 //!             ipc_timestamp hostname logger_timestamp
+//! ROBOTLASER2 (same as ROBOTLASER1, second laser)
+//! RAWLASER1 … RAWLASER4 laser_type start_angle fov angular_res max_range accuracy
+//!             remission_mode N r_1 … r_N  M rem_1 … rem_M  ipc_timestamp hostname logger_timestamp
 //! ODOM x y θ tv rv accel ipc_timestamp hostname logger_timestamp
 //! TRUEPOS true_x true_y true_θ odom_x odom_y odom_θ ipc_timestamp hostname logger_timestamp
 //! PARAM name value [hostname timestamp]
@@ -19,6 +22,20 @@
 //! ground truth; `PARAM` lines are collected in [`CarmenLog::params`]. Any other record
 //! type (`NEFF`, `SYNC`, …) is counted in [`CarmenLog::unknown_records`], not an error.
 //! Times may repeat or step back (kept in file order).
+//!
+//! **Raw lasers.** A `RAWLASER*` line has no pose. `RAWLASER1` (front laser) and
+//! `RAWLASER2` (rear laser) scans get the odometry pose interpolated linearly in time between
+//! the `ODOM` records before and after them in file order (the nearer one's pose outside
+//! that interval; an error when the log has no `ODOM` record), and the laser offset of the
+//! `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM. CARMEN loggers write the same
+//! scan both raw and with poses, so `RAWLASER1` is left out when the log has `ROBOTLASER1`
+//! or `FLASER` records, and `RAWLASER2` when it has `ROBOTLASER2` or `RLASER` records.
+//! `RAWLASER3`/`RAWLASER4` are read and checked but left out: the log does not say where
+//! those lasers are mounted. What is left out is listed in [`CarmenLog::not_used`].
+//!
+//! **Usable scans.** A log without a single scan with a reading below its max range (only
+//! `ODOM`, or only no-return readings) is refused at load, with the count of each record
+//! type it holds: a filter would otherwise run on odometry alone and build an empty map.
 //!
 //! **Beam geometry.** `ROBOTLASER1` states it. `FLASER`/`RLASER` lines do not: beam k
 //! points at −90° + k·res with res = 180°/N for N = 180 or 360 and 180°/(N−1) otherwise
@@ -83,6 +100,10 @@ pub struct CarmenLog {
     pub unknown_records: BTreeMap<String, usize>,
     /// Lines of each understood record type.
     pub record_counts: BTreeMap<String, usize>,
+    /// Understood record types whose records are not in the dataset, with why (`RAWLASER1`
+    /// when the log has the same scans as `ROBOTLASER1`/`FLASER`, and likewise `RAWLASER2`;
+    /// `RAWLASER3`/`RAWLASER4`, whose mounting the log does not state).
+    pub not_used: BTreeMap<String, String>,
     /// PARAM name → value (the last one wins).
     pub params: BTreeMap<String, String>,
     /// The no-return value used for FLASER/RLASER scans, if the log has any.
@@ -122,6 +143,9 @@ impl CarmenLog {
             Some(_) => ", TRUEPOS ground truth",
             None => ", no ground truth",
         });
+        for (k, why) in &self.not_used {
+            s.push_str(&format!("; {k} records not used ({why})"));
+        }
         if !self.unknown_records.is_empty() {
             let u: Vec<String> = self
                 .unknown_records
@@ -246,6 +270,59 @@ fn check_geometry(l: &Line<'_>, fov: f64, res: f64, n: usize) -> Result<(), IoEr
     Ok(())
 }
 
+/// `laser_type start_angle fov angular_res max_range accuracy remission_mode N r_1 … r_N
+/// M rem_1 … rem_M`, the laser part of `ROBOTLASER*` and `RAWLASER*` records, as a scan in
+/// the sensor frame (sensor pose identity).
+fn stated_scan(l: &mut Line<'_>) -> Result<LaserScan, IoError> {
+    l.f64("laser_type")?;
+    let angle_min = l.angle("start_angle")?;
+    let fov = l.f64_in("fov", 0.0, MAX_FOV, "rad")?;
+    let angle_increment = l.f64_in("angular_res", -PI, PI, "rad")?;
+    let max_range = l.f64_in("max_range", 0.0, MAX_RANGE, "m")?;
+    l.f64("accuracy")?;
+    l.f64("remission_mode")?;
+    let n = count(l, "number of readings N")?;
+    check_geometry(l, fov, angle_increment, n)?;
+    let r = ranges(l, n)?;
+    let m = count(l, "number of remissions M")?;
+    for k in 0..m {
+        l.f64(&format!("remission {} of {m}", k + 1))?;
+    }
+    if max_range <= 0.0 {
+        return Err(l.error("max_range > 0", &max_range.to_string()));
+    }
+    Ok(LaserScan {
+        angle_min,
+        angle_increment,
+        ranges: r,
+        max_range,
+        sensor_pose: Pose2::IDENTITY,
+    })
+}
+
+/// A `RAWLASER*` scan: no pose of its own; placed (or dropped) after the whole log is read.
+struct RawPending {
+    record: usize,
+    kind: String,
+    line: usize,
+}
+
+/// The odometry pose at time `t` between two ODOM records `a` (before) and `b` (after, in
+/// file order): linear in x, y and in the normalised heading difference when
+/// `a.t ≤ t ≤ b.t` and `a.t < b.t`, otherwise `a`'s pose.
+fn interpolate(a: &ScanRecord, b: &ScanRecord, t: f64) -> Pose2 {
+    if !(a.t < b.t && (a.t..=b.t).contains(&t)) {
+        return a.odometry;
+    }
+    let s = (t - a.t) / (b.t - a.t);
+    let (p, q) = (a.odometry, b.odometry);
+    Pose2::new(
+        p.x + s * (q.x - p.x),
+        p.y + s * (q.y - p.y),
+        p.theta + s * slam_models::normalize_angle(q.theta - p.theta),
+    )
+}
+
 /// A pending FLASER/RLASER scan whose `max_range` is set after the whole log is read.
 struct Pending {
     record: usize,
@@ -261,6 +338,7 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
     let mut params: BTreeMap<String, String> = BTreeMap::new();
     let mut pending: Vec<Pending> = Vec::new();
+    let mut raw: Vec<RawPending> = Vec::new();
     // FLASER/RLASER readings ≥ NO_RETURN_MIN: bit pattern → count (for the mode).
     let mut far_readings: HashMap<u64, usize> = HashMap::new();
     for mut l in f.data_lines() {
@@ -298,21 +376,8 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                     }),
                 });
             }
-            "ROBOTLASER1" => {
-                l.f64("laser_type")?;
-                let angle_min = l.angle("start_angle")?;
-                let fov = l.f64_in("fov", 0.0, MAX_FOV, "rad")?;
-                let angle_increment = l.f64_in("angular_res", -PI, PI, "rad")?;
-                let max_range = l.f64_in("max_range", 0.0, MAX_RANGE, "m")?;
-                l.f64("accuracy")?;
-                l.f64("remission_mode")?;
-                let n = count(&mut l, "number of readings N")?;
-                check_geometry(&l, fov, angle_increment, n)?;
-                let r = ranges(&mut l, n)?;
-                let m = count(&mut l, "number of remissions M")?;
-                for k in 0..m {
-                    l.f64(&format!("remission {} of {m}", k + 1))?;
-                }
+            "ROBOTLASER1" | "ROBOTLASER2" => {
+                let mut scan = stated_scan(&mut l)?;
                 let laser_pose = pose(&mut l, "laser pose")?;
                 let robot = pose(&mut l, "robot pose")?;
                 velocities(&mut l)?;
@@ -320,20 +385,27 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                     l.f64(w)?;
                 }
                 let t = stamp(&mut l)?;
-                l.end("the ROBOTLASER1 fields")?;
-                if max_range <= 0.0 {
-                    return Err(l.error("max_range > 0", &max_range.to_string()));
-                }
+                l.end(&format!("the {kind} fields"))?;
+                scan.sensor_pose = robot.between(&laser_pose);
                 records.push(ScanRecord {
                     t,
                     odometry: robot,
-                    scan: Some(LaserScan {
-                        angle_min,
-                        angle_increment,
-                        ranges: r,
-                        max_range,
-                        sensor_pose: robot.between(&laser_pose),
-                    }),
+                    scan: Some(scan),
+                });
+            }
+            "RAWLASER1" | "RAWLASER2" | "RAWLASER3" | "RAWLASER4" => {
+                let scan = stated_scan(&mut l)?;
+                let t = stamp(&mut l)?;
+                l.end(&format!("the {kind} fields"))?;
+                raw.push(RawPending {
+                    record: records.len(),
+                    kind: kind.to_string(),
+                    line: l.no,
+                });
+                records.push(ScanRecord {
+                    t,
+                    odometry: Pose2::IDENTITY,
+                    scan: Some(scan),
                 });
             }
             "ODOM" => {
@@ -413,6 +485,52 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
         0.0,
         std::f64::consts::PI,
     );
+    // RAWLASER scans: placed by the ODOM records around them, or left out (see module docs).
+    let count_of = |k: &str| counts.get(k).copied().unwrap_or(0);
+    let mut not_used: BTreeMap<String, String> = BTreeMap::new();
+    let mut keep = vec![true; records.len()];
+    let odom_at: Vec<usize> = (0..records.len())
+        .filter(|&i| records[i].scan.is_none())
+        .collect();
+    for p in &raw {
+        let why = match p.kind.as_str() {
+            "RAWLASER1" if count_of("ROBOTLASER1") + count_of("FLASER") > 0 => {
+                Some("the same scans as the log's ROBOTLASER1/FLASER records, which carry poses")
+            }
+            "RAWLASER2" if count_of("ROBOTLASER2") + count_of("RLASER") > 0 => {
+                Some("the same scans as the log's ROBOTLASER2/RLASER records, which carry poses")
+            }
+            "RAWLASER3" | "RAWLASER4" => Some("the log does not say where this laser is mounted"),
+            _ => None,
+        };
+        if let Some(why) = why {
+            keep[p.record] = false;
+            not_used.insert(p.kind.clone(), why.to_string());
+            continue;
+        }
+        let k = odom_at.partition_point(|&i| i < p.record);
+        let before = k.checked_sub(1).map(|j| &records[odom_at[j]]);
+        let after = odom_at.get(k).map(|&i| &records[i]);
+        let t = records[p.record].t;
+        let odometry = match (before, after) {
+            (Some(a), Some(b)) => interpolate(a, b, t),
+            (Some(a), None) => a.odometry,
+            (None, Some(b)) => b.odometry,
+            (None, None) => {
+                return Err(IoError::Parse {
+                    path: f.path.clone(),
+                    line: p.line,
+                    expected: format!("ODOM records in the log to give the {} scan a pose", p.kind),
+                    found: "a log without ODOM records".into(),
+                })
+            }
+        };
+        let rec = &mut records[p.record];
+        rec.odometry = odometry;
+        if let Some(scan) = rec.scan.as_mut() {
+            scan.sensor_pose = if p.kind == "RAWLASER1" { front } else { rear };
+        }
+    }
     for p in pending {
         let rec = &mut records[p.record];
         let mut sensor = rec.odometry.between(&p.laser_pose);
@@ -426,6 +544,36 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             scan.sensor_pose = sensor;
             scan.max_range = flaser_max_range.unwrap_or(SICK_NO_RETURN);
         }
+    }
+    let mut k = 0;
+    records.retain(|_| {
+        k += 1;
+        keep[k - 1]
+    });
+    let usable = records
+        .iter()
+        .filter_map(|r| r.scan.as_ref())
+        .filter(|s| (0..s.len()).any(|k| s.is_hit(k)))
+        .count();
+    if usable == 0 {
+        let mut held: Vec<String> = counts
+            .iter()
+            .chain(unknown.iter())
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect();
+        held.extend(
+            not_used
+                .iter()
+                .map(|(k, why)| format!("({k} not used: {why})")),
+        );
+        return Err(IoError::invalid(
+            &f.path,
+            format!(
+                "no usable laser scan (a FLASER, RLASER, ROBOTLASER1/2 or RAWLASER1/2 record with \
+                 a reading below its max range); the log holds {}",
+                held.join(", ")
+            ),
+        ));
     }
     let name = f
         .path
@@ -445,6 +593,7 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
         },
         unknown_records: unknown,
         record_counts: counts,
+        not_used,
         params,
         flaser_max_range,
     })
@@ -587,6 +736,81 @@ mod tests {
         // Largest reading 2 m < 20 m: no reading is taken as "no return".
         assert_eq!(log.flaser_max_range, Some(81.91));
         assert!(s[0].is_hit(1));
+    }
+
+    #[test]
+    fn raw_lasers_are_placed_by_odometry_or_left_out() {
+        let raw = |t: f64| {
+            format!("RAWLASER1 0 -1.5707963 3.1415926 1.5707963 30 0.01 0 3 1 2 30 0 {t} h {t}\n")
+        };
+        // Odometry at t = 10 (x = 0) and t = 12 (x = 2, heading 0.2): a scan at t = 11 sits
+        // half-way; one before the first ODOM takes the first pose.
+        let text = format!(
+            "PARAM robot_frontlaser_offset 0.25\n{}ODOM 0 0 0 0 0 0 10 h 10\n{}\
+             ODOM 2 0 0.2 0 0 0 12 h 12\n{}",
+            raw(9.0),
+            raw(11.0),
+            raw(13.0)
+        );
+        let log = parse_carmen(&from_str("raw.log", &text)).unwrap();
+        let r = &log.dataset.records;
+        assert_eq!(r.len(), 5);
+        assert!(r[0].odometry.approx_eq(&Pose2::IDENTITY, 1e-12));
+        assert!(r[2].odometry.approx_eq(&Pose2::new(1.0, 0.0, 0.1), 1e-12));
+        assert!(r[4].odometry.approx_eq(&Pose2::new(2.0, 0.0, 0.2), 1e-12));
+        let s = r[2].scan.as_ref().unwrap();
+        assert_eq!((s.len(), s.max_range), (3, 30.0));
+        assert!(s.is_hit(1) && !s.is_hit(2));
+        assert_eq!(s.sensor_pose, Pose2::new(0.25, 0.0, 0.0));
+        assert!(log.not_used.is_empty());
+        // With ROBOTLASER1 records (the same scans with poses) RAWLASER1 is left out, and
+        // RAWLASER3 always is; both are said.
+        let text = format!(
+            "{}ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 5 h 5\n\
+             RAWLASER3 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 5 h 5\nODOM 0 0 0 0 0 0 5 h 5\n",
+            raw(5.0)
+        );
+        let log = parse_carmen(&from_str("both.log", &text)).unwrap();
+        assert_eq!(log.dataset.records.len(), 2);
+        assert_eq!(log.record_counts.get("RAWLASER1"), Some(&1));
+        let summary = log.summary(Path::new("both.log"));
+        assert!(
+            summary.contains("RAWLASER1 records not used")
+                && summary.contains("RAWLASER3 records not used"),
+            "{summary}"
+        );
+        // Raw scans and no ODOM: nothing gives them a pose.
+        let e = parse_carmen(&from_str("x.log", &raw(1.0)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.log:1") && e.contains("ODOM records"), "{e}");
+    }
+
+    #[test]
+    fn a_log_without_usable_scans_is_refused_with_what_it_holds() {
+        for (text, want) in [
+            (
+                "ODOM 0 0 0 0 0 0 1 h 1\nODOM 1 0 0 0 0 0 2 h 2\nNEFF 3\n",
+                "the log holds 2 ODOM, 1 NEFF",
+            ),
+            (
+                "ODOM 0 0 0 0 0 0 1 h 1\nRAWLASER3 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 1 h 1\n",
+                "(RAWLASER3 not used: the log does not say where",
+            ),
+            // Every reading a no-return (≥ max_range 80).
+            (
+                "ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 80 81 0 0 0 0 0 0 0 0 0 0 0 0 5 h 5\n",
+                "1 ROBOTLASER1",
+            ),
+        ] {
+            let e = parse_carmen(&from_str("o.log", text))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("o.log: no usable laser scan") && e.contains(want),
+                "{e}"
+            );
+        }
     }
 
     #[test]
