@@ -238,9 +238,9 @@ fn no_return_value(far_readings: &HashMap<u64, usize>) -> f64 {
 }
 
 /// Checks a stated beam geometry: for N ≥ 2 beams the angular resolution is non-zero, the
-/// N − 1 steps span at most one turn, and the field of view agrees with it
-/// (|fov − (N−1)·|res|| ≤ 2·|res|, which admits both the fov = N·res and the
-/// fov = (N−1)·res conventions of CARMEN loggers).
+/// N − 1 steps span at most one turn, and the field of view agrees with it to half a beam:
+/// (N − 1.5)·|res| ≤ fov ≤ (N + 0.5)·|res|, which admits both the fov = N·|res| and the
+/// fov = (N − 1)·|res| conventions of CARMEN loggers.
 fn check_geometry(l: &Line<'_>, fov: f64, res: f64, n: usize) -> Result<(), IoError> {
     if n < 2 {
         return Ok(());
@@ -256,14 +256,13 @@ fn check_geometry(l: &Line<'_>, fov: f64, res: f64, n: usize) -> Result<(), IoEr
             ),
         ));
     }
-    if (fov - steps * res.abs()).abs() > 2.0 * res.abs() + 1e-9 {
+    let (lo, hi) = ((steps - 0.5) * res.abs(), (steps + 1.5) * res.abs());
+    if !(lo - 1e-9..=hi + 1e-9).contains(&fov) {
         return Err(l.out_of_bounds(
             "fov",
             fov,
             format!(
-                "(N−1)·|angular_res| ± 2·|angular_res| = {} ± {} rad for N = {n}",
-                steps * res.abs(),
-                2.0 * res.abs()
+                "(N − 1.5)·|angular_res| … (N + 0.5)·|angular_res| = {lo} … {hi} rad for N = {n}"
             ),
         ));
     }
