@@ -1255,3 +1255,293 @@ proptest! {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Regressions: one test for each reader defect listed in issue 17.
+
+/// Issue 17: "ranges, poses and times like 1e308 pass every reader". One value per reader
+/// and kind, in a real file; each must be a file:line error naming the field.
+#[test]
+fn regression_1e308_is_refused_by_every_reader() {
+    let (Some(log), Some(tumf), Some(rel), Some(fr)) = (
+        common::dataset("bench/intel.log"),
+        common::dataset("bench/intel.ref.tum"),
+        common::dataset("slam-benchmark-relations/intel.relations"),
+        common::dataset("freiburg-robot-mapping"),
+    ) else {
+        return;
+    };
+    let s = Scratch::new("reg-1e308");
+    let carmen_text = first_lines(&log, 200);
+    let fl = line_starting(&carmen_text, "FLASER");
+    let od = line_starting(&carmen_text, "ODOM");
+    for (line, field, what) in [
+        (fl, 20, "range reading 19"),
+        (fl, 182, "laser pose x"),
+        (od, 1, "odometry pose x"),
+        (od, 7, "ipc_timestamp"),
+    ] {
+        let p = s.0.join("r.log");
+        std::fs::write(
+            &p,
+            edit_line(&carmen_text, line, |f| f[field] = "1e308".into()),
+        )
+        .unwrap();
+        let e = carmen::read_carmen(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("r.log:{line}: {what}")) && e.contains("1e308"),
+            "{e}"
+        );
+    }
+    let tum_text = first_lines(&tumf, 20);
+    for (field, what) in [(0, "timestamp"), (1, "x")] {
+        let p = s.0.join("t.tum");
+        std::fs::write(&p, edit_line(&tum_text, 4, |f| f[field] = "1e308".into())).unwrap();
+        let e = tum::read_tum(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("t.tum:4: {what} = 1e308 is out of bounds")),
+            "{e}"
+        );
+    }
+    let rel_text = first_lines(&rel, 20);
+    let p = s.0.join("r.relations");
+    std::fs::write(&p, edit_line(&rel_text, 4, |f| f[0] = "1e308".into())).unwrap();
+    let e = relations::read_relations(&p).unwrap_err().to_string();
+    assert!(e.contains("r.relations:4: t1 = 1e308"), "{e}");
+    let sensor = std::fs::read_to_string(fr.join("sensor_data.dat")).unwrap();
+    let se = line_starting(&sensor, "SENSOR");
+    std::fs::write(
+        s.0.join("sensor_data.dat"),
+        edit_line(&sensor, se, |f| f[2] = "1e308".into()),
+    )
+    .unwrap();
+    let e = freiburg::read_freiburg(&s.0).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("sensor_data.dat:{se}: range = 1e308")),
+        "{e}"
+    );
+}
+
+/// Issue 17: "ROBOTLASER1 start angle, field of view and angular resolution are only checked
+/// for finiteness". The course's CSAIL log with each one made absurd.
+#[test]
+fn regression_robotlaser1_geometry_is_checked() {
+    let Some(p) = common::dataset("freiburg-robot-mapping/csail.log") else {
+        return;
+    };
+    let text = first_lines(&p, 3);
+    let s = Scratch::new("reg-rl1");
+    let q = s.0.join("c.log");
+    // Fields: 2 start_angle, 3 fov, 4 angular_res (361 beams of 0.008727 rad, fov 3.150447).
+    for (field, value, what) in [
+        (2, "1e5", "start_angle"),
+        (3, "1e-300", "fov"),
+        (3, "100", "fov"),
+        (4, "0", "angular_res"),
+        // A resolution of 1e-9 rad is in range but cannot span the stated fov with N beams.
+        (4, "1e-9", "fov"),
+        (4, "4", "angular_res"),
+    ] {
+        std::fs::write(&q, edit_line(&text, 2, |f| f[field] = value.into())).unwrap();
+        let e = carmen::read_carmen(&q).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("c.log:2: {what} = ")),
+            "{field}={value}: {e}"
+        );
+    }
+    std::fs::write(&q, &text).unwrap();
+    assert_eq!(carmen::read_carmen(&q).unwrap().dataset.records.len(), 3);
+}
+
+/// Issue 17: "one outlier reading in a FLASER log changes which readings count as no return
+/// for the whole log". One reading of Intel's log set to 500 m (and, separately, to 90 m):
+/// the no-return value stays 81.83 (the README's, counted independently), and every other
+/// reading is a hit or not exactly as before.
+#[test]
+fn regression_one_outlier_does_not_move_the_no_return_value() {
+    let Some(log) = common::dataset("bench/intel.log") else {
+        return;
+    };
+    let text = std::fs::read_to_string(&log).unwrap();
+    let base = carmen::read_carmen(&log).unwrap();
+    assert_eq!(base.flaser_max_range, Some(81.83));
+    let fl = line_starting(&text, "FLASER");
+    let s = Scratch::new("reg-outlier");
+    let p = s.0.join("o.log");
+    for outlier in ["500", "90"] {
+        std::fs::write(&p, edit_line(&text, fl, |f| f[10] = outlier.into())).unwrap();
+        let got = carmen::read_carmen(&p).unwrap();
+        assert_eq!(got.flaser_max_range, Some(81.83), "outlier {outlier}");
+        let hits = |l: &carmen::CarmenLog| -> Vec<bool> {
+            l.dataset
+                .records
+                .iter()
+                .filter_map(|r| r.scan.as_ref())
+                .flat_map(|s| (0..s.len()).map(move |k| s.is_hit(k)))
+                .collect()
+        };
+        let (a, b) = (hits(&base), hits(&got));
+        let changed: Vec<usize> = (0..a.len()).filter(|&k| a[k] != b[k]).collect();
+        // Only the corrupted reading itself (beam 8 of the first scan) may change, and it
+        // is not a hit: above the no-return value it is a no-return.
+        assert!(
+            changed.len() <= 1 && !b[8],
+            "outlier {outlier}: {changed:?}"
+        );
+    }
+}
+
+/// Issue 17: "a multi-member .gz log is read only up to its first member". A Radish log
+/// recompressed as two members reads exactly as the original file.
+#[test]
+fn regression_multi_member_gzip_is_read_whole() {
+    let Some(p) = common::dataset("radish-corrected/intel-corrected.log.gz") else {
+        return;
+    };
+    let whole = carmen::read_carmen(&p).unwrap();
+    let mut text = String::new();
+    std::io::Read::read_to_string(
+        &mut flate2::read::MultiGzDecoder::new(std::fs::File::open(&p).unwrap()),
+        &mut text,
+    )
+    .unwrap();
+    let cut = half_at_line(&text);
+    let s = Scratch::new("reg-gz");
+    let q = s.0.join("intel-corrected.log.gz");
+    std::fs::write(
+        &q,
+        [gzip(&text.as_bytes()[..cut]), gzip(&text.as_bytes()[cut..])].concat(),
+    )
+    .unwrap();
+    let two = carmen::read_carmen(&q).unwrap();
+    assert_eq!(two.dataset, whole.dataset);
+    assert_eq!(two.dataset.records.len(), 910 + 14541);
+}
+
+/// Issue 17: "files that start with a UTF-8 byte-order mark" were refused. Real files with
+/// a BOM read as without.
+#[test]
+fn regression_byte_order_mark_is_accepted() {
+    let (Some(log), Some(tumf)) = (
+        common::dataset("bench/fhw.log"),
+        common::dataset("bench/fhw.ref.tum"),
+    ) else {
+        return;
+    };
+    let s = Scratch::new("reg-bom");
+    let p = s.0.join("fhw.log");
+    std::fs::write(
+        &p,
+        [&[0xef, 0xbb, 0xbf][..], &std::fs::read(&log).unwrap()].concat(),
+    )
+    .unwrap();
+    assert_eq!(
+        carmen::read_carmen(&p).unwrap().dataset,
+        carmen::read_carmen(&log).unwrap().dataset
+    );
+    let q = s.0.join("fhw.ref.tum");
+    std::fs::write(
+        &q,
+        [&[0xef, 0xbb, 0xbf][..], &std::fs::read(&tumf).unwrap()].concat(),
+    )
+    .unwrap();
+    assert_eq!(tum::read_tum(&q).unwrap(), tum::read_tum(&tumf).unwrap());
+}
+
+/// Issue 17: "map.yaml with inline comments or flow-style lists" and "PNG map images" were
+/// refused. A map_server description as people write it, with a PNG image.
+#[test]
+fn regression_map_yaml_comments_and_png_images() {
+    let Some(map) = csail_map() else {
+        return;
+    };
+    let s = Scratch::new("reg-yaml");
+    ros_map::write_ros_map(&s.0, "map", &map).unwrap();
+    let pgm = std::fs::read(s.0.join("map.pgm")).unwrap();
+    let g =
+        image::GrayImage::from_raw(200, 200, pgm[pgm.len() - map.cells.len()..].to_vec()).unwrap();
+    g.save(s.0.join("map.png")).unwrap();
+    std::fs::write(
+        s.0.join("edited.yaml"),
+        "image: map.png   # saved by hand\nresolution: 0.100 # m/cell\n\
+         origin: [-10.0,   -10.0, 0.0]  # lower-left pixel\nnegate: 0\n\
+         occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .unwrap();
+    let a = ros_map::read_ros_map(&s.0.join("map.yaml")).unwrap();
+    let b = ros_map::read_ros_map(&s.0.join("edited.yaml")).unwrap();
+    assert_eq!(a, b);
+    // The written map reads back as its trinary self: occupied where the scans ended.
+    assert_eq!(
+        a.cells.iter().filter(|&&c| c == 100).count(),
+        map.cells.iter().filter(|&&c| c == 100).count()
+    );
+}
+
+/// Issue 17: "a RAWLASER1 log runs the whole filter on odometry alone and then fails with
+/// 'grid has 0 cells'". Intel's bench log with every FLASER line rewritten as the RAWLASER1
+/// line CARMEN would have logged for it: the scans are read, with the same readings, and
+/// placed at the odometry pose the FLASER line carried (each FLASER follows an ODOM record of
+/// its own time); the same log with its scans removed is refused naming what it holds.
+#[test]
+fn regression_rawlaser1_logs_are_read() {
+    let Some(log) = common::dataset("bench/intel.log") else {
+        return;
+    };
+    let text = std::fs::read_to_string(&log).unwrap();
+    let base = carmen::read_carmen(&log).unwrap();
+    let raw: String = text
+        .lines()
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            if f.first() != Some(&"FLASER") {
+                return format!("{l}\n");
+            }
+            let n: usize = f[1].parse().unwrap();
+            // 180 beams: −90° … +89° in 1° steps, fov 180°, no-return code 81.83 m.
+            format!(
+                "RAWLASER1 0 -1.5707963267948966 3.141592653589793 0.017453292519943295 81.83 0.01 0 {n} {} 0 {}\n",
+                f[2..2 + n].join(" "),
+                f[f.len() - 3..].join(" ")
+            )
+        })
+        .collect();
+    let s = Scratch::new("reg-raw");
+    let p = s.0.join("intel-raw.log");
+    std::fs::write(&p, &raw).unwrap();
+    let got = carmen::read_carmen(&p).unwrap();
+    let scans = |l: &carmen::CarmenLog| -> Vec<(f64, slam::models::Pose2, Vec<f64>)> {
+        l.dataset
+            .records
+            .iter()
+            .filter_map(|r| r.scan.as_ref().map(|s| (r.t, r.odometry, s.ranges.clone())))
+            .collect()
+    };
+    let (a, b) = (scans(&base), scans(&got));
+    assert_eq!(a.len(), 910);
+    assert_eq!(b.len(), 910);
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!((x.0, &x.2), (y.0, &y.2));
+        assert!(x.1.approx_eq(&y.1, 1e-12), "{:?} vs {:?}", x.1, y.1);
+    }
+    let scan = got
+        .dataset
+        .records
+        .iter()
+        .find_map(|r| r.scan.as_ref())
+        .unwrap();
+    assert_eq!(scan.max_range, 81.83);
+    assert!((scan.beam_angle(179).to_degrees() - 89.0).abs() < 1e-9);
+    // Without its scans the log holds only odometry: refused at load, saying what it holds.
+    let odom_only: String = text
+        .lines()
+        .filter(|l| !l.starts_with("FLASER"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&p, odom_only).unwrap();
+    let e = carmen::read_carmen(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("no usable laser scan") && e.contains("the log holds 13700 ODOM"),
+        "{e}"
+    );
+}
