@@ -433,7 +433,7 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                     let v: f64 = value
                         .parse()
                         .map_err(|_| l.error(format!("{name} (a number, m)"), value))?;
-                    if !(v.abs() <= MAX_PARAM_OFFSET) {
+                    if !v.is_finite() || v.abs() > MAX_PARAM_OFFSET {
                         return Err(l.out_of_bounds(
                             name,
                             v,
