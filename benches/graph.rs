@@ -4,6 +4,8 @@
 //! ordering and its automatic, simplicial and supernodal kernels, and without a
 //! fill-reducing ordering. It is the evidence for the default (docs/results/graph.md).
 //! Skipped with a message when the dataset is missing.
+// criterion_group! generates undocumented public functions.
+#![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_graph::{Factorization, Optimizer, OptimizerConfig, Ordering};

@@ -175,7 +175,9 @@ fn mrclam_resampled_robot1_against_ground_truth() {
 
 #[test]
 fn carmen_bench_and_radish_logs() {
-    // (file, FLASER scans, ODOM records, beams, no-return value) from the README tables.
+    // (file, FLASER scans, ODOM records, beams, no-return value) from the README tables,
+    // except Acapulco's no-return value: the table's 51.25 is the log's largest reading,
+    // which occurs once; 51.15 occurs 9,264 times (counted with awk) and is the code.
     let radish = [
         ("intel", 910, 14541, 180, 81.83),
         ("freiburg-101", 292, 4569, 360, 81.91),
@@ -183,7 +185,7 @@ fn carmen_bench_and_radish_logs() {
         ("belgioioso", 395, 4442, 361, 81.91),
         ("fhw", 488, 13935, 180, 51.1),
         ("edmonton", 340, 6351, 180, 51.16),
-        ("acapulco", 861, 12142, 181, 51.25),
+        ("acapulco", 861, 12142, 181, 51.15),
     ];
     for (site, scans, odom, beams, max) in radish {
         let Some(p) = common::dataset(&format!("radish-corrected/{site}-corrected.log.gz")) else {

@@ -9,6 +9,9 @@
 //!             N r_1 … r_N  M rem_1 … rem_M  laser_x laser_y laser_θ  robot_x robot_y robot_θ
 //!             tv rv forward_safety_dist side_safety_dist turn_axis
 //!             ipc_timestamp hostname logger_timestamp
+//! ROBOTLASER2 (same as ROBOTLASER1, second laser)
+//! RAWLASER1 … RAWLASER4 laser_type start_angle fov angular_res max_range accuracy
+//!             remission_mode N r_1 … r_N  M rem_1 … rem_M  ipc_timestamp hostname logger_timestamp
 //! ODOM x y θ tv rv accel ipc_timestamp hostname logger_timestamp
 //! TRUEPOS true_x true_y true_θ odom_x odom_y odom_θ ipc_timestamp hostname logger_timestamp
 //! PARAM name value [hostname timestamp]
@@ -20,32 +23,71 @@
 //! type (`NEFF`, `SYNC`, …) is counted in [`CarmenLog::unknown_records`], not an error.
 //! Times may repeat or step back (kept in file order).
 //!
+//! **Raw lasers.** A `RAWLASER*` line has no pose. `RAWLASER1` (front laser) and
+//! `RAWLASER2` (rear laser) scans get the odometry pose interpolated linearly in time between
+//! the `ODOM` records before and after them in file order (the nearer one's pose outside
+//! that interval; an error when the log has no `ODOM` record), and the laser offset of the
+//! `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM. CARMEN loggers write the same
+//! scan both raw and with poses, so `RAWLASER1` is left out when the log has `ROBOTLASER1`
+//! or `FLASER` records, and `RAWLASER2` when it has `ROBOTLASER2` or `RLASER` records.
+//! `RAWLASER3`/`RAWLASER4` are read and checked but left out: the log does not say where
+//! those lasers are mounted. What is left out is listed in [`CarmenLog::not_used`].
+//!
+//! **Usable scans.** A log without a single scan with a reading below its max range (only
+//! `ODOM`, or only no-return readings) is refused at load, with the count of each record
+//! type it holds: a filter would otherwise run on odometry alone and build an empty map.
+//!
 //! **Beam geometry.** `ROBOTLASER1` states it. `FLASER`/`RLASER` lines do not: beam k
 //! points at −90° + k·res with res = 180°/N for N = 180 or 360 and 180°/(N−1) otherwise
 //! ([`LaserScan::flaser_geometry`]); a rear laser looks backwards (sensor heading π).
 //!
 //! **No return.** `ROBOTLASER1` gives `max_range`, and readings ≥ it are no-return. For
-//! `FLASER`/`RLASER` the log's largest reading is the no-return value (81.83, 81.91, 51.1,
-//! … in the Radish logs; the SICK maximum), so `max_range` = that value and readings equal
-//! to it are no-return, distinct from hits. If that largest reading is below 20 m the log
-//! is taken to hold no no-return reading and `max_range` = 81.91 m.
+//! `FLASER`/`RLASER` the no-return value is inferred from the log: the logger writes the
+//! laser's maximum code for every beam without an echo (81.83, 81.91, 51.1, … in the Radish
+//! logs), so it is a reading of at least 20 m that **recurs**: the largest far reading
+//! (≥ 20 m) that occurs at least twice and at least 1/100 as often as the most frequent far
+//! reading. `max_range` = that value; readings at or above it are no-return, readings below
+//! it hits. A reading that occurs once (a glitch, a corrupted value) therefore never moves
+//! the threshold of the whole log: above the code it is itself no-return, below it a hit.
+//! When no far reading recurs that often, the most frequent one is taken (the larger on a
+//! tie); when no reading reaches 20 m the log is taken to hold no no-return reading and
+//! `max_range` = 81.91 m (the SICK code). On the Radish logs this gives the tables' values
+//! except for Acapulco, whose largest reading, 51.25 m, occurs once among 9,264 readings of
+//! 51.15 m, the value chosen.
+//!
+//! **Bounds** ([`crate::bounds`]): poses within ±10⁶ m and headings within ±10⁴ rad;
+//! readings and `max_range` within 0 … 1000 m (`max_range` > 0); a stated start angle within
+//! ±2π, field of view within 0 … 2π + 0.1 rad, angular resolution within ±π, non-zero, and
+//! consistent with the field of view and N (see `check_geometry`); `tv`, `rv`, `accel`
+//! within ±100 m/s, rad/s, m/s²; `ipc_timestamp` within ±10¹⁰ s (no span check: the real
+//! GMapping logs hold single records stamped 0, −2.88 or 7e-77 among Unix times, kept in
+//! file order as every time is); laser offset PARAMs within
+//! ±10 m; every other number within ±10¹²; N and M at most 100,000. A violation is an error naming the file, line, field and bound.
 //!
 //! **Laser offset.** The sensor pose in the robot frame is the laser pose ⊖ the robot
 //! (odometry) pose of the same line. If those two poses are more than 1 m apart they are not
 //! in the same frame, and the `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM
 //! (forward offset, metres; 0 when absent) is used instead.
 
+use crate::bounds::{MAX_RANGE, MAX_SPEED, MAX_TIME, MAX_TURN_RATE};
 use crate::error::IoError;
 use crate::text::{read_text, write_text, Line, TextFile};
 use slam_models::{LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::f64::consts::{PI, TAU};
 use std::fmt::Write as _;
 use std::path::Path;
 
 /// Largest reading below which a FLASER log is taken to have no no-return readings, m.
 const NO_RETURN_MIN: f64 = 20.0;
+/// A no-return code occurs at least 1/this as often as the most frequent far reading.
+const NO_RETURN_SHARE: usize = 100;
 /// The SICK LMS no-return reading, used when a log shows none, m.
 const SICK_NO_RETURN: f64 = 81.91;
+/// Largest field of view of a stated beam geometry, rad: one turn plus a beam's width.
+const MAX_FOV: f64 = TAU + 0.1;
+/// Largest `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM, m.
+const MAX_PARAM_OFFSET: f64 = 10.0;
 /// Laser and robot poses further apart than this are in different frames, m.
 const MAX_LASER_OFFSET: f64 = 1.0;
 
@@ -58,6 +100,10 @@ pub struct CarmenLog {
     pub unknown_records: BTreeMap<String, usize>,
     /// Lines of each understood record type.
     pub record_counts: BTreeMap<String, usize>,
+    /// Understood record types whose records are not in the dataset, with why (`RAWLASER1`
+    /// when the log has the same scans as `ROBOTLASER1`/`FLASER`, and likewise `RAWLASER2`;
+    /// `RAWLASER3`/`RAWLASER4`, whose mounting the log does not state).
+    pub not_used: BTreeMap<String, String>,
     /// PARAM name → value (the last one wins).
     pub params: BTreeMap<String, String>,
     /// The no-return value used for FLASER/RLASER scans, if the log has any.
@@ -97,6 +143,9 @@ impl CarmenLog {
             Some(_) => ", TRUEPOS ground truth",
             None => ", no ground truth",
         });
+        for (k, why) in &self.not_used {
+            s.push_str(&format!("; {k} records not used ({why})"));
+        }
         if !self.unknown_records.is_empty() {
             let u: Vec<String> = self
                 .unknown_records
@@ -124,18 +173,25 @@ enum Laser {
 }
 
 fn pose(l: &mut Line<'_>, what: &str) -> Result<Pose2, IoError> {
-    let x = l.f64(&format!("{what} x"))?;
-    let y = l.f64(&format!("{what} y"))?;
-    let th = l.f64(&format!("{what} theta"))?;
+    let x = l.coord(&format!("{what} x"))?;
+    let y = l.coord(&format!("{what} y"))?;
+    let th = l.heading(&format!("{what} theta"))?;
     Ok(Pose2::new(x, y, th))
 }
 
 /// `ipc_timestamp hostname logger_timestamp` → the ipc timestamp.
 fn stamp(l: &mut Line<'_>) -> Result<f64, IoError> {
-    let t = l.f64("ipc_timestamp")?;
+    let t = l.f64_in("ipc_timestamp", -MAX_TIME, MAX_TIME, "s")?;
     l.word("hostname")?;
-    l.f64("logger_timestamp")?;
+    l.f64_in("logger_timestamp", -MAX_TIME, MAX_TIME, "s")?;
     Ok(t)
+}
+
+/// `tv rv` (m/s, rad/s) within [`MAX_SPEED`] and [`MAX_TURN_RATE`].
+fn velocities(l: &mut Line<'_>) -> Result<(), IoError> {
+    l.f64_in("tv", -MAX_SPEED, MAX_SPEED, "m/s")?;
+    l.f64_in("rv", -MAX_TURN_RATE, MAX_TURN_RATE, "rad/s")?;
+    Ok(())
 }
 
 fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
@@ -149,13 +205,121 @@ fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
 fn ranges(l: &mut Line<'_>, n: usize) -> Result<Vec<f64>, IoError> {
     let mut r = Vec::with_capacity(n);
     for k in 0..n {
-        let v = l.f64(&format!("range reading {} of {n}", k + 1))?;
+        let v = l.range(&format!("range reading {} of {n}", k + 1))?;
         if v < 0.0 {
             return Err(l.error("a non-negative range reading", &v.to_string()));
         }
         r.push(v);
     }
     Ok(r)
+}
+
+/// The no-return value of a FLASER/RLASER log (see the module docs): the largest reading
+/// of at least [`NO_RETURN_MIN`] that occurs at least `max(2, mode_count / 100)` times,
+/// where `mode_count` is how often the most frequent such reading occurs; the most frequent
+/// reading itself (the larger on a tie) when none does; [`SICK_NO_RETURN`] when no reading
+/// is that far. Deterministic: the choice depends on the counts only.
+fn no_return_value(far_readings: &HashMap<u64, usize>) -> f64 {
+    let by_count = |a: &(usize, f64), b: &(usize, f64)| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1));
+    let counted = || {
+        far_readings
+            .iter()
+            .map(|(&bits, &n)| (n, f64::from_bits(bits)))
+    };
+    let Some(mode) = counted().max_by(by_count) else {
+        return SICK_NO_RETURN;
+    };
+    let need = (mode.0 / NO_RETURN_SHARE).max(2);
+    counted()
+        .filter(|&(n, _)| n >= need)
+        .map(|(_, v)| v)
+        .max_by(f64::total_cmp)
+        .unwrap_or(mode.1)
+}
+
+/// Checks a stated beam geometry: for N ≥ 2 beams the angular resolution is non-zero, the
+/// N − 1 steps span at most one turn, and the field of view agrees with it to half a beam:
+/// (N − 1.5)·|res| ≤ fov ≤ (N + 0.5)·|res|, which admits both the fov = N·|res| and the
+/// fov = (N − 1)·|res| conventions of CARMEN loggers.
+fn check_geometry(l: &Line<'_>, fov: f64, res: f64, n: usize) -> Result<(), IoError> {
+    if n < 2 {
+        return Ok(());
+    }
+    let steps = (n - 1) as f64;
+    if res == 0.0 || steps * res.abs() > TAU + 1e-9 {
+        return Err(l.out_of_bounds(
+            "angular_res",
+            res,
+            format!(
+                "a non-zero resolution whose {} steps span at most 2π rad",
+                n - 1
+            ),
+        ));
+    }
+    let (lo, hi) = ((steps - 0.5) * res.abs(), (steps + 1.5) * res.abs());
+    if !(lo - 1e-9..=hi + 1e-9).contains(&fov) {
+        return Err(l.out_of_bounds(
+            "fov",
+            fov,
+            format!(
+                "(N − 1.5)·|angular_res| … (N + 0.5)·|angular_res| = {lo} … {hi} rad for N = {n}"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `laser_type start_angle fov angular_res max_range accuracy remission_mode N r_1 … r_N
+/// M rem_1 … rem_M`, the laser part of `ROBOTLASER*` and `RAWLASER*` records, as a scan in
+/// the sensor frame (sensor pose identity).
+fn stated_scan(l: &mut Line<'_>) -> Result<LaserScan, IoError> {
+    l.f64("laser_type")?;
+    let angle_min = l.angle("start_angle")?;
+    let fov = l.f64_in("fov", 0.0, MAX_FOV, "rad")?;
+    let angle_increment = l.f64_in("angular_res", -PI, PI, "rad")?;
+    let max_range = l.f64_in("max_range", 0.0, MAX_RANGE, "m")?;
+    l.f64("accuracy")?;
+    l.f64("remission_mode")?;
+    let n = count(l, "number of readings N")?;
+    check_geometry(l, fov, angle_increment, n)?;
+    let r = ranges(l, n)?;
+    let m = count(l, "number of remissions M")?;
+    for k in 0..m {
+        l.f64(&format!("remission {} of {m}", k + 1))?;
+    }
+    if max_range <= 0.0 {
+        return Err(l.error("max_range > 0", &max_range.to_string()));
+    }
+    Ok(LaserScan {
+        angle_min,
+        angle_increment,
+        ranges: r,
+        max_range,
+        sensor_pose: Pose2::IDENTITY,
+    })
+}
+
+/// A `RAWLASER*` scan: no pose of its own; placed (or dropped) after the whole log is read.
+struct RawPending {
+    record: usize,
+    kind: String,
+    line: usize,
+}
+
+/// The odometry pose at time `t` between two ODOM records `a` (before) and `b` (after, in
+/// file order): linear in x, y and in the normalised heading difference when
+/// `a.t ≤ t ≤ b.t` and `a.t < b.t`, otherwise `a`'s pose.
+fn interpolate(a: &ScanRecord, b: &ScanRecord, t: f64) -> Pose2 {
+    if !(a.t < b.t && (a.t..=b.t).contains(&t)) {
+        return a.odometry;
+    }
+    let s = (t - a.t) / (b.t - a.t);
+    let (p, q) = (a.odometry, b.odometry);
+    Pose2::new(
+        p.x + s * (q.x - p.x),
+        p.y + s * (q.y - p.y),
+        p.theta + s * slam_models::normalize_angle(q.theta - p.theta),
+    )
 }
 
 /// A pending FLASER/RLASER scan whose `max_range` is set after the whole log is read.
@@ -173,7 +337,9 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
     let mut params: BTreeMap<String, String> = BTreeMap::new();
     let mut pending: Vec<Pending> = Vec::new();
-    let mut flaser_max = f64::NEG_INFINITY;
+    let mut raw: Vec<RawPending> = Vec::new();
+    // FLASER/RLASER readings ≥ NO_RETURN_MIN: bit pattern → count (for the mode).
+    let mut far_readings: HashMap<u64, usize> = HashMap::new();
     for mut l in f.data_lines() {
         let kind = l.word("a record type")?;
         match kind {
@@ -184,7 +350,9 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                 let odom = pose(&mut l, "odometry pose")?;
                 let t = stamp(&mut l)?;
                 l.end("the FLASER fields")?;
-                flaser_max = r.iter().copied().fold(flaser_max, f64::max);
+                for &v in r.iter().filter(|&&v| v >= NO_RETURN_MIN) {
+                    *far_readings.entry(v.to_bits()).or_insert(0) += 1;
+                }
                 let (angle_min, angle_increment) = LaserScan::flaser_geometry(n);
                 pending.push(Pending {
                     record: records.len(),
@@ -207,53 +375,42 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                     }),
                 });
             }
-            "ROBOTLASER1" => {
-                l.f64("laser_type")?;
-                let angle_min = l.f64("start_angle")?;
-                l.f64("fov")?;
-                let angle_increment = l.f64("angular_res")?;
-                let max_range = l.f64("max_range")?;
-                l.f64("accuracy")?;
-                l.f64("remission_mode")?;
-                let n = count(&mut l, "number of readings N")?;
-                let r = ranges(&mut l, n)?;
-                let m = count(&mut l, "number of remissions M")?;
-                for k in 0..m {
-                    l.f64(&format!("remission {} of {m}", k + 1))?;
-                }
+            "ROBOTLASER1" | "ROBOTLASER2" => {
+                let mut scan = stated_scan(&mut l)?;
                 let laser_pose = pose(&mut l, "laser pose")?;
                 let robot = pose(&mut l, "robot pose")?;
-                for w in [
-                    "tv",
-                    "rv",
-                    "forward_safety_dist",
-                    "side_safety_dist",
-                    "turn_axis",
-                ] {
+                velocities(&mut l)?;
+                for w in ["forward_safety_dist", "side_safety_dist", "turn_axis"] {
                     l.f64(w)?;
                 }
                 let t = stamp(&mut l)?;
-                l.end("the ROBOTLASER1 fields")?;
-                if max_range <= 0.0 {
-                    return Err(l.error("max_range > 0", &max_range.to_string()));
-                }
+                l.end(&format!("the {kind} fields"))?;
+                scan.sensor_pose = robot.between(&laser_pose);
                 records.push(ScanRecord {
                     t,
                     odometry: robot,
-                    scan: Some(LaserScan {
-                        angle_min,
-                        angle_increment,
-                        ranges: r,
-                        max_range,
-                        sensor_pose: robot.between(&laser_pose),
-                    }),
+                    scan: Some(scan),
+                });
+            }
+            "RAWLASER1" | "RAWLASER2" | "RAWLASER3" | "RAWLASER4" => {
+                let scan = stated_scan(&mut l)?;
+                let t = stamp(&mut l)?;
+                l.end(&format!("the {kind} fields"))?;
+                raw.push(RawPending {
+                    record: records.len(),
+                    kind: kind.to_string(),
+                    line: l.no,
+                });
+                records.push(ScanRecord {
+                    t,
+                    odometry: Pose2::IDENTITY,
+                    scan: Some(scan),
                 });
             }
             "ODOM" => {
                 let odom = pose(&mut l, "odometry pose")?;
-                for w in ["tv", "rv", "accel"] {
-                    l.f64(w)?;
-                }
+                velocities(&mut l)?;
+                l.f64_in("accel", -MAX_SPEED, MAX_SPEED, "m/s²")?;
                 let t = stamp(&mut l)?;
                 l.end("the ODOM fields")?;
                 records.push(ScanRecord {
@@ -272,6 +429,18 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             "PARAM" => {
                 let name = l.word("parameter name")?;
                 let value = l.word("parameter value")?;
+                if name == "robot_frontlaser_offset" || name == "robot_rearlaser_offset" {
+                    let v: f64 = value
+                        .parse()
+                        .map_err(|_| l.error(format!("{name} (a number, m)"), value))?;
+                    if !v.is_finite() || v.abs() > MAX_PARAM_OFFSET {
+                        return Err(l.out_of_bounds(
+                            name,
+                            v,
+                            format!("-{MAX_PARAM_OFFSET} … {MAX_PARAM_OFFSET} m"),
+                        ));
+                    }
+                }
                 params.insert(name.to_string(), value.to_string());
             }
             other => {
@@ -301,16 +470,12 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             expected: "at least one FLASER, RLASER, ROBOTLASER1 or ODOM record".into(),
         });
     }
-    let flaser_max_range = (!pending.is_empty()).then_some(if flaser_max >= NO_RETURN_MIN {
-        flaser_max
-    } else {
-        SICK_NO_RETURN
-    });
+    let flaser_max_range = (!pending.is_empty()).then(|| no_return_value(&far_readings));
+    // Checked on their PARAM lines: numbers within ±MAX_PARAM_OFFSET.
     let param_offset = |name: &str| -> f64 {
         params
             .get(name)
             .and_then(|v| v.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
             .unwrap_or(0.0)
     };
     let front = Pose2::new(param_offset("robot_frontlaser_offset"), 0.0, 0.0);
@@ -319,6 +484,52 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
         0.0,
         std::f64::consts::PI,
     );
+    // RAWLASER scans: placed by the ODOM records around them, or left out (see module docs).
+    let count_of = |k: &str| counts.get(k).copied().unwrap_or(0);
+    let mut not_used: BTreeMap<String, String> = BTreeMap::new();
+    let mut keep = vec![true; records.len()];
+    let odom_at: Vec<usize> = (0..records.len())
+        .filter(|&i| records[i].scan.is_none())
+        .collect();
+    for p in &raw {
+        let why = match p.kind.as_str() {
+            "RAWLASER1" if count_of("ROBOTLASER1") + count_of("FLASER") > 0 => {
+                Some("the same scans as the log's ROBOTLASER1/FLASER records, which carry poses")
+            }
+            "RAWLASER2" if count_of("ROBOTLASER2") + count_of("RLASER") > 0 => {
+                Some("the same scans as the log's ROBOTLASER2/RLASER records, which carry poses")
+            }
+            "RAWLASER3" | "RAWLASER4" => Some("the log does not say where this laser is mounted"),
+            _ => None,
+        };
+        if let Some(why) = why {
+            keep[p.record] = false;
+            not_used.insert(p.kind.clone(), why.to_string());
+            continue;
+        }
+        let k = odom_at.partition_point(|&i| i < p.record);
+        let before = k.checked_sub(1).map(|j| &records[odom_at[j]]);
+        let after = odom_at.get(k).map(|&i| &records[i]);
+        let t = records[p.record].t;
+        let odometry = match (before, after) {
+            (Some(a), Some(b)) => interpolate(a, b, t),
+            (Some(a), None) => a.odometry,
+            (None, Some(b)) => b.odometry,
+            (None, None) => {
+                return Err(IoError::Parse {
+                    path: f.path.clone(),
+                    line: p.line,
+                    expected: format!("ODOM records in the log to give the {} scan a pose", p.kind),
+                    found: "a log without ODOM records".into(),
+                })
+            }
+        };
+        let rec = &mut records[p.record];
+        rec.odometry = odometry;
+        if let Some(scan) = rec.scan.as_mut() {
+            scan.sensor_pose = if p.kind == "RAWLASER1" { front } else { rear };
+        }
+    }
     for p in pending {
         let rec = &mut records[p.record];
         let mut sensor = rec.odometry.between(&p.laser_pose);
@@ -332,6 +543,36 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
             scan.sensor_pose = sensor;
             scan.max_range = flaser_max_range.unwrap_or(SICK_NO_RETURN);
         }
+    }
+    let mut k = 0;
+    records.retain(|_| {
+        k += 1;
+        keep[k - 1]
+    });
+    let usable = records
+        .iter()
+        .filter_map(|r| r.scan.as_ref())
+        .filter(|s| (0..s.len()).any(|k| s.is_hit(k)))
+        .count();
+    if usable == 0 {
+        let mut held: Vec<String> = counts
+            .iter()
+            .chain(unknown.iter())
+            .map(|(k, v)| format!("{v} {k}"))
+            .collect();
+        held.extend(
+            not_used
+                .iter()
+                .map(|(k, why)| format!("({k} not used: {why})")),
+        );
+        return Err(IoError::invalid(
+            &f.path,
+            format!(
+                "no usable laser scan (a FLASER, RLASER, ROBOTLASER1/2 or RAWLASER1/2 record with \
+                 a reading below its max range); the log holds {}",
+                held.join(", ")
+            ),
+        ));
     }
     let name = f
         .path
@@ -351,6 +592,7 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
         },
         unknown_records: unknown,
         record_counts: counts,
+        not_used,
         params,
         flaser_max_range,
     })
@@ -496,6 +738,81 @@ mod tests {
     }
 
     #[test]
+    fn raw_lasers_are_placed_by_odometry_or_left_out() {
+        let raw = |t: f64| {
+            format!("RAWLASER1 0 -1.5707963 3.1415926 1.5707963 30 0.01 0 3 1 2 30 0 {t} h {t}\n")
+        };
+        // Odometry at t = 10 (x = 0) and t = 12 (x = 2, heading 0.2): a scan at t = 11 sits
+        // half-way; one before the first ODOM takes the first pose.
+        let text = format!(
+            "PARAM robot_frontlaser_offset 0.25\n{}ODOM 0 0 0 0 0 0 10 h 10\n{}\
+             ODOM 2 0 0.2 0 0 0 12 h 12\n{}",
+            raw(9.0),
+            raw(11.0),
+            raw(13.0)
+        );
+        let log = parse_carmen(&from_str("raw.log", &text)).unwrap();
+        let r = &log.dataset.records;
+        assert_eq!(r.len(), 5);
+        assert!(r[0].odometry.approx_eq(&Pose2::IDENTITY, 1e-12));
+        assert!(r[2].odometry.approx_eq(&Pose2::new(1.0, 0.0, 0.1), 1e-12));
+        assert!(r[4].odometry.approx_eq(&Pose2::new(2.0, 0.0, 0.2), 1e-12));
+        let s = r[2].scan.as_ref().unwrap();
+        assert_eq!((s.len(), s.max_range), (3, 30.0));
+        assert!(s.is_hit(1) && !s.is_hit(2));
+        assert_eq!(s.sensor_pose, Pose2::new(0.25, 0.0, 0.0));
+        assert!(log.not_used.is_empty());
+        // With ROBOTLASER1 records (the same scans with poses) RAWLASER1 is left out, and
+        // RAWLASER3 always is; both are said.
+        let text = format!(
+            "{}ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 5 h 5\n\
+             RAWLASER3 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 5 h 5\nODOM 0 0 0 0 0 0 5 h 5\n",
+            raw(5.0)
+        );
+        let log = parse_carmen(&from_str("both.log", &text)).unwrap();
+        assert_eq!(log.dataset.records.len(), 2);
+        assert_eq!(log.record_counts.get("RAWLASER1"), Some(&1));
+        let summary = log.summary(Path::new("both.log"));
+        assert!(
+            summary.contains("RAWLASER1 records not used")
+                && summary.contains("RAWLASER3 records not used"),
+            "{summary}"
+        );
+        // Raw scans and no ODOM: nothing gives them a pose.
+        let e = parse_carmen(&from_str("x.log", &raw(1.0)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.log:1") && e.contains("ODOM records"), "{e}");
+    }
+
+    #[test]
+    fn a_log_without_usable_scans_is_refused_with_what_it_holds() {
+        for (text, want) in [
+            (
+                "ODOM 0 0 0 0 0 0 1 h 1\nODOM 1 0 0 0 0 0 2 h 2\nNEFF 3\n",
+                "the log holds 2 ODOM, 1 NEFF",
+            ),
+            (
+                "ODOM 0 0 0 0 0 0 1 h 1\nRAWLASER3 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 1 h 1\n",
+                "(RAWLASER3 not used: the log does not say where",
+            ),
+            // Every reading a no-return (≥ max_range 80).
+            (
+                "ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 80 81 0 0 0 0 0 0 0 0 0 0 0 0 5 h 5\n",
+                "1 ROBOTLASER1",
+            ),
+        ] {
+            let e = parse_carmen(&from_str("o.log", text))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("o.log: no usable laser scan") && e.contains(want),
+                "{e}"
+            );
+        }
+    }
+
+    #[test]
     fn error_paths() {
         for (text, want) in [
             ("", "empty"),
@@ -509,7 +826,7 @@ mod tests {
             ("FLASER 2 1 -2 0 0 0 0 0 0 1 h 1\n", "non-negative range"),
             ("FLASER x\n", "number of readings N"),
             (
-                "ROBOTLASER1 0 -1.5 3.1 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0\n",
+                "ROBOTLASER1 0 -1.5 0.02 0.01 80 0.01 0 2 1 2 0 0 0 0 0 0 0\n",
                 "tv",
             ),
         ] {

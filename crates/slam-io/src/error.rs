@@ -49,6 +49,30 @@ pub enum IoError {
         /// The value read.
         value: f64,
     },
+    /// A finite number outside the physical bound of its field (see [`crate::bounds`]).
+    #[error("{path}:{line}: {what} = {value:?} is out of bounds: expected {bound}")]
+    OutOfBounds {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// Which field.
+        what: String,
+        /// The value read.
+        value: f64,
+        /// The bound, in words (with units).
+        bound: String,
+    },
+    /// A file is larger than the reader accepts (see [`crate::bounds::MAX_TEXT_BYTES`]).
+    #[error("{path}: {what} is larger than the limit of {limit} bytes")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// What was too large ("file", "decompressed gzip data").
+        what: String,
+        /// The limit, bytes.
+        limit: u64,
+    },
     /// The file held no data (only blank lines or comments, or nothing).
     #[error("{path}: file is empty (expected {expected})")]
     Empty {

@@ -26,6 +26,11 @@
 //! listed** in [`FreiburgData::skipped`] with its line number; [`crate::open_dataset`]
 //! prints the count in its one-line summary. Malformed lines and NaN/∞ values are errors.
 //! Bearings outside [−π, π] are kept as given (innovations normalise angle differences).
+//!
+//! **Bounds** ([`crate::bounds`]): landmark and initial-pose coordinates and the odometry
+//! translation within ±10⁶ m; `r1`, `r2` and bearings within ±2π rad; ranges at most
+//! 1000 m; the initial heading within ±10⁴ rad; step times within ±10¹⁰ s, within 10⁷ s of
+//! the first. A violation is an error naming the file, line, field and bound.
 
 use crate::error::IoError;
 use crate::report::Skipped;
@@ -72,7 +77,7 @@ pub fn read_freiburg_report(dir: &Path) -> Result<FreiburgData, IoError> {
         f.ensure_not_empty("one line `x y theta`")?;
         let mut lines = f.data_lines();
         if let Some(mut l) = lines.next() {
-            let p = Pose2::new(l.f64("x")?, l.f64("y")?, l.f64("theta")?);
+            let p = Pose2::new(l.coord("x")?, l.coord("y")?, l.heading("theta")?);
             l.end("x y theta")?;
             dataset.initial_pose = p;
         }
@@ -84,8 +89,9 @@ pub fn read_freiburg_report(dir: &Path) -> Result<FreiburgData, IoError> {
     if times.is_file() {
         let f = read_text(&times)?;
         let mut ts = Vec::with_capacity(dataset.steps.len());
+        let mut span = crate::bounds::TimeSpan::default();
         for mut l in f.data_lines() {
-            ts.push(l.f64("time")?);
+            ts.push(l.time("time", &mut span)?);
             l.end("time")?;
         }
         if ts.len() != dataset.steps.len() {
@@ -119,7 +125,7 @@ pub(crate) fn parse_world(f: &TextFile) -> Result<Vec<(LandmarkId, Point2)>, IoE
     let mut out: Vec<(LandmarkId, Point2)> = Vec::new();
     for mut l in f.data_lines() {
         let id = parse_id(&mut l)?;
-        let p = Point2::new(l.f64("landmark x")?, l.f64("landmark y")?);
+        let p = Point2::new(l.coord("landmark x")?, l.coord("landmark y")?);
         l.end("`id x y`")?;
         if out.iter().any(|(i, _)| *i == id) {
             return Err(l.error("a landmark id not listed before", l.text));
@@ -156,9 +162,9 @@ pub(crate) fn parse_sensor_data(f: &TextFile) -> Result<(LandmarkDataset, Vec<Sk
         match l.word("a record type")? {
             "ODOMETRY" => {
                 let u = OdometryControl {
-                    rot1: l.f64("odometry r1")?,
-                    trans: l.f64("odometry t")?,
-                    rot2: l.f64("odometry r2")?,
+                    rot1: l.angle("odometry r1")?,
+                    trans: l.coord("odometry t")?,
+                    rot2: l.angle("odometry r2")?,
                 };
                 l.end("`ODOMETRY r1 t r2`")?;
                 steps.push(LandmarkStep {
@@ -169,8 +175,8 @@ pub(crate) fn parse_sensor_data(f: &TextFile) -> Result<(LandmarkDataset, Vec<Sk
             }
             "SENSOR" => {
                 let id = parse_sensor_id(&mut l)?;
-                let range = l.f64("range")?;
-                let bearing = l.f64("bearing")?;
+                let range = l.range("range")?;
+                let bearing = l.angle("bearing")?;
                 l.end("`SENSOR id range bearing`")?;
                 let Some(step) = steps.last_mut() else {
                     return Err(l.error("an ODOMETRY line before the first SENSOR line", l.text));

@@ -1,6 +1,11 @@
 //! Landmark maps as CSV: header `id,x,y,cxx,cxy,cyy`, one estimated landmark per line
 //! (metres, covariance entries in m²).
+//!
+//! **Bounds** ([`crate::bounds`]): x, y within ±10⁶ m; variances `cxx`, `cyy` within
+//! 0 … 10¹² m² and `cxy` within ±10¹² m². A violation is an error naming the file, line,
+//! field and bound.
 
+use crate::bounds::MAX_MAGNITUDE;
 use crate::error::IoError;
 use crate::text::{read_text, write_text};
 use slam_models::{LandmarkEstimate, LandmarkId, Matrix2, Point2};
@@ -62,11 +67,11 @@ pub fn read_landmarks_csv(path: &Path) -> Result<Vec<LandmarkEstimate>, IoError>
         let mut line = crate::text::Line::new(path, i + 1, &spaced);
         let id = line.u64("landmark id")?;
         let id = u32::try_from(id).map_err(|_| line.error("an id below 2^32", l))?;
-        let x = line.f64("x")?;
-        let y = line.f64("y")?;
-        let cxx = line.f64("cxx")?;
+        let x = line.coord("x")?;
+        let y = line.coord("y")?;
+        let cxx = line.f64_in("cxx", 0.0, MAX_MAGNITUDE, "m²")?;
         let cxy = line.f64("cxy")?;
-        let cyy = line.f64("cyy")?;
+        let cyy = line.f64_in("cyy", 0.0, MAX_MAGNITUDE, "m²")?;
         line.end(HEADER)?;
         out.push(LandmarkEstimate {
             id: LandmarkId(id),

@@ -21,6 +21,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bounds;
 pub mod carmen;
 mod dataset;
 pub mod error;

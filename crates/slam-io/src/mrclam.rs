@@ -24,10 +24,17 @@
 //! [`MrclamData::other_robot_observations`]. Unknown barcodes, measurements after the last
 //! odometry time and negative ranges are left out and listed in [`MrclamData::skipped`].
 //!
+//! **Bounds** ([`crate::bounds`]): times within ±10¹⁰ s, within 10⁷ s of the file's first
+//! time (odometry and ground truth also in time order); `v` within ±100 m/s and
+//! `ω` within ±100 rad/s; ranges at most 1000 m and bearings within ±2π rad; landmark and
+//! ground-truth coordinates within ±10⁶ m, their standard deviations within 0 … 10⁶ m;
+//! headings within ±10⁴ rad. A violation is an error naming the file, line, field and bound.
+//!
 //! **Frame.** Landmarks and ground truth are in the Vicon world frame. When ground truth
 //! is present, the initial pose is the ground-truth pose nearest to t_0 (if within 0.1 s),
 //! so estimates share the ground truth's frame; otherwise it is the origin.
 
+use crate::bounds::{TimeSpan, MAX_COORD, MAX_SPEED, MAX_TIME, MAX_TIME_SPAN, MAX_TURN_RATE};
 use crate::error::IoError;
 use crate::report::Skipped;
 use crate::text::{read_text, TextFile};
@@ -132,11 +139,22 @@ pub fn read_mrclam_report(dir: &Path, robot: u32) -> Result<MrclamData, IoError>
         })
     };
     meas_file.ensure_not_empty("measurement lines `time barcode range bearing`")?;
+    // Measurement rows are not in strict time order; each must be near the odometry's span.
     for mut l in meas_file.data_lines() {
-        let tau = l.f64("time")?;
+        let tau = l.f64_in("time", -MAX_TIME, MAX_TIME, "s")?;
+        if (tau - times[0]).abs() > MAX_TIME_SPAN {
+            return Err(l.out_of_bounds(
+                "time",
+                tau,
+                format!(
+                    "within {MAX_TIME_SPAN} s of the first odometry time ({})",
+                    times[0]
+                ),
+            ));
+        }
         let code = l.u64("barcode")?;
-        let range = l.f64("range")?;
-        let bearing = l.f64("bearing")?;
+        let range = l.range("range")?;
+        let bearing = l.angle("bearing")?;
         l.end("`time barcode range bearing`")?;
         let Some(&subject) = u32::try_from(code).ok().and_then(|c| barcodes.get(&c)) else {
             skip(l.no, format!("barcode {code} is not in Barcodes.dat"));
@@ -216,10 +234,10 @@ pub(crate) fn parse_landmarks(f: &TextFile) -> Result<Vec<(LandmarkId, Point2)>,
     let mut out = Vec::new();
     for mut l in f.data_lines() {
         let s = l.u64("subject")?;
-        let x = l.f64("x")?;
-        let y = l.f64("y")?;
-        l.f64("x std-dev")?;
-        l.f64("y std-dev")?;
+        let x = l.coord("x")?;
+        let y = l.coord("y")?;
+        l.f64_in("x std-dev", 0.0, MAX_COORD, "m")?;
+        l.f64_in("y std-dev", 0.0, MAX_COORD, "m")?;
         l.end("`subject x y x_sd y_sd`")?;
         let s = u32::try_from(s).map_err(|_| l.error("a subject below 2^32", l.text))?;
         out.push((LandmarkId(s), Point2::new(x, y)));
@@ -235,10 +253,11 @@ pub(crate) fn parse_odometry(f: &TextFile) -> Result<(Vec<OdometryRow>, bool), I
     f.ensure_not_empty("lines `time v w`")?;
     let mut rows = Vec::new();
     let mut resampled = false;
+    let mut span = TimeSpan::default();
     for (k, mut l) in f.data_lines().enumerate() {
-        let t = l.f64("time")?;
-        let v = l.f64("forward velocity v")?;
-        let w = l.f64("angular velocity w")?;
+        let t = l.time("time", &mut span)?;
+        let v = l.f64_in("forward velocity v", -MAX_SPEED, MAX_SPEED, "m/s")?;
+        let w = l.f64_in("angular velocity w", -MAX_TURN_RATE, MAX_TURN_RATE, "rad/s")?;
         l.end("`time v w`")?;
         if k == 0 {
             resampled = t < ABSOLUTE_TIME_MIN;
@@ -262,11 +281,12 @@ pub(crate) fn parse_odometry(f: &TextFile) -> Result<(Vec<OdometryRow>, bool), I
 pub(crate) fn parse_ground_truth(f: &TextFile, resampled: bool) -> Result<Vec<TimedPose>, IoError> {
     f.ensure_not_empty("lines `time x y theta`")?;
     let mut out: Vec<TimedPose> = Vec::new();
+    let mut span = TimeSpan::default();
     for (k, mut l) in f.data_lines().enumerate() {
-        let t = l.f64("time")?;
-        let x = l.f64("x")?;
-        let y = l.f64("y")?;
-        let th = l.f64("theta")?;
+        let t = l.time("time", &mut span)?;
+        let x = l.coord("x")?;
+        let y = l.coord("y")?;
+        let th = l.heading("theta")?;
         l.end("`time x y theta`")?;
         let t = if resampled {
             k as f64 * RESAMPLED_DT

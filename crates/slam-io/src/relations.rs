@@ -4,7 +4,12 @@
 //! Each line `t1 t2 x y z roll pitch yaw` is one relation: the robot's pose at `t2`
 //! expressed in its frame at `t1` (metres, radians). z, roll and pitch must be 0 (planar
 //! data); lines with `t2 < t1` are kept as given (the Intel file has six).
+//!
+//! **Bounds** ([`crate::bounds`]): t1, t2 within ±10¹⁰ s and |t2 − t1| ≤ 10⁷ s; x, y
+//! within ±10⁶ m; yaw within ±2π rad. A violation is an error naming the file, line, field
+//! and bound.
 
+use crate::bounds::{TimeSpan, MAX_TIME_SPAN};
 use crate::error::IoError;
 use crate::text::{read_text, TextFile};
 use slam_models::Pose2;
@@ -22,7 +27,7 @@ pub struct Relation {
 }
 
 /// Reads a relations file. Errors: malformed line, NaN/∞, non-zero z/roll/pitch (not a
-/// planar relation), empty file.
+/// planar relation), a value out of bounds (module docs), empty file.
 pub fn read_relations(path: &Path) -> Result<Vec<Relation>, IoError> {
     parse_relations(&read_text(path)?)
 }
@@ -31,14 +36,20 @@ pub(crate) fn parse_relations(f: &TextFile) -> Result<Vec<Relation>, IoError> {
     f.ensure_not_empty("relation lines `t1 t2 x y z roll pitch yaw`")?;
     let mut out = Vec::new();
     for mut l in f.data_lines() {
-        let t1 = l.f64("t1")?;
-        let t2 = l.f64("t2")?;
-        let x = l.f64("x")?;
-        let y = l.f64("y")?;
+        // Each relation's own pair of times; relations are not in time order.
+        let t1 = l.time("t1", &mut TimeSpan::default())?;
+        let t2 = l.f64_in(
+            "t2",
+            t1 - MAX_TIME_SPAN,
+            t1 + MAX_TIME_SPAN,
+            "s (t1 ± 1e7 s)",
+        )?;
+        let x = l.coord("x")?;
+        let y = l.coord("y")?;
         let z = l.f64("z")?;
         let roll = l.f64("roll")?;
         let pitch = l.f64("pitch")?;
-        let yaw = l.f64("yaw")?;
+        let yaw = l.angle("yaw")?;
         l.end("`t1 t2 x y z roll pitch yaw`")?;
         if z != 0.0 || roll != 0.0 || pitch != 0.0 {
             return Err(l.error("a planar relation (z = roll = pitch = 0)", l.text));

@@ -2,32 +2,54 @@
 //! recognised by its magic bytes), comment skipping, and field parsing whose every error
 //! names the file, the 1-based line number and what was expected.
 
+use crate::bounds;
 use crate::error::IoError;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// A text file loaded into memory.
+#[derive(Debug)]
 pub(crate) struct TextFile {
     pub path: PathBuf,
     pub text: String,
 }
 
-/// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, and a truncated or
-/// corrupt stream is an error. Non-UTF-8 content is an error naming the line.
+/// Reads `path` completely; gzip data (magic `1f 8b`) is decompressed, every member of a
+/// multi-member file (`gzip >>` appends one) in turn, and a truncated or corrupt stream is
+/// an error. At most [`bounds::MAX_TEXT_BYTES`] are read, plain or decompressed
+/// ([`IoError::TooLarge`] beyond). A UTF-8 byte-order mark at the start is skipped; CRLF
+/// line ends are handled by the line iterator. Non-UTF-8 content is an error naming the line.
 pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
-    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    read_text_limited(path, bounds::MAX_TEXT_BYTES)
+}
+
+/// [`read_text`] with a byte limit (tests use a small one).
+pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoError> {
+    let bytes = read_bytes_limited(path, limit)?;
     let bytes = if bytes.len() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b {
-        let mut out = Vec::with_capacity(bytes.len() * 4);
-        flate2::read::GzDecoder::new(&bytes[..])
+        let mut out = Vec::with_capacity(bytes.len().saturating_mul(4).min(limit as usize));
+        flate2::read::MultiGzDecoder::new(&bytes[..])
+            .take(limit.saturating_add(1))
             .read_to_end(&mut out)
             .map_err(|source| IoError::Decompress {
                 path: path.to_path_buf(),
                 source,
             })?;
+        if out.len() as u64 > limit {
+            return Err(IoError::TooLarge {
+                path: path.to_path_buf(),
+                what: "decompressed gzip data".into(),
+                limit,
+            });
+        }
         out
     } else {
         bytes
     };
+    let mut bytes = bytes;
+    if bytes.starts_with(UTF8_BOM) {
+        bytes.drain(..UTF8_BOM.len());
+    }
     let text = String::from_utf8(bytes).map_err(|e| {
         let good = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..good].iter().filter(|&&b| b == b'\n').count() + 1;
@@ -42,6 +64,27 @@ pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
         path: path.to_path_buf(),
         text,
     })
+}
+
+/// The UTF-8 encoding of U+FEFF, which some editors put at the start of a text file.
+const UTF8_BOM: &[u8] = &[0xef, 0xbb, 0xbf];
+
+/// Reads at most `limit` bytes of `path` ([`IoError::TooLarge`] if it holds more).
+pub(crate) fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>, IoError> {
+    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let size = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut bytes = Vec::with_capacity(size.min(limit) as usize);
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| IoError::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(IoError::TooLarge {
+            path: path.to_path_buf(),
+            what: "file".into(),
+            limit,
+        });
+    }
+    Ok(bytes)
 }
 
 /// Writes `content` to `path`, gzip-compressed when the name ends in `.gz`.
@@ -108,7 +151,8 @@ impl<'a> Line<'a> {
         }
     }
 
-    /// The next field as a finite f64.
+    /// The next field as a finite f64 of magnitude at most [`bounds::MAX_MAGNITUDE`] (the
+    /// catch-all bound; the typed readers below are stricter).
     pub fn f64(&mut self, what: &str) -> Result<f64, IoError> {
         let w = self.word(&format!("{what} (a number)"))?;
         let v: f64 = w
@@ -122,7 +166,63 @@ impl<'a> Line<'a> {
                 value: v,
             });
         }
+        if v.abs() > bounds::MAX_MAGNITUDE {
+            return Err(self.out_of_bounds(
+                what,
+                v,
+                format!("|value| ≤ {:e}", bounds::MAX_MAGNITUDE),
+            ));
+        }
         Ok(v)
+    }
+
+    /// A value-out-of-bounds error on this line.
+    pub fn out_of_bounds(&self, what: &str, value: f64, bound: impl Into<String>) -> IoError {
+        IoError::OutOfBounds {
+            path: self.path.to_path_buf(),
+            line: self.no,
+            what: what.to_string(),
+            value,
+            bound: bound.into(),
+        }
+    }
+
+    /// The next field as a number in `[lo, hi]`; `unit` names the unit in the error.
+    pub fn f64_in(&mut self, what: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, IoError> {
+        let v = self.f64(what)?;
+        if !(lo..=hi).contains(&v) {
+            return Err(self.out_of_bounds(what, v, format!("{lo} … {hi} {unit}")));
+        }
+        Ok(v)
+    }
+
+    /// A coordinate, metres, within ±[`bounds::MAX_COORD`].
+    pub fn coord(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_COORD, bounds::MAX_COORD, "m")
+    }
+
+    /// A robot heading, radians, within ±[`bounds::MAX_HEADING`].
+    pub fn heading(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_HEADING, bounds::MAX_HEADING, "rad")
+    }
+
+    /// A relative angle, radians, within ±[`bounds::MAX_ANGLE`] (one turn).
+    pub fn angle(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_ANGLE, bounds::MAX_ANGLE, "rad")
+    }
+
+    /// A range reading, metres, at most [`bounds::MAX_RANGE`] in magnitude (the sign is
+    /// the caller's to judge: some readers list negative ranges rather than fail).
+    pub fn range(&mut self, what: &str) -> Result<f64, IoError> {
+        self.f64_in(what, -bounds::MAX_RANGE, bounds::MAX_RANGE, "m")
+    }
+
+    /// A time, seconds, within ±[`bounds::MAX_TIME`] and, through `span`, consistent with
+    /// the file's other times (see [`bounds::TimeSpan`]).
+    pub fn time(&mut self, what: &str, span: &mut bounds::TimeSpan) -> Result<f64, IoError> {
+        let t = self.f64_in(what, -bounds::MAX_TIME, bounds::MAX_TIME, "s")?;
+        span.check(t).map_err(|b| self.out_of_bounds(what, t, b))?;
+        Ok(t)
     }
 
     /// The next field as an unsigned integer.
@@ -214,6 +314,73 @@ mod tests {
         assert!(matches!(read_text(&q), Err(IoError::Decompress { .. })));
         std::fs::write(&q, [b'a', 0xff, b'\n']).unwrap();
         assert!(matches!(read_text(&q), Err(IoError::Parse { line: 1, .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn multi_member_gzip_is_read_whole_and_capped() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-mm-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Two members, as `gzip -c a >> log.gz; gzip -c b >> log.gz` makes.
+        let (a, b) = ("ODOM 1 0 0\n".repeat(300), "ODOM 2 0 0\n".repeat(500));
+        let gz = |s: &str| {
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            e.write_all(s.as_bytes()).unwrap();
+            e.finish().unwrap()
+        };
+        let p = dir.join("two.log.gz");
+        std::fs::write(&p, [gz(&a), gz(&b)].concat()).unwrap();
+        assert_eq!(read_text(&p).unwrap().text, format!("{a}{b}"));
+        // The cap applies to the decompressed size of all members together…
+        let whole = (a.len() + b.len()) as u64;
+        assert!(read_text_limited(&p, whole).is_ok());
+        let e = read_text_limited(&p, whole - 1).unwrap_err();
+        assert!(
+            matches!(e, IoError::TooLarge { limit, .. } if limit == whole - 1),
+            "{e}"
+        );
+        assert!(e.to_string().contains("decompressed gzip data"), "{e}");
+        // …and to a plain file's size.
+        let q = dir.join("plain.log");
+        std::fs::write(&q, &a).unwrap();
+        let e = read_text_limited(&q, 10).unwrap_err().to_string();
+        assert!(
+            e.contains("plain.log") && e.contains("larger than the limit of 10"),
+            "{e}"
+        );
+        // A member followed by garbage is an error, not a silently shortened log.
+        std::fs::write(&p, [gz(&a), b"garbage".to_vec()].concat()).unwrap();
+        assert!(matches!(read_text(&p), Err(IoError::Decompress { .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn byte_order_mark_and_crlf_are_accepted() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-bom-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("bom.tum");
+        let body = "# t x y z qx qy qz qw\r\n1 2 3 0 0 0 0 1\r\n\r\n2 4 5 0 0 0 0 1\r\n";
+        std::fs::write(&p, [UTF8_BOM, body.as_bytes()].concat()).unwrap();
+        let f = read_text(&p).unwrap();
+        assert!(f.text.starts_with('#'), "BOM kept: {:?}", &f.text[..4]);
+        let t = crate::tum::read_tum(&p).unwrap();
+        assert_eq!(t.len(), 2);
+        assert_eq!((t[1].t, t[1].pose.x, t[1].pose.y), (2.0, 4.0, 5.0));
+        // Gzip of a BOM file: the mark is skipped after decompression too.
+        let q = dir.join("bom.tum.gz");
+        write_text(&q, &format!("\u{feff}{body}")).unwrap();
+        assert_eq!(crate::tum::read_tum(&q).unwrap(), t);
+        // A BOM before the CSV header is not part of the header.
+        let c = dir.join("l.csv");
+        std::fs::write(&c, "\u{feff}id,x,y,cxx,cxy,cyy\r\n3,1,2,0.1,0,0.1\r\n").unwrap();
+        assert_eq!(
+            crate::landmarks_csv::read_landmarks_csv(&c).unwrap().len(),
+            1
+        );
+        // A mark anywhere but at the start is content (here: not a number).
+        std::fs::write(&p, "1 2 3 0 0 0 0 1\n\u{feff}2 4 5 0 0 0 0 1\n").unwrap();
+        let e = crate::tum::read_tum(&p).unwrap_err().to_string();
+        assert!(e.contains("bom.tum:2"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -5,6 +5,9 @@
 //! rotation about z: (0, 0, sin θ/2, cos θ/2). On reading, the heading is the yaw of the
 //! quaternion, θ = atan2(2(qw·qz + qx·qy), 1 − 2(qy² + qz²)); z, roll and pitch are
 //! ignored. Lines starting with `#` are comments.
+//!
+//! **Bounds** ([`crate::bounds`]): x, y, z within ±10⁶ m; times within ±10¹⁰ s and within
+//! 10⁷ s of the first. A violation is an error naming the file, line, field and bound.
 
 use crate::error::IoError;
 use crate::text::{read_text, write_text, TextFile};
@@ -13,7 +16,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// Reads a TUM trajectory. Errors: malformed line, NaN/∞, a quaternion of norm far from 1
-/// (|‖q‖ − 1| > 1e-3; short printouts are fine), or an empty file.
+/// (|‖q‖ − 1| > 1e-3; short printouts are fine), a value out of bounds (module docs), or an
+/// empty file.
 pub fn read_tum(path: &Path) -> Result<Vec<TimedPose>, IoError> {
     parse_tum(&read_text(path)?)
 }
@@ -21,11 +25,12 @@ pub fn read_tum(path: &Path) -> Result<Vec<TimedPose>, IoError> {
 pub(crate) fn parse_tum(f: &TextFile) -> Result<Vec<TimedPose>, IoError> {
     f.ensure_not_empty("trajectory lines `t x y z qx qy qz qw`")?;
     let mut out = Vec::new();
+    let mut span = crate::bounds::TimeSpan::default();
     for mut l in f.data_lines() {
-        let t = l.f64("timestamp")?;
-        let x = l.f64("x")?;
-        let y = l.f64("y")?;
-        let _z = l.f64("z")?;
+        let t = l.time("timestamp", &mut span)?;
+        let x = l.coord("x")?;
+        let y = l.coord("y")?;
+        let _z = l.coord("z")?;
         let qx = l.f64("qx")?;
         let qy = l.f64("qy")?;
         let qz = l.f64("qz")?;
