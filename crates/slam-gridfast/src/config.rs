@@ -141,6 +141,10 @@ pub struct GridFastConfig {
     /// Improved proposal: the samples span ±this around the mode in θ, radians.
     /// Default 0.005.
     pub sample_range_theta: f64,
+    /// The largest odometry jump between two consecutive records, and whether a larger
+    /// one is an error (default: beyond 5 m) or skipped
+    /// ([`slam_models::OdometryJumpLimit`]).
+    pub odometry_jump: slam_models::OdometryJumpLimit,
 }
 
 impl Default for GridFastConfig {
@@ -177,6 +181,7 @@ impl Default for GridFastConfig {
             samples_per_axis: 3,
             sample_range_xy: 0.01,
             sample_range_theta: 0.005,
+            odometry_jump: slam_models::OdometryJumpLimit::default(),
         }
     }
 }
@@ -208,6 +213,12 @@ impl GridFastConfig {
             ">= 1",
         )?;
         check(self.resolution > 0.0, "resolution", self.resolution, "> 0")?;
+        check(
+            self.odometry_jump.max_jump > 0.0,
+            "odometry_jump.max_jump",
+            self.odometry_jump.max_jump,
+            "> 0 m and finite",
+        )?;
         check(
             self.linear_update >= 0.0,
             "linear_update",

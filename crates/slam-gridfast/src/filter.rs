@@ -14,6 +14,7 @@ use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::PathNode;
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
+use slam_models::OdometryJumpGuard;
 use slam_models::{
     normalize_angle, FilterError, GridMap, LaserScan, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo,
     TimedPose, Vector3, WeightedPose,
@@ -125,6 +126,8 @@ pub struct GridFastSlam {
     acc_linear: f64,
     acc_angular: f64,
     motion_reference: Option<Pose2>,
+    /// Checks each record's odometry against the previous one's ([`GridFastConfig::odometry_jump`]).
+    guard: OdometryJumpGuard,
 }
 
 /// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
@@ -154,6 +157,7 @@ impl GridFastSlam {
     /// with empty maps. `seed` fixes every random draw.
     pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
         config.validate()?;
+        let config_jump = config.odometry_jump;
         let radius = (config.field_radius / config.resolution).round() as i32;
         let empty = new_map(&config)?;
         let lk = Likelihood {
@@ -203,6 +207,13 @@ impl GridFastSlam {
             acc_linear: 0.0,
             acc_angular: 0.0,
             motion_reference: None,
+            guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
+                GridFastError::InvalidConfig {
+                    field: "odometry_jump.max_jump",
+                    value: config_jump.max_jump,
+                    expected: "> 0 m and finite",
+                }
+            })?,
         })
     }
 
@@ -291,19 +302,38 @@ impl GridFastSlam {
     /// Processes one record (the [`ScanSlam::process`] contract, with this crate's error).
     pub fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridFastError> {
         self.check_record(record)?;
+        let (odometry, skipped) =
+            self.guard
+                .check(&record.odometry)
+                .map_err(|e| GridFastError::InvalidRecord {
+                    index: self.times.len(),
+                    t: record.t,
+                    reason: e.to_string(),
+                })?;
+        let mut info = self.step_with(record, odometry)?;
+        info.odometry_jumps_skipped = skipped as usize;
+        Ok(info)
+    }
+
+    /// [`GridFastSlam::step`] with the record's odometry replaced by the guarded one.
+    fn step_with(
+        &mut self,
+        record: &ScanRecord,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
         // Motion is accumulated over every odometry reading, as GMapping's processScan
         // does per reading (`m_linearDistance += |Δ|`, `m_angularDistance += |Δθ|`);
         // with `accumulate_per_scan` only from scan record to scan record (what a ROS
         // node that sees only the scans does).
         if !self.config.accumulate_per_scan || record.scan.is_some() {
             if let Some(prev) = self.motion_reference {
-                self.acc_linear += prev.distance(&record.odometry);
-                self.acc_angular += normalize_angle(record.odometry.theta - prev.theta).abs();
+                self.acc_linear += prev.distance(&odometry);
+                self.acc_angular += normalize_angle(odometry.theta - prev.theta).abs();
             }
-            self.motion_reference = Some(record.odometry);
+            self.motion_reference = Some(odometry);
         }
         self.times.push(record.t);
-        self.odometry.push(record.odometry);
+        self.odometry.push(odometry);
         let first = self.scans.is_empty();
         let update = match &record.scan {
             Some(_) => {
@@ -323,12 +353,13 @@ impl GridFastSlam {
                     n_eff: Some(self.n_eff),
                     resampled: false,
                     match_failures: 0,
+                    odometry_jumps_skipped: 0,
                 });
             }
         };
         let k = self.scans.len();
         let info = if first {
-            self.first_scan(scan, record.odometry)?
+            self.first_scan(scan, odometry)?
         } else {
             self.update(k, scan)?
         };
@@ -360,6 +391,7 @@ impl GridFastSlam {
             n_eff: Some(self.n_eff),
             resampled: false,
             match_failures: 0,
+            odometry_jumps_skipped: 0,
         })
     }
 
@@ -561,6 +593,7 @@ impl GridFastSlam {
             n_eff: Some(n_eff),
             resampled: resample,
             match_failures: failures,
+            odometry_jumps_skipped: 0,
         })
     }
 }
@@ -756,6 +789,67 @@ mod tests {
             let c = map.world_to_cell(&slam_models::Point2::new(x, 0.01));
             assert_eq!(map.log_odds(c), 0.0, "x = {x}");
         }
+    }
+
+    /// A 10 km odometry jump is rejected with the record's index and the bound; with
+    /// `on_jump = "skip"` it is taken as no motion, counted in the step info, and the
+    /// particles' maps stay the room's (the jump used to stretch every particle's grid
+    /// over 10 km).
+    #[test]
+    fn an_odometry_jump_is_an_error_or_skipped_on_request() {
+        let config = GridFastConfig {
+            particles: 3,
+            ..Default::default()
+        };
+        let poses: Vec<Pose2> = (0..8)
+            .map(|k| Pose2::new(0.2 * k as f64, 0.0, 0.0))
+            .collect();
+        let mut f = GridFastSlam::new(config.clone(), 1).unwrap();
+        for (k, p) in poses.iter().enumerate() {
+            f.step(&rec(k as f64, *p, true)).unwrap();
+        }
+        // The glitched record carries the room's scan as seen from its true pose.
+        let mut glitch = rec(8.0, Pose2::new(1.6, 0.0, 0.0), true);
+        glitch.odometry.x += 10_000.0;
+        let e = f.step(&glitch).unwrap_err();
+        assert!(
+            matches!(e, GridFastError::InvalidRecord { index: 8, .. }),
+            "{e}"
+        );
+        assert!(e.to_string().contains("max_jump = 5 m"), "{e}");
+
+        let mut f = GridFastSlam::new(
+            GridFastConfig {
+                odometry_jump: slam_models::OdometryJumpLimit {
+                    max_jump: 5.0,
+                    on_jump: slam_models::OnOdometryJump::Skip,
+                },
+                ..config
+            },
+            1,
+        )
+        .unwrap();
+        let mut skipped = 0;
+        for (k, p) in poses.iter().enumerate() {
+            skipped += f
+                .step(&rec(k as f64, *p, true))
+                .unwrap()
+                .odometry_jumps_skipped;
+        }
+        skipped += f.step(&glitch).unwrap().odometry_jumps_skipped;
+        skipped += f
+            .step(&rec(9.0, Pose2::new(1.6, 0.0, 0.0), true))
+            .unwrap()
+            .odometry_jumps_skipped;
+        assert_eq!(skipped, 2);
+        assert_eq!(f.trajectory().len(), 10);
+        let map = f.map();
+        assert!(
+            map.width as f64 * map.resolution < 10.0,
+            "{} cells wide",
+            map.width
+        );
+        assert!(f.pose().x.abs() < 3.0, "{:?}", f.pose());
     }
 
     #[test]
