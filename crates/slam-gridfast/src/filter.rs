@@ -128,6 +128,8 @@ pub struct GridFastSlam {
     motion_reference: Option<Pose2>,
     /// Checks each record's odometry against the previous one's ([`GridFastConfig::odometry_jump`]).
     guard: OdometryJumpGuard,
+    /// Set when a full update failed half-way: every later record is refused.
+    failed: Option<String>,
 }
 
 /// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
@@ -207,6 +209,7 @@ impl GridFastSlam {
             acc_linear: 0.0,
             acc_angular: 0.0,
             motion_reference: None,
+            failed: None,
             guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
                 GridFastError::InvalidConfig {
                     field: "odometry_jump.max_jump",
@@ -256,7 +259,7 @@ impl GridFastSlam {
     }
 
     fn best_path(&self) -> Vec<Pose2> {
-        match &self.particles[self.best].node {
+        match self.particles.get(self.best).and_then(|p| p.node.as_ref()) {
             Some(n) => n.path(),
             None => Vec::new(),
         }
@@ -265,15 +268,18 @@ impl GridFastSlam {
     /// The pose of record `i` by [`slam_models::keyframes::pose_at_record`]: the last
     /// corrected pose ⊕ the odometry since, except at a processed scan's own instant.
     fn pose_at_record(&self, i: usize, path: &[Pose2]) -> Pose2 {
-        let keyframe = |k: usize| Keyframe {
-            record: self.scan_records[k],
-            pose: path[k],
+        // (`get`: after a failed update the path may not match the scans kept.)
+        let keyframe = |k: usize| {
+            Some(Keyframe {
+                record: *self.scan_records.get(k)?,
+                pose: *path.get(k)?,
+            })
         };
         let (previous, next) = match self.last_scan_of_record[i] {
             u32::MAX => (None, 0),
-            k => (Some(keyframe(k as usize)), k as usize + 1),
+            k => (keyframe(k as usize), k as usize + 1),
         };
-        let next = (next < path.len()).then(|| keyframe(next));
+        let next = keyframe(next);
         keyframes::pose_at_record(&self.times, &self.odometry, i, previous, next)
             .expect("record and scan indices are the filter's own and always in range")
     }
@@ -315,8 +321,48 @@ impl GridFastSlam {
         Ok(info)
     }
 
-    /// [`GridFastSlam::step`] with the record's odometry replaced by the guarded one.
+    /// [`GridFastSlam::step`] with the record's odometry replaced by the guarded one. A
+    /// record that fails leaves the per-record bookkeeping as it was, so that the filter
+    /// can go on with the next record (it used to index past its tables).
     fn step_with(
+        &mut self,
+        record: &ScanRecord,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
+        if let Some(reason) = &self.failed {
+            return Err(GridFastError::InvalidRecord {
+                index: self.times.len(),
+                t: record.t,
+                reason: format!(
+                    "the filter stopped at an earlier failure ({reason}); start a new filter"
+                ),
+            });
+        }
+        let n = self.times.len();
+        let (scans, saved) = (
+            self.scans.len(),
+            (self.motion_reference, self.acc_linear, self.acc_angular),
+        );
+        let r = self.step_unchecked(record, odometry);
+        if let Err(e) = &r {
+            self.times.truncate(n);
+            self.odometry.truncate(n);
+            self.last_scan_of_record.truncate(n);
+            (self.motion_reference, self.acc_linear, self.acc_angular) = saved;
+            // A failure inside a full update may have moved the particles past the scans
+            // kept: refuse further records rather than mix the two.
+            let moved = self
+                .particles
+                .iter()
+                .any(|p| p.node.as_ref().map_or(0, |n| n.path().len()) != scans);
+            if moved || self.particles.is_empty() {
+                self.failed = Some(e.to_string());
+            }
+        }
+        r
+    }
+
+    fn step_unchecked(
         &mut self,
         record: &ScanRecord,
         odometry: Pose2,
@@ -530,19 +576,25 @@ impl GridFastSlam {
             }
         }
         let resample = n_eff < self.config.resample_threshold * m as f64;
+        // Drawn before the particles are taken apart, so that a failure leaves them whole.
+        let drawn = if resample {
+            let w: Vec<f64> = log_w.iter().map(|l| l.exp()).collect();
+            Some(
+                self.config
+                    .resampler
+                    .resample(&w, &mut stream(seed, k, u64::MAX))
+                    .map_err(|e| GridFastError::Numerical {
+                        scan: k,
+                        reason: e.to_string(),
+                    })?,
+            )
+        } else {
+            None
+        };
         let mut old = std::mem::take(&mut self.particles);
         // Groups of identical particles: (leader, copies), in order.
         let mut groups: Vec<(Particle, usize)> = Vec::new();
-        if resample {
-            let w: Vec<f64> = log_w.iter().map(|l| l.exp()).collect();
-            let idx = self
-                .config
-                .resampler
-                .resample(&w, &mut stream(seed, k, u64::MAX))
-                .map_err(|e| GridFastError::Numerical {
-                    scan: k,
-                    reason: e.to_string(),
-                })?;
+        if let Some(idx) = drawn {
             let mut new_best = None;
             let mut j = 0;
             while j < idx.len() {
@@ -574,10 +626,9 @@ impl GridFastSlam {
         } else {
             groups = old.into_iter().map(|p| (p, 1)).collect();
         }
-        groups
+        let integrated = groups
             .par_iter_mut()
-            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid))
-            .map_err(|e| numerical(k, e))?;
+            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid));
         let mut particles = Vec::with_capacity(m);
         for (p, n) in groups {
             for _ in 1..n {
@@ -585,7 +636,10 @@ impl GridFastSlam {
             }
             particles.push(p);
         }
+        // The particles are put back before a failure is reported (a scan kilometres off
+        // the map is refused by the grid), so that the filter stays usable.
         self.particles = particles;
+        integrated.map_err(|e| numerical(k, e))?;
         self.best = best;
         self.n_eff = n_eff;
         Ok(ScanUpdateInfo {
