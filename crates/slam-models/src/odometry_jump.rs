@@ -92,7 +92,7 @@ impl OdometryJumpGuard {
         let mut skipped = false;
         if let Some(last) = self.last {
             let jump = last.distance(odometry);
-            if !(jump <= self.limit.max_jump) {
+            if jump.is_nan() || jump > self.limit.max_jump {
                 if self.limit.on_jump == OnOdometryJump::Error {
                     return Err(ModelError::OdometryJump {
                         jump,

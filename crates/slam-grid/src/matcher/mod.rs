@@ -86,7 +86,7 @@ pub(crate) fn check_input(
     }
     let (u, v) = grid.frame().world_to_continuous(&initial.translation());
     let far = u.abs().max(v.abs()) + (scan.max_point_range + reach) / grid.resolution() + 2.0;
-    if !(far <= MAX_MATCH_CELLS) {
+    if far.is_nan() || far > MAX_MATCH_CELLS {
         return Err(GridError::OutOfGrid {
             what: "scan matching around the initial pose",
             cells: far,
