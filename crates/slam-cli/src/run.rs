@@ -704,6 +704,9 @@ fn run_scan(
     let records = &dataset.records;
     let mut progress = Progress::new(records.len(), ctx.args.quiet);
     let start = Instant::now();
+    // Odometry jumps the filter skipped (only with `odometry_jump.on_jump = "skip"`):
+    // how many, and the first record's index and time.
+    let (mut jumps, mut first_jump) = (0usize, None);
     for (k, record) in records.iter().enumerate() {
         if crate::stop_requested() {
             return Err(CliError::Interrupted {
@@ -711,7 +714,7 @@ fn run_scan(
                 steps: records.len(),
             });
         }
-        filter
+        let step = filter
             .process(record)
             .map_err(|source| CliError::FilterStep {
                 filter: info.name.to_string(),
@@ -719,7 +722,16 @@ fn run_scan(
                 t: record.t,
                 source,
             })?;
+        if step.odometry_jumps_skipped > 0 {
+            jumps += step.odometry_jumps_skipped;
+            first_jump.get_or_insert((k, record.t));
+        }
         progress.set(k + 1);
+    }
+    if let Some((k, t)) = first_jump {
+        eprintln!(
+            "slam: warning: skipped {jumps} odometry jump(s) beyond odometry_jump.max_jump, taken as no motion (first at record {k}, t = {t} s)"
+        );
     }
     let trajectory = filter.trajectory();
     // The filter's own map is part of the timed run; a re-rendering (output, not filtering)

@@ -70,7 +70,15 @@ pub struct EkfConfig {
     /// Search budget of JCBB (nodes of the interpretation tree per update); when it is
     /// exhausted the best hypothesis found so far is used.
     pub jcbb_max_nodes: usize,
+    /// Most landmarks the map may hold (1 ..= [`MAX_LANDMARKS`]); one more is
+    /// [`EkfError::TooManyLandmarks`]. The dense covariance takes (3 + 2n)² × 8 bytes:
+    /// 800 MB at the default 5000 (the `city` scenario's default world has 2000).
+    pub max_landmarks: usize,
 }
+
+/// Upper bound of [`EkfConfig::max_landmarks`]: 20 000 landmarks make a 12.8 GB
+/// covariance, beyond which the O(N²) update is no longer a practical EKF.
+pub const MAX_LANDMARKS: usize = 20_000;
 
 impl Default for EkfConfig {
     /// slam-models' default motion and sensor models, no extra motion noise, a zero
@@ -92,6 +100,7 @@ impl Default for EkfConfig {
             provisional_max_age: 2,
             provisional_gate_probability: 0.99,
             jcbb_max_nodes: 100_000,
+            max_landmarks: 5000,
         }
     }
 }
@@ -120,6 +129,12 @@ fn probability(field: &'static str, p: f64) -> Result<(), EkfError> {
 impl EkfConfig {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), EkfError> {
+        check(
+            "max_landmarks",
+            self.max_landmarks as f64,
+            (1..=MAX_LANDMARKS).contains(&self.max_landmarks),
+            "1 ..= 20000 (MAX_LANDMARKS)",
+        )?;
         for a in self.motion.odometry.alpha {
             check("motion.odometry.alpha", a, a >= 0.0, "finite and >= 0")?;
         }

@@ -41,6 +41,23 @@ pub enum EkfError {
         /// The diagonal value found.
         value: f64,
     },
+    /// A new landmark would exceed [`crate::EkfConfig::max_landmarks`].
+    #[error(
+        "the map already holds max_landmarks = {max} landmarks; raise max_landmarks (at most 20000; \
+         the covariance takes (3 + 2n)² × 8 bytes)"
+    )]
+    TooManyLandmarks {
+        /// The configured cap.
+        max: usize,
+    },
+    /// Memory for the state covariance could not be reserved.
+    #[error("cannot allocate the {dim} × {dim} state covariance ({bytes} bytes)")]
+    OutOfMemory {
+        /// Rows = columns reserved.
+        dim: usize,
+        /// Bytes asked for.
+        bytes: u128,
+    },
     /// A model computation failed.
     #[error(transparent)]
     Model(#[from] ModelError),

@@ -172,9 +172,13 @@ impl EkfSlam {
                 "observation {z:?} places a landmark at a non-finite position"
             )));
         }
-        let slot = self
-            .state
-            .add_landmark(&inv, &self.config.sensor.noise_covariance());
+        let max = self.config.max_landmarks;
+        if self.ids.len() >= max {
+            return Err(EkfError::TooManyLandmarks { max });
+        }
+        let slot =
+            self.state
+                .add_landmark(&inv, &self.config.sensor.noise_covariance(), 3 + 2 * max)?;
         debug_assert_eq!(slot, self.ids.len());
         self.ids.push(id);
         self.index.insert(id, slot);
@@ -411,6 +415,48 @@ mod tests {
             bearing,
             id: id.map(LandmarkId),
         }
+    }
+
+    /// The landmark cap is a config bound and a runtime error, never an allocation abort
+    /// (20 000 landmarks used to panic in the covariance's `reserve`).
+    #[test]
+    fn landmark_cap_is_a_config_bound_and_an_error_when_reached() {
+        let e = EkfSlam::new(
+            EkfConfig {
+                max_landmarks: 20_001,
+                ..EkfConfig::default()
+            },
+            Pose2::IDENTITY,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                EkfError::InvalidConfig {
+                    field: "max_landmarks",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("20001") && e.to_string().contains("20000"));
+        let cfg = EkfConfig {
+            association: AssociationMode::KnownIds,
+            max_landmarks: 3,
+            ..EkfConfig::default()
+        };
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        let obs: Vec<_> = (0..3)
+            .map(|k| z(2.0 + k as f64, 0.3 * k as f64, Some(k)))
+            .collect();
+        ekf.update_observations(&obs).unwrap();
+        let e = ekf
+            .update_observations(&[z(4.0, -0.5, Some(7))])
+            .unwrap_err();
+        assert_eq!(e, EkfError::TooManyLandmarks { max: 3 });
+        assert!(e.to_string().contains("max_landmarks = 3"), "{e}");
+        // Known landmarks are still updated.
+        ekf.update_observations(&obs).unwrap();
     }
 
     #[test]

@@ -34,7 +34,7 @@ mod filter;
 mod provisional;
 mod state;
 
-pub use config::{AssociationMode, EkfConfig};
+pub use config::{AssociationMode, EkfConfig, MAX_LANDMARKS};
 pub use error::EkfError;
 pub use filter::{Association, EkfSlam, EkfUpdateInfo, AUTO_ID_BASE};
 

@@ -152,13 +152,26 @@ impl State {
     ///                                               every landmark already in the map)
     /// ```
     ///
-    /// Returns the new landmark's slot. O(N), amortised.
-    pub(crate) fn add_landmark(&mut self, inv: &InverseRangeBearing, q: &Matrix2) -> usize {
+    /// Returns the new landmark's slot. O(N), amortised. The covariance grows by doubling,
+    /// never beyond `max_dim` rows (3 + 2 × the landmark cap), and its memory is reserved
+    /// fallibly: [`EkfError::OutOfMemory`] instead of an abort.
+    pub(crate) fn add_landmark(
+        &mut self,
+        inv: &InverseRangeBearing,
+        q: &Matrix2,
+        max_dim: usize,
+    ) -> Result<usize, EkfError> {
         let n = self.dim();
         let need = n + 2;
         if need > self.capacity {
-            self.capacity = need.max(2 * self.capacity);
-            self.cov.reserve(self.capacity, self.capacity);
+            let capacity = need.max((2 * self.capacity).min(max_dim));
+            self.cov
+                .try_reserve(capacity, capacity)
+                .map_err(|_| EkfError::OutOfMemory {
+                    dim: capacity,
+                    bytes: (capacity as u128).pow(2) * 8,
+                })?;
+            self.capacity = capacity;
         }
         self.cov.resize_with(need, need, |_, _| 0.0);
         let gx = &inv.g_pose;
@@ -181,7 +194,7 @@ impl State {
         }
         self.mean.push(inv.landmark.x);
         self.mean.push(inv.landmark.y);
-        self.landmark_count() - 1
+        Ok(self.landmark_count() - 1)
     }
 
     /// Batched EKF update with m linearised observations (PR table 10.1 lines 12–21, all
@@ -361,7 +374,8 @@ mod tests {
                 id: None,
             };
             let inv = sensor.inverse(&st.pose(), &z);
-            st.add_landmark(&inv, &sensor.noise_covariance());
+            st.add_landmark(&inv, &sensor.noise_covariance(), usize::MAX)
+                .unwrap();
             let p = st.pose();
             let g = Matrix3::new(1.0, 0.0, -0.1, 0.0, 1.0, 0.2, 0.0, 0.0, 1.0);
             let rr = Matrix3::from_diagonal(&slam_models::Vector3::new(0.01, 0.01, 0.002))
@@ -441,7 +455,8 @@ mod tests {
         };
         let inv = sensor.inverse(&st.pose(), &z);
         let cap_before = st.capacity;
-        st.add_landmark(&inv, &sensor.noise_covariance());
+        st.add_landmark(&inv, &sensor.noise_covariance(), usize::MAX)
+            .unwrap();
         let mut j = nalgebra::DMatrix::<f64>::zeros(n + 2, n);
         for i in 0..n {
             j[(i, i)] = 1.0;
@@ -475,7 +490,12 @@ mod tests {
                 bearing: 0.01 * i as f64,
                 id: None,
             };
-            st.add_landmark(&sensor.inverse(&st.pose(), &z), &sensor.noise_covariance());
+            st.add_landmark(
+                &sensor.inverse(&st.pose(), &z),
+                &sensor.noise_covariance(),
+                usize::MAX,
+            )
+            .unwrap();
             if st.capacity != cap {
                 growths += 1;
                 cap = st.capacity;

@@ -37,13 +37,17 @@ pub enum Association {
     MaximumLikelihood,
 }
 
+/// Upper bound of [`FastSlamConfig::particles`]: 10⁵ particles, each with its own map of
+/// landmarks, already cost gigabytes on a large map; 10⁹ would be an allocation abort.
+pub const MAX_PARTICLES: usize = 100_000;
+
 /// FastSLAM settings. Every field has a documented default ([`FastSlamConfig::default`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FastSlamConfig {
     /// FastSLAM 1.0 or 2.0. Default 2.0.
     pub variant: Variant,
-    /// Number of particles M (≥ 1). Default 100.
+    /// Number of particles M (1 ..= [`MAX_PARTICLES`]). Default 100.
     pub particles: usize,
     /// Motion noise (velocity and odometry models; PR tables 5.3/5.6). Default: the
     /// slam-models defaults.
@@ -130,8 +134,12 @@ impl FastSlamConfig {
                 expected,
             }
         }
-        if self.particles == 0 {
-            return Err(bad("particles", self.particles, "at least 1"));
+        if !(1..=MAX_PARTICLES).contains(&self.particles) {
+            return Err(bad(
+                "particles",
+                self.particles,
+                "1 ..= 100000 (MAX_PARTICLES)",
+            ));
         }
         if !(self.p0.is_finite() && self.p0 > 0.0) {
             return Err(bad("p0", self.p0, "a finite density > 0"));
@@ -230,6 +238,25 @@ mod tests {
         assert_eq!(partial.variant, Variant::FastSlam1);
         assert_eq!(partial.particles, 7);
         assert!(serde_json::from_str::<FastSlamConfig>(r#"{"particle":7}"#).is_err());
+    }
+
+    /// `particles = 10^9` used to be accepted and allocated.
+    #[test]
+    fn particle_count_is_capped() {
+        let c = FastSlamConfig {
+            particles: 1_000_000_000,
+            ..Default::default()
+        };
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("particles = 1000000000") && e.contains("100000"),
+            "{e}"
+        );
+        let c = FastSlamConfig {
+            particles: MAX_PARTICLES,
+            ..Default::default()
+        };
+        assert!(c.validate().is_ok());
     }
 
     #[test]

@@ -36,6 +36,38 @@ pub enum GridError {
     /// straight wall, or no end point near an obstacle).
     #[error("degenerate scan matching problem: {0}")]
     Degenerate(&'static str),
+    /// A scan would stretch the map beyond its documented maximum extent
+    /// ([`crate::grid::MAX_MAP_EXTENT_CELLS`] per side, [`crate::grid::MAX_MAP_CELLS`] in
+    /// all), usually because of a glitched pose or range far from the rest of the map.
+    #[error(
+        "the map would span {width} × {height} cells ({:.0} m × {:.0} m at {resolution} m per cell), \
+         beyond the maximum extent of {} cells per side and {} cells in all; \
+         a glitched pose or range far from the rest of the map (an odometry jump) usually causes this",
+        *.width as f64 * .resolution,
+        *.height as f64 * .resolution,
+        crate::grid::MAX_MAP_EXTENT_CELLS,
+        crate::grid::MAX_MAP_CELLS
+    )]
+    MapTooLarge {
+        /// Width of the bounding box of everything covered, cells.
+        width: u64,
+        /// Height of that box, cells.
+        height: u64,
+        /// Cell edge, metres.
+        resolution: f64,
+    },
+    /// A pose, end point or search window lies farther from the grid origin than cell
+    /// arithmetic allows ([`crate::matcher::MAX_MATCH_CELLS`]).
+    #[error(
+        "{what} reaches {cells:.3e} cells from the grid origin, beyond the ±2^30 cells \
+         (MAX_MATCH_CELLS) within which cell indices are exact: a glitched pose"
+    )]
+    OutOfGrid {
+        /// What was out of reach.
+        what: &'static str,
+        /// Its distance from the origin, cells (largest coordinate).
+        cells: f64,
+    },
     /// A model-layer check failed (invalid scan readings, pose).
     #[error(transparent)]
     Model(#[from] ModelError),

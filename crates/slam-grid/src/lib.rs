@@ -30,10 +30,12 @@ pub mod scan;
 
 pub use cell::{CellIndex, GridFrame};
 pub use error::GridError;
-pub use grid::distance::{DistanceField, DISTANCE_UNITS_PER_CELL, MAX_DISTANCE_RADIUS};
+pub use grid::distance::{
+    DistanceCursor, DistanceField, DISTANCE_UNITS_PER_CELL, MAX_DISTANCE_RADIUS,
+};
 pub use grid::sensor_model::InverseSensorModel;
 pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
-pub use grid::{CopyStats, OccupancyGrid};
+pub use grid::{CopyStats, OccupancyGrid, MAX_MAP_CELLS, MAX_MAP_EXTENT_CELLS};
 pub use likelihood::{LikelihoodField, LikelihoodParams};
 pub use scan::PreparedScan;
 pub mod matcher;

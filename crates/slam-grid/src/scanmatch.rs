@@ -8,7 +8,7 @@ use crate::scan::PreparedScan;
 use crate::InverseSensorModel;
 use serde::{Deserialize, Serialize};
 use slam_models::{normalize_angle, FilterError, GridMap, Pose2, ScanRecord, ScanSlam};
-use slam_models::{ScanUpdateInfo, TimedPose};
+use slam_models::{OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
 
 /// Configuration of [`ScanMatchOdometry`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -33,6 +33,9 @@ pub struct ScanMatchConfig {
     pub linear_update: f64,
     /// … or turned this much, radians. Default 0.1 rad.
     pub angular_update: f64,
+    /// The largest odometry jump between two consecutive records, and whether a larger
+    /// one is an error (default: beyond 5 m) or skipped ([`OdometryJumpLimit`]).
+    pub odometry_jump: OdometryJumpLimit,
 }
 
 impl Default for ScanMatchConfig {
@@ -46,6 +49,7 @@ impl Default for ScanMatchConfig {
             min_score: 0.2,
             linear_update: 0.1,
             angular_update: 0.1,
+            odometry_jump: OdometryJumpLimit::default(),
         }
     }
 }
@@ -69,6 +73,7 @@ pub struct ScanMatchOdometry {
     trajectory: Vec<TimedPose>,
     map_has_scan: bool,
     failures: usize,
+    guard: OdometryJumpGuard,
 }
 
 impl ScanMatchOdometry {
@@ -98,6 +103,7 @@ impl ScanMatchOdometry {
             config.angular_update,
             ">= 0 rad",
         )?;
+        let guard = OdometryJumpGuard::new(config.odometry_jump)?;
         config.matcher.correlative.validate()?;
         config.matcher.refine.validate()?;
         let grid = OccupancyGrid::try_new(config.resolution, config.sensor_model)?
@@ -110,6 +116,7 @@ impl ScanMatchOdometry {
             trajectory: Vec::new(),
             map_has_scan: false,
             failures: 0,
+            guard,
         })
     }
 
@@ -130,11 +137,13 @@ impl ScanMatchOdometry {
                 value: f64::NAN,
             });
         }
-        let (anchor_pose, anchor_odom) = *self
-            .anchor
-            .get_or_insert((Pose2::IDENTITY, record.odometry));
-        let predicted = anchor_pose.compose(&anchor_odom.between(&record.odometry));
-        let mut info = ScanUpdateInfo::default();
+        let (odometry, skipped) = self.guard.check(&record.odometry)?;
+        let (anchor_pose, anchor_odom) = *self.anchor.get_or_insert((Pose2::IDENTITY, odometry));
+        let predicted = anchor_pose.compose(&anchor_odom.between(&odometry));
+        let mut info = ScanUpdateInfo {
+            odometry_jumps_skipped: skipped as usize,
+            ..ScanUpdateInfo::default()
+        };
         self.current = predicted;
         if let Some(scan) = &record.scan {
             let moved = anchor_pose.distance(&predicted);
@@ -162,7 +171,7 @@ impl ScanMatchOdometry {
                 };
                 self.grid.try_integrate_prepared(&pose, &prepared)?;
                 self.map_has_scan = true;
-                self.anchor = Some((pose, record.odometry));
+                self.anchor = Some((pose, odometry));
                 self.current = pose;
                 info.processed_scan = true;
             }
@@ -247,5 +256,76 @@ mod tests {
             scan: None,
         };
         assert!(f.process(&bad).is_err());
+    }
+
+    /// Records along the office with true odometry, one of them moved by 10 km (a glitch).
+    fn glitched_records() -> Vec<ScanRecord> {
+        let world = SegmentWorld::office();
+        (0..40)
+            .map(|k| {
+                let truth = Pose2::new(1.5 + 0.1 * k as f64, 3.0, 0.0);
+                let mut odometry = Pose2::new(truth.x - 1.5, 0.0, 0.0);
+                if k == 20 {
+                    odometry.x += 10_000.0;
+                }
+                ScanRecord {
+                    t: k as f64 * 0.1,
+                    odometry,
+                    scan: Some(world.scan(&truth, 181, std::f64::consts::PI, 20.0)),
+                }
+            })
+            .collect()
+    }
+
+    /// A 10 km odometry jump is an error naming the jump and the bound (it used to
+    /// stretch the grid over 10 km and ask for 18 GB); with `on_jump = "skip"` the record
+    /// counts as no motion, is counted in the step info, and the map stays the office's.
+    #[test]
+    fn an_odometry_jump_is_an_error_or_skipped_on_request() {
+        let records = glitched_records();
+        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).unwrap();
+        for r in &records[..20] {
+            f.process(r).unwrap();
+        }
+        let err = f.process(&records[20]).unwrap_err().to_string();
+        assert!(
+            err.contains("odometry jumped 10000") && err.contains("max_jump = 5 m"),
+            "{err}"
+        );
+
+        let config = ScanMatchConfig {
+            odometry_jump: slam_models::OdometryJumpLimit {
+                max_jump: 5.0,
+                on_jump: slam_models::OnOdometryJump::Skip,
+            },
+            ..ScanMatchConfig::default()
+        };
+        let mut f = ScanMatchOdometry::new(config).unwrap();
+        let mut skipped = Vec::new();
+        for r in &records {
+            skipped.push(f.process(r).unwrap().odometry_jumps_skipped);
+        }
+        // Out at record 20 and back at record 21: both jumps taken as no motion.
+        let at: Vec<usize> = (0..skipped.len()).filter(|&k| skipped[k] > 0).collect();
+        assert_eq!(at, [20, 21]);
+        let traj = f.trajectory();
+        // The robot moved 3.9 m in all; the two skipped records lose at most their 0.2 m
+        // of odometry (scan matching recovers it against the map), never kilometres.
+        let last = traj.last().unwrap().pose;
+        assert!((last.x - 3.9).abs() < 0.25, "{last:?}");
+        let map = f.map();
+        assert!(
+            map.width as f64 * map.resolution < 50.0,
+            "{} cells wide",
+            map.width
+        );
+        assert!(ScanMatchOdometry::new(ScanMatchConfig {
+            odometry_jump: slam_models::OdometryJumpLimit {
+                max_jump: f64::NAN,
+                ..Default::default()
+            },
+            ..ScanMatchConfig::default()
+        })
+        .is_err());
     }
 }

@@ -26,6 +26,11 @@ pub enum Proposal {
     Improved,
 }
 
+/// Upper bound of [`GridFastConfig::particles`]: every particle carries its own map, so
+/// 10⁴ particles already need gigabytes on a building-sized map (GMapping runs 30–100);
+/// 10⁹ would be an allocation abort.
+pub const MAX_PARTICLES: usize = 10_000;
+
 /// Configuration of grid-based FastSLAM. Lengths in metres, angles in radians.
 ///
 /// Defaults follow GMapping's ROS defaults where GMapping has the parameter (particles 30,
@@ -34,7 +39,7 @@ pub enum Proposal {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GridFastConfig {
-    /// Number of particles M (≥ 1). Default 30.
+    /// Number of particles M (1 ..= [`MAX_PARTICLES`]). Default 30.
     pub particles: usize,
     /// Proposal distribution. Default [`Proposal::Improved`].
     pub proposal: Proposal,
@@ -141,6 +146,10 @@ pub struct GridFastConfig {
     /// Improved proposal: the samples span ±this around the mode in θ, radians.
     /// Default 0.005.
     pub sample_range_theta: f64,
+    /// The largest odometry jump between two consecutive records, and whether a larger
+    /// one is an error (default: beyond 5 m) or skipped
+    /// ([`slam_models::OdometryJumpLimit`]).
+    pub odometry_jump: slam_models::OdometryJumpLimit,
 }
 
 impl Default for GridFastConfig {
@@ -177,6 +186,7 @@ impl Default for GridFastConfig {
             samples_per_axis: 3,
             sample_range_xy: 0.01,
             sample_range_theta: 0.005,
+            odometry_jump: slam_models::OdometryJumpLimit::default(),
         }
     }
 }
@@ -202,12 +212,18 @@ impl GridFastConfig {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), GridFastError> {
         check(
-            self.particles >= 1,
+            (1..=MAX_PARTICLES).contains(&self.particles),
             "particles",
             self.particles as f64,
-            ">= 1",
+            "1 ..= 10000 (MAX_PARTICLES)",
         )?;
         check(self.resolution > 0.0, "resolution", self.resolution, "> 0")?;
+        check(
+            self.odometry_jump.max_jump > 0.0,
+            "odometry_jump.max_jump",
+            self.odometry_jump.max_jump,
+            "> 0 m and finite",
+        )?;
         check(
             self.linear_update >= 0.0,
             "linear_update",
@@ -403,6 +419,26 @@ mod tests {
         assert_eq!(p.proposal, Proposal::ScanMatchedOdometry);
         assert_eq!(p.linear_update, 1.0);
         assert!(serde_json::from_str::<GridFastConfig>(r#"{"particle": 5}"#).is_err());
+    }
+
+    /// `particles = 10^9` used to be accepted and allocated.
+    #[test]
+    fn particle_count_is_capped() {
+        let c = GridFastConfig {
+            particles: 1_000_000_000,
+            ..Default::default()
+        };
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("particles = 1000000000") && e.contains("10000"),
+            "{e}"
+        );
+        assert!(crate::GridFastSlam::new(c, 0).is_err());
+        let c = GridFastConfig {
+            particles: MAX_PARTICLES,
+            ..Default::default()
+        };
+        assert!(c.validate().is_ok());
     }
 
     #[test]

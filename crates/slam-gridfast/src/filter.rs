@@ -14,6 +14,7 @@ use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::PathNode;
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
+use slam_models::OdometryJumpGuard;
 use slam_models::{
     normalize_angle, FilterError, GridMap, LaserScan, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo,
     TimedPose, Vector3, WeightedPose,
@@ -125,6 +126,10 @@ pub struct GridFastSlam {
     acc_linear: f64,
     acc_angular: f64,
     motion_reference: Option<Pose2>,
+    /// Checks each record's odometry against the previous one's ([`GridFastConfig::odometry_jump`]).
+    guard: OdometryJumpGuard,
+    /// Set when a full update failed half-way: every later record is refused.
+    failed: Option<String>,
 }
 
 /// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
@@ -154,6 +159,7 @@ impl GridFastSlam {
     /// with empty maps. `seed` fixes every random draw.
     pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
         config.validate()?;
+        let config_jump = config.odometry_jump;
         let radius = (config.field_radius / config.resolution).round() as i32;
         let empty = new_map(&config)?;
         let lk = Likelihood {
@@ -203,6 +209,14 @@ impl GridFastSlam {
             acc_linear: 0.0,
             acc_angular: 0.0,
             motion_reference: None,
+            failed: None,
+            guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
+                GridFastError::InvalidConfig {
+                    field: "odometry_jump.max_jump",
+                    value: config_jump.max_jump,
+                    expected: "> 0 m and finite",
+                }
+            })?,
         })
     }
 
@@ -245,7 +259,7 @@ impl GridFastSlam {
     }
 
     fn best_path(&self) -> Vec<Pose2> {
-        match &self.particles[self.best].node {
+        match self.particles.get(self.best).and_then(|p| p.node.as_ref()) {
             Some(n) => n.path(),
             None => Vec::new(),
         }
@@ -254,15 +268,18 @@ impl GridFastSlam {
     /// The pose of record `i` by [`slam_models::keyframes::pose_at_record`]: the last
     /// corrected pose ⊕ the odometry since, except at a processed scan's own instant.
     fn pose_at_record(&self, i: usize, path: &[Pose2]) -> Pose2 {
-        let keyframe = |k: usize| Keyframe {
-            record: self.scan_records[k],
-            pose: path[k],
+        // (`get`: after a failed update the path may not match the scans kept.)
+        let keyframe = |k: usize| {
+            Some(Keyframe {
+                record: *self.scan_records.get(k)?,
+                pose: *path.get(k)?,
+            })
         };
         let (previous, next) = match self.last_scan_of_record[i] {
             u32::MAX => (None, 0),
-            k => (Some(keyframe(k as usize)), k as usize + 1),
+            k => (keyframe(k as usize), k as usize + 1),
         };
-        let next = (next < path.len()).then(|| keyframe(next));
+        let next = keyframe(next);
         keyframes::pose_at_record(&self.times, &self.odometry, i, previous, next)
             .expect("record and scan indices are the filter's own and always in range")
     }
@@ -291,19 +308,78 @@ impl GridFastSlam {
     /// Processes one record (the [`ScanSlam::process`] contract, with this crate's error).
     pub fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridFastError> {
         self.check_record(record)?;
+        let (odometry, skipped) =
+            self.guard
+                .check(&record.odometry)
+                .map_err(|e| GridFastError::InvalidRecord {
+                    index: self.times.len(),
+                    t: record.t,
+                    reason: e.to_string(),
+                })?;
+        let mut info = self.step_with(record, odometry)?;
+        info.odometry_jumps_skipped = skipped as usize;
+        Ok(info)
+    }
+
+    /// [`GridFastSlam::step`] with the record's odometry replaced by the guarded one. A
+    /// record that fails leaves the per-record bookkeeping as it was, so that the filter
+    /// can go on with the next record (it used to index past its tables).
+    fn step_with(
+        &mut self,
+        record: &ScanRecord,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
+        if let Some(reason) = &self.failed {
+            return Err(GridFastError::InvalidRecord {
+                index: self.times.len(),
+                t: record.t,
+                reason: format!(
+                    "the filter stopped at an earlier failure ({reason}); start a new filter"
+                ),
+            });
+        }
+        let n = self.times.len();
+        let (scans, saved) = (
+            self.scans.len(),
+            (self.motion_reference, self.acc_linear, self.acc_angular),
+        );
+        let r = self.step_unchecked(record, odometry);
+        if let Err(e) = &r {
+            self.times.truncate(n);
+            self.odometry.truncate(n);
+            self.last_scan_of_record.truncate(n);
+            (self.motion_reference, self.acc_linear, self.acc_angular) = saved;
+            // A failure inside a full update may have moved the particles past the scans
+            // kept: refuse further records rather than mix the two.
+            let moved = self
+                .particles
+                .iter()
+                .any(|p| p.node.as_ref().map_or(0, |n| n.path().len()) != scans);
+            if moved || self.particles.is_empty() {
+                self.failed = Some(e.to_string());
+            }
+        }
+        r
+    }
+
+    fn step_unchecked(
+        &mut self,
+        record: &ScanRecord,
+        odometry: Pose2,
+    ) -> Result<ScanUpdateInfo, GridFastError> {
         // Motion is accumulated over every odometry reading, as GMapping's processScan
         // does per reading (`m_linearDistance += |Δ|`, `m_angularDistance += |Δθ|`);
         // with `accumulate_per_scan` only from scan record to scan record (what a ROS
         // node that sees only the scans does).
         if !self.config.accumulate_per_scan || record.scan.is_some() {
             if let Some(prev) = self.motion_reference {
-                self.acc_linear += prev.distance(&record.odometry);
-                self.acc_angular += normalize_angle(record.odometry.theta - prev.theta).abs();
+                self.acc_linear += prev.distance(&odometry);
+                self.acc_angular += normalize_angle(odometry.theta - prev.theta).abs();
             }
-            self.motion_reference = Some(record.odometry);
+            self.motion_reference = Some(odometry);
         }
         self.times.push(record.t);
-        self.odometry.push(record.odometry);
+        self.odometry.push(odometry);
         let first = self.scans.is_empty();
         let update = match &record.scan {
             Some(_) => {
@@ -323,12 +399,13 @@ impl GridFastSlam {
                     n_eff: Some(self.n_eff),
                     resampled: false,
                     match_failures: 0,
+                    odometry_jumps_skipped: 0,
                 });
             }
         };
         let k = self.scans.len();
         let info = if first {
-            self.first_scan(scan, record.odometry)?
+            self.first_scan(scan, odometry)?
         } else {
             self.update(k, scan)?
         };
@@ -360,6 +437,7 @@ impl GridFastSlam {
             n_eff: Some(self.n_eff),
             resampled: false,
             match_failures: 0,
+            odometry_jumps_skipped: 0,
         })
     }
 
@@ -498,19 +576,25 @@ impl GridFastSlam {
             }
         }
         let resample = n_eff < self.config.resample_threshold * m as f64;
+        // Drawn before the particles are taken apart, so that a failure leaves them whole.
+        let drawn = if resample {
+            let w: Vec<f64> = log_w.iter().map(|l| l.exp()).collect();
+            Some(
+                self.config
+                    .resampler
+                    .resample(&w, &mut stream(seed, k, u64::MAX))
+                    .map_err(|e| GridFastError::Numerical {
+                        scan: k,
+                        reason: e.to_string(),
+                    })?,
+            )
+        } else {
+            None
+        };
         let mut old = std::mem::take(&mut self.particles);
         // Groups of identical particles: (leader, copies), in order.
         let mut groups: Vec<(Particle, usize)> = Vec::new();
-        if resample {
-            let w: Vec<f64> = log_w.iter().map(|l| l.exp()).collect();
-            let idx = self
-                .config
-                .resampler
-                .resample(&w, &mut stream(seed, k, u64::MAX))
-                .map_err(|e| GridFastError::Numerical {
-                    scan: k,
-                    reason: e.to_string(),
-                })?;
+        if let Some(idx) = drawn {
             let mut new_best = None;
             let mut j = 0;
             while j < idx.len() {
@@ -542,10 +626,9 @@ impl GridFastSlam {
         } else {
             groups = old.into_iter().map(|p| (p, 1)).collect();
         }
-        groups
+        let integrated = groups
             .par_iter_mut()
-            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid))
-            .map_err(|e| numerical(k, e))?;
+            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid));
         let mut particles = Vec::with_capacity(m);
         for (p, n) in groups {
             for _ in 1..n {
@@ -553,7 +636,10 @@ impl GridFastSlam {
             }
             particles.push(p);
         }
+        // The particles are put back before a failure is reported (a scan kilometres off
+        // the map is refused by the grid), so that the filter stays usable.
         self.particles = particles;
+        integrated.map_err(|e| numerical(k, e))?;
         self.best = best;
         self.n_eff = n_eff;
         Ok(ScanUpdateInfo {
@@ -561,6 +647,7 @@ impl GridFastSlam {
             n_eff: Some(n_eff),
             resampled: resample,
             match_failures: failures,
+            odometry_jumps_skipped: 0,
         })
     }
 }
@@ -756,6 +843,67 @@ mod tests {
             let c = map.world_to_cell(&slam_models::Point2::new(x, 0.01));
             assert_eq!(map.log_odds(c), 0.0, "x = {x}");
         }
+    }
+
+    /// A 10 km odometry jump is rejected with the record's index and the bound; with
+    /// `on_jump = "skip"` it is taken as no motion, counted in the step info, and the
+    /// particles' maps stay the room's (the jump used to stretch every particle's grid
+    /// over 10 km).
+    #[test]
+    fn an_odometry_jump_is_an_error_or_skipped_on_request() {
+        let config = GridFastConfig {
+            particles: 3,
+            ..Default::default()
+        };
+        let poses: Vec<Pose2> = (0..8)
+            .map(|k| Pose2::new(0.2 * k as f64, 0.0, 0.0))
+            .collect();
+        let mut f = GridFastSlam::new(config.clone(), 1).unwrap();
+        for (k, p) in poses.iter().enumerate() {
+            f.step(&rec(k as f64, *p, true)).unwrap();
+        }
+        // The glitched record carries the room's scan as seen from its true pose.
+        let mut glitch = rec(8.0, Pose2::new(1.6, 0.0, 0.0), true);
+        glitch.odometry.x += 10_000.0;
+        let e = f.step(&glitch).unwrap_err();
+        assert!(
+            matches!(e, GridFastError::InvalidRecord { index: 8, .. }),
+            "{e}"
+        );
+        assert!(e.to_string().contains("max_jump = 5 m"), "{e}");
+
+        let mut f = GridFastSlam::new(
+            GridFastConfig {
+                odometry_jump: slam_models::OdometryJumpLimit {
+                    max_jump: 5.0,
+                    on_jump: slam_models::OnOdometryJump::Skip,
+                },
+                ..config
+            },
+            1,
+        )
+        .unwrap();
+        let mut skipped = 0;
+        for (k, p) in poses.iter().enumerate() {
+            skipped += f
+                .step(&rec(k as f64, *p, true))
+                .unwrap()
+                .odometry_jumps_skipped;
+        }
+        skipped += f.step(&glitch).unwrap().odometry_jumps_skipped;
+        skipped += f
+            .step(&rec(9.0, Pose2::new(1.6, 0.0, 0.0), true))
+            .unwrap()
+            .odometry_jumps_skipped;
+        assert_eq!(skipped, 2);
+        assert_eq!(f.trajectory().len(), 10);
+        let map = f.map();
+        assert!(
+            map.width as f64 * map.resolution < 10.0,
+            "{} cells wide",
+            map.width
+        );
+        assert!(f.pose().x.abs() < 3.0, "{:?}", f.pose());
     }
 
     #[test]

@@ -39,7 +39,7 @@ mod filter;
 mod matcher;
 mod proposal;
 
-pub use config::{GridFastConfig, Proposal};
+pub use config::{GridFastConfig, Proposal, MAX_PARTICLES};
 pub use error::GridFastError;
 pub use filter::GridFastSlam;
 

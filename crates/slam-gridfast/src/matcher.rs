@@ -123,6 +123,7 @@ fn score_points(
     let mut sum = 0.0;
     let mut inliers = 0;
     let r_in = lk.radius * 0.999;
+    let mut field = field.cursor();
     for p in points {
         // Cell-centre coordinates: cell (i, j) has its centre at (i, j).
         let u = c * p[0] - s * p[1] + tx;

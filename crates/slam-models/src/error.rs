@@ -56,6 +56,18 @@ pub enum ModelError {
         /// What was expected, in words.
         expected: &'static str,
     },
+    /// The odometry of two consecutive records differs by more than the configured limit
+    /// (see [`crate::odometry_jump`]).
+    #[error(
+        "odometry jumped {jump} m between two consecutive records, beyond odometry_jump.max_jump = {max_jump} m \
+         (a glitched record; set odometry_jump.on_jump = \"skip\" in the filter config to skip such jumps)"
+    )]
+    OdometryJump {
+        /// Distance between the two odometry positions, metres.
+        jump: f64,
+        /// The limit, metres.
+        max_jump: f64,
+    },
     /// Inputs that belong together do not fit each other (lengths, order, indices).
     #[error("{what}: {reason}")]
     Mismatch {

@@ -177,6 +177,10 @@ pub struct ScanUpdateInfo {
     pub resampled: bool,
     /// Particles whose scan matching failed and fell back to the motion model.
     pub match_failures: usize,
+    /// Odometry jumps skipped at this record (0 or 1; only with
+    /// [`crate::OnOdometryJump::Skip`]): the caller should warn.
+    #[serde(default)]
+    pub odometry_jumps_skipped: usize,
 }
 
 /// A scan-based SLAM filter: grid FastSLAM, scan-matching odometry.

@@ -19,6 +19,8 @@
 //!   everything in this crate uses them, so the simulator built on it is reproducible.
 //! * [`keyframes`]: a keyframe filter's pose at every record of a log (last corrected
 //!   pose ⊕ odometry since, GMapping's convention).
+//! * [`odometry_jump`]: the laser filters' guard against glitched odometry (a jump between
+//!   two records beyond a limit is an error, or skipped).
 //! * [`filter`]: the traits [`LandmarkSlam`] and [`ScanSlam`] that downstream code swaps
 //!   filters behind.
 //!
@@ -42,6 +44,7 @@ pub mod grid_map;
 pub mod keyframes;
 pub mod measurement;
 pub mod motion;
+pub mod odometry_jump;
 pub mod particle;
 pub mod pose;
 pub mod sampling;
@@ -56,6 +59,7 @@ pub use filter::{
     FilterError, LandmarkEstimate, LandmarkSlam, ScanSlam, ScanUpdateInfo, UpdateInfo, WeightedPose,
 };
 pub use grid_map::GridMap;
+pub use odometry_jump::{OdometryJumpGuard, OdometryJumpLimit, OnOdometryJump};
 pub use particle::{ParticlePaths, PathTreeNode};
 pub use pose::Pose2;
 

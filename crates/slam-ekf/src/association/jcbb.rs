@@ -195,7 +195,8 @@ mod tests {
                 bearing: b,
                 id: None,
             };
-            st.add_landmark(&sensor.inverse(&Pose2::IDENTITY, &z), &precise);
+            st.add_landmark(&sensor.inverse(&Pose2::IDENTITY, &z), &precise, usize::MAX)
+                .unwrap();
         }
         st.predict(
             &Pose2::IDENTITY,
@@ -246,7 +247,12 @@ mod tests {
                 bearing: b,
                 id: None,
             };
-            st.add_landmark(&sensor.inverse(&st.pose(), &z), &sensor.noise_covariance());
+            st.add_landmark(
+                &sensor.inverse(&st.pose(), &z),
+                &sensor.noise_covariance(),
+                usize::MAX,
+            )
+            .unwrap();
         }
         let obs = [(3.1, 0.52), (3.9, -0.68), (2.45, 1.18)];
         let cands: Vec<Vec<Candidate>> = obs

@@ -20,10 +20,12 @@
 //!
 //! Invariant (checked by the tests against a brute-force recomputation): after every
 //! integration, every cell's value equals min(16·√(dx² + dy²), 16·radius) rounded, over the
-//! obstacle cells at offset (dx, dy). The tile table of such a grid always extends at least
-//! `radius` cells beyond every obstacle, so no stamp is ever cut off at the table's border.
+//! obstacle cells at offset (dx, dy). The covered rectangle of such a grid always extends at
+//! least `radius` cells beyond every obstacle, so no stamp is ever cut off at its border, and
+//! the tiles within `radius` (< one tile) of an obstacle are stored: a written tile's eight
+//! neighbours always are.
 
-use super::tiles::{split, TileLayout, TILE_BITS, TILE_CELLS, TILE_SIZE};
+use super::tiles::{split, TileTable, TILE_BITS, TILE_CELLS, TILE_SIZE};
 use crate::cell::{CellIndex, GridFrame};
 use std::sync::Arc;
 
@@ -72,7 +74,7 @@ impl Kernel {
     }
 }
 
-/// The distance tiles of one grid, one slot per occupancy tile slot (same layout).
+/// The distance tiles of one grid, one per occupancy tile slot (same slot numbers).
 #[derive(Debug, Clone)]
 pub(crate) struct IncrementalDistance {
     kernel: Arc<Kernel>,
@@ -94,23 +96,16 @@ impl IncrementalDistance {
         self.kernel.radius
     }
 
-    /// Moves the tiles from the `old` table layout to the `new` one (which contains it).
-    pub(crate) fn relayout(&mut self, old: &TileLayout, new: &TileLayout) {
-        let mut tiles = vec![None; new.len()];
-        for (s, t) in self.tiles.iter_mut().enumerate() {
-            let (tx, ty) = old.tile_of_slot(s);
-            if let Some(ns) = new.slot(tx, ty) {
-                tiles[ns] = t.take();
-            }
-        }
-        self.tiles = tiles;
+    /// Adds an all-far tile for a new occupancy slot.
+    pub(crate) fn push_slot(&mut self) {
+        self.tiles.push(None);
     }
 
     /// A read-only view for matching.
-    pub(crate) fn view(&self, layout: TileLayout, frame: GridFrame) -> DistanceField<'_> {
+    pub(crate) fn view<'a>(&'a self, table: &'a TileTable, frame: GridFrame) -> DistanceField<'a> {
         DistanceField {
             frame,
-            layout,
+            table,
             tiles: &self.tiles,
             radius: self.kernel.radius,
             max: self.kernel.max,
@@ -118,10 +113,10 @@ impl IncrementalDistance {
     }
 
     /// Forgets every value and stamps the given obstacle cells (a full rebuild).
-    pub(crate) fn rebuild(&mut self, layout: &TileLayout, obstacles: &[CellIndex]) {
+    pub(crate) fn rebuild(&mut self, table: &TileTable, obstacles: &[CellIndex]) {
         self.tiles.iter_mut().for_each(|t| *t = None);
         for &c in obstacles {
-            self.stamp(layout, c, None);
+            self.stamp(table, c, None);
         }
     }
 
@@ -129,7 +124,7 @@ impl IncrementalDistance {
     /// (`is_obstacle` gives the status now). `flips` is sorted and deduplicated in place.
     pub(crate) fn repair(
         &mut self,
-        layout: &TileLayout,
+        table: &TileTable,
         flips: &mut Vec<CellIndex>,
         is_obstacle: impl Fn(CellIndex) -> bool,
     ) {
@@ -139,13 +134,13 @@ impl IncrementalDistance {
         // (this also re-stamps every obstacle near them, new ones included).
         for &c in flips.iter() {
             if !is_obstacle(c) {
-                self.recompute_window(layout, c, &is_obstacle);
+                self.recompute_window(table, c, &is_obstacle);
             }
         }
         // Cells that became obstacles: dist ← min(dist, kernel) around them.
         for &c in flips.iter() {
             if is_obstacle(c) {
-                self.stamp(layout, c, None);
+                self.stamp(table, c, None);
             }
         }
     }
@@ -163,9 +158,9 @@ impl IncrementalDistance {
     }
 
     #[inline]
-    fn get(&self, layout: &TileLayout, c: CellIndex) -> Option<(usize, usize, u8)> {
+    fn get(&self, table: &TileTable, c: CellIndex) -> Option<(usize, usize, u8)> {
         let ((tx, ty), local) = split(c);
-        let slot = layout.slot(tx, ty)?;
+        let slot = table.slot(tx, ty)?;
         let v = match &self.tiles[slot] {
             Some(t) => t.dist[local],
             None => self.kernel.max,
@@ -176,7 +171,7 @@ impl IncrementalDistance {
     /// dist ← min(dist, kernel) around obstacle cell `c`, optionally only inside the
     /// inclusive window `clip` = (min, max). Shared tiles are copied only where a value
     /// actually decreases.
-    fn stamp(&mut self, layout: &TileLayout, c: CellIndex, clip: Option<(CellIndex, CellIndex)>) {
+    fn stamp(&mut self, table: &TileTable, c: CellIndex, clip: Option<(CellIndex, CellIndex)>) {
         let kernel = Arc::clone(&self.kernel);
         let rad = kernel.radius;
         let (mut x0, mut y0, mut x1, mut y1) = (c.x - rad, c.y - rad, c.x + rad, c.y + rad);
@@ -192,7 +187,7 @@ impl IncrementalDistance {
                 if k >= kernel.max {
                     continue;
                 }
-                if let Some((slot, local, cur)) = self.get(layout, CellIndex::new(x, y)) {
+                if let Some((slot, local, cur)) = self.get(table, CellIndex::new(x, y)) {
                     if k < cur {
                         self.tile_mut(slot).dist[local] = k;
                     }
@@ -205,7 +200,7 @@ impl IncrementalDistance {
     /// 2·`radius` of `c`.
     fn recompute_window(
         &mut self,
-        layout: &TileLayout,
+        table: &TileTable,
         c: CellIndex,
         is_obstacle: &impl Fn(CellIndex) -> bool,
     ) {
@@ -213,7 +208,7 @@ impl IncrementalDistance {
         let max = self.kernel.max;
         for y in c.y - rad..=c.y + rad {
             for x in c.x - rad..=c.x + rad {
-                if let Some((slot, local, cur)) = self.get(layout, CellIndex::new(x, y)) {
+                if let Some((slot, local, cur)) = self.get(table, CellIndex::new(x, y)) {
                     if cur != max {
                         self.tile_mut(slot).dist[local] = max;
                     }
@@ -228,7 +223,7 @@ impl IncrementalDistance {
             for x in c.x - 2 * rad..=c.x + 2 * rad {
                 let o = CellIndex::new(x, y);
                 if is_obstacle(o) {
-                    self.stamp(layout, o, Some(clip));
+                    self.stamp(table, o, Some(clip));
                 }
             }
         }
@@ -244,13 +239,13 @@ impl IncrementalDistance {
 #[derive(Debug, Clone, Copy)]
 pub struct DistanceField<'a> {
     frame: GridFrame,
-    layout: TileLayout,
+    table: &'a TileTable,
     tiles: &'a [Option<Arc<DistanceTile>>],
     radius: i32,
     max: u8,
 }
 
-impl DistanceField<'_> {
+impl<'a> DistanceField<'a> {
     /// The grid's world ↔ cell frame.
     #[inline]
     pub fn frame(&self) -> GridFrame {
@@ -275,12 +270,30 @@ impl DistanceField<'_> {
         self.frame.resolution / DISTANCE_UNITS_PER_CELL
     }
 
+    /// The stored tile (tx, ty), `None` when all far.
+    #[inline]
+    fn tile(&self, tx: i32, ty: i32) -> Option<&'a DistanceTile> {
+        let tiles: &'a [Option<Arc<DistanceTile>>] = self.tiles;
+        self.table.slot(tx, ty).and_then(|s| tiles[s].as_deref())
+    }
+
+    /// A reader that remembers the last tile it looked up ([`DistanceCursor`]).
+    #[inline]
+    pub fn cursor(&self) -> DistanceCursor<'a> {
+        let tile = (i32::MIN, i32::MIN);
+        DistanceCursor {
+            field: *self,
+            tile,
+            data: self.tile(tile.0, tile.1),
+        }
+    }
+
     /// Truncated distance of cell `c` to the nearest obstacle, distance units.
     #[inline]
     pub fn dist(&self, c: CellIndex) -> u8 {
         let ((tx, ty), local) = split(c);
         match self
-            .layout
+            .table
             .slot(tx, ty)
             .and_then(|s| self.tiles[s].as_deref())
         {
@@ -297,7 +310,7 @@ impl DistanceField<'_> {
         if (c.x & TILE_MASK) != TILE_MASK && (c.y & TILE_MASK) != TILE_MASK {
             let (tx, ty) = (c.x >> TILE_BITS, c.y >> TILE_BITS);
             match self
-                .layout
+                .table
                 .slot(tx, ty)
                 .and_then(|s| self.tiles[s].as_deref())
             {
@@ -313,12 +326,54 @@ impl DistanceField<'_> {
                 None => [self.max; 4],
             }
         } else {
+            // Wrapping: a cell at i32::MAX (a far-off pose, saturated) reads as far, never
+            // overflows.
+            let (x1, y1) = (c.x.wrapping_add(1), c.y.wrapping_add(1));
             [
                 self.dist(c),
-                self.dist(CellIndex::new(c.x + 1, c.y)),
-                self.dist(CellIndex::new(c.x, c.y + 1)),
-                self.dist(CellIndex::new(c.x + 1, c.y + 1)),
+                self.dist(CellIndex::new(x1, c.y)),
+                self.dist(CellIndex::new(c.x, y1)),
+                self.dist(CellIndex::new(x1, y1)),
             ]
+        }
+    }
+}
+
+/// A [`DistanceField`] reader that remembers the last tile it looked up: a scan's
+/// consecutive end points mostly fall in one 32×32 tile, so most reads skip the table
+/// look-up. Reads the same values as the field itself.
+#[derive(Debug, Clone, Copy)]
+pub struct DistanceCursor<'a> {
+    field: DistanceField<'a>,
+    /// The tile `data` belongs to.
+    tile: (i32, i32),
+    data: Option<&'a DistanceTile>,
+}
+
+impl<'a> DistanceCursor<'a> {
+    /// [`DistanceField::dist4`].
+    #[inline]
+    pub fn dist4(&mut self, c: CellIndex) -> [u8; 4] {
+        if (c.x & TILE_MASK) != TILE_MASK && (c.y & TILE_MASK) != TILE_MASK {
+            let t = (c.x >> TILE_BITS, c.y >> TILE_BITS);
+            if t != self.tile {
+                self.tile = t;
+                self.data = self.field.tile(t.0, t.1);
+            }
+            match self.data {
+                Some(t) => {
+                    let ((_, _), i) = split(c);
+                    [
+                        t.dist[i],
+                        t.dist[i + 1],
+                        t.dist[i + TILE_SIZE],
+                        t.dist[i + TILE_SIZE + 1],
+                    ]
+                }
+                None => [self.field.max; 4],
+            }
+        } else {
+            self.field.dist4(c)
         }
     }
 }
@@ -360,6 +415,7 @@ mod tests {
     /// obstacle cell, against the incrementally repaired field.
     fn check_field(g: &OccupancyGrid, x0: i32, y0: i32, x1: i32, y1: i32) {
         let f = g.distance_field().unwrap();
+        let mut cursor = f.cursor();
         let rad = f.radius_cells() as i32;
         for y in y0..=y1 {
             for x in x0..=x1 {
@@ -375,6 +431,7 @@ mod tests {
                 assert_eq!(f.dist(CellIndex::new(x, y)), best, "cell ({x}, {y})");
                 let d4 = f.dist4(CellIndex::new(x, y));
                 assert_eq!(d4[3], f.dist(CellIndex::new(x + 1, y + 1)));
+                assert_eq!(cursor.dist4(CellIndex::new(x, y)), d4);
             }
         }
     }

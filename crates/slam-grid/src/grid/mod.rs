@@ -14,7 +14,20 @@ pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
 use slam_models::{GridMap, LaserScan, Point2, Pose2};
 use std::sync::{Arc, OnceLock};
-use tiles::{split, Tile, TileLayout, HIT_CAP, TILE_CELLS, TILE_SIZE};
+use tiles::{split, Tile, TileLayout, TileTable, HIT_CAP, TILE_CELLS, TILE_SIZE};
+
+/// Largest width or height of the area a grid covers, cells (2¹⁶: 3.3 km at 5 cm, 655 m at
+/// 1 cm). A scan that would stretch the grid beyond it is refused with
+/// [`GridError::MapTooLarge`]: no building or campus map comes near it, while one glitched
+/// pose or range kilometres away from the rest does, and would make the dense map export
+/// ([`OccupancyGrid::to_grid_map`]) span the gap.
+pub const MAX_MAP_EXTENT_CELLS: u64 = 1 << 16;
+
+/// Largest number of cells in the bounding box of the area a grid covers (2²⁸ ≈ 2.7·10⁸:
+/// a square of 819 m at 5 cm, 164 m at 1 cm), so that the dense export
+/// ([`OccupancyGrid::to_grid_map`], one byte per cell) stays below 256 MiB. Beyond it,
+/// [`GridError::MapTooLarge`].
+pub const MAX_MAP_CELLS: u64 = 1 << 28;
 
 /// Continuous cell coordinates (u, v) (see [`crate::cell`]).
 type CellPoint = (f64, f64);
@@ -64,7 +77,12 @@ pub struct OccupancyGrid {
     frame: GridFrame,
     model: InverseSensorModel,
     params: LikelihoodParams,
-    layout: TileLayout,
+    /// The covered rectangle and the sparse slot index of the stored tiles.
+    table: TileTable,
+    /// The bounding box of every cell the grid was asked to cover (no growth slack), the
+    /// extent checked against [`MAX_MAP_EXTENT_CELLS`] and [`MAX_MAP_CELLS`].
+    span: Option<(CellIndex, CellIndex)>,
+    /// One entry per slot of `table.index`: `None` for a stored neighbour never written.
     tiles: Vec<Option<Arc<Tile>>>,
     /// The lazy likelihood field's cache, one cell per tile slot; the table itself is
     /// allocated on the first field read, so grids that never read the lazy field (grid
@@ -87,7 +105,8 @@ impl std::fmt::Debug for OccupancyGrid {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("OccupancyGrid")
             .field("frame", &self.frame)
-            .field("layout", &self.layout)
+            .field("covered", &self.table.rect())
+            .field("slots", &self.table.len())
             .field("allocated_tiles", &self.allocated_tiles())
             .field("stats", &self.stats)
             .finish()
@@ -111,7 +130,8 @@ impl OccupancyGrid {
             frame: GridFrame::new(Point2::origin(), resolution),
             model,
             params,
-            layout: TileLayout::default(),
+            table: TileTable::default(),
+            span: None,
             tiles: Vec::new(),
             fields: OnceLock::new(),
             far_field: Arc::new(FieldTile::far(&params)),
@@ -158,13 +178,13 @@ impl OccupancyGrid {
             self.ensure_covers(
                 CellIndex::new(lo.x - r, lo.y - r),
                 CellIndex::new(hi.x + r, hi.y + r),
-            );
+            )?;
         }
         let mut obstacles = Vec::new();
         let t = TILE_SIZE as i32;
         for (s, tile) in self.tiles.iter().enumerate() {
             let Some(tile) = tile else { continue };
-            let (tx, ty) = self.layout.tile_of_slot(s);
+            let (tx, ty) = self.table.tile_of_slot(s);
             for (k, &v) in tile.cells.iter().enumerate() {
                 if v > self.params.occupied_threshold {
                     let (x, y) = ((k % TILE_SIZE) as i32, (k / TILE_SIZE) as i32);
@@ -172,8 +192,8 @@ impl OccupancyGrid {
                 }
             }
         }
-        let mut d = IncrementalDistance::new(radius_cells, self.layout.len());
-        d.rebuild(&self.layout, &obstacles);
+        let mut d = IncrementalDistance::new(radius_cells, self.table.len());
+        d.rebuild(&self.table, &obstacles);
         self.distance = Some(d);
         Ok(self)
     }
@@ -184,7 +204,7 @@ impl OccupancyGrid {
     pub fn distance_field(&self) -> Option<DistanceField<'_>> {
         self.distance
             .as_ref()
-            .map(|d| d.view(self.layout, self.frame))
+            .map(|d| d.view(&self.table, self.frame))
     }
 
     /// This grid with its origin (world position of cell (0, 0)'s lower-left corner) moved.
@@ -236,7 +256,7 @@ impl OccupancyGrid {
     #[inline]
     pub fn log_odds(&self, c: CellIndex) -> f32 {
         let ((tx, ty), local) = split(c);
-        match self.layout.slot(tx, ty) {
+        match self.table.slot(tx, ty) {
             Some(s) => match &self.tiles[s] {
                 Some(t) => t.cells[local],
                 None => 0.0,
@@ -286,32 +306,60 @@ impl OccupancyGrid {
     /// [`LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
     pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
-    /// Inclusive range of cells covered by the tile table (`None` while empty).
+    /// Inclusive range of cells covered by the tile table (`None` while empty): the
+    /// rectangle the grid has grown to, of which only the observed tiles are stored.
     pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
-        if self.layout.len() == 0 {
+        let r = self.table.rect();
+        if r.len() == 0 {
             return None;
         }
         let t = TILE_SIZE as i32;
         Some((
-            CellIndex::new(self.layout.tx0 * t, self.layout.ty0 * t),
-            CellIndex::new(
-                (self.layout.tx0 + self.layout.tw) * t - 1,
-                (self.layout.ty0 + self.layout.th) * t - 1,
-            ),
+            CellIndex::new(r.tx0 * t, r.ty0 * t),
+            CellIndex::new((r.tx0 + r.tw) * t - 1, (r.ty0 + r.th) * t - 1),
         ))
     }
 
-    /// Grows the tile table so that it covers cells `min ..= max` (keeps existing tiles).
-    pub fn ensure_covers(&mut self, min: CellIndex, max: CellIndex) {
+    /// Grows the covered rectangle so that it holds cells `min ..= max` (keeps existing
+    /// tiles; stores nothing: tiles are stored when written).
+    ///
+    /// Fails with [`GridError::MapTooLarge`], changing nothing, when the bounding box of
+    /// every cell covered so far and these would be wider or higher than
+    /// [`MAX_MAP_EXTENT_CELLS`] or hold more than [`MAX_MAP_CELLS`] cells.
+    pub fn ensure_covers(&mut self, min: CellIndex, max: CellIndex) -> Result<(), GridError> {
+        let (min, max) = (
+            CellIndex::new(min.x.min(max.x), min.y.min(max.y)),
+            CellIndex::new(min.x.max(max.x), min.y.max(max.y)),
+        );
+        let (lo, hi) = match self.span {
+            Some((lo, hi)) => (
+                CellIndex::new(lo.x.min(min.x), lo.y.min(min.y)),
+                CellIndex::new(hi.x.max(max.x), hi.y.max(max.y)),
+            ),
+            None => (min, max),
+        };
+        let width = (hi.x as i64 - lo.x as i64 + 1) as u64;
+        let height = (hi.y as i64 - lo.y as i64 + 1) as u64;
+        if width > MAX_MAP_EXTENT_CELLS
+            || height > MAX_MAP_EXTENT_CELLS
+            || width * height > MAX_MAP_CELLS
+        {
+            return Err(GridError::MapTooLarge {
+                width,
+                height,
+                resolution: self.frame.resolution,
+            });
+        }
+        self.span = Some((lo, hi));
         let (t0, _) = split(min);
         let (t1, _) = split(max);
-        if self.layout.len() > 0
-            && self.layout.contains(t0.0, t0.1)
-            && self.layout.contains(t1.0, t1.1)
+        if self.table.rect().len() > 0
+            && self.table.rect().contains(t0.0, t0.1)
+            && self.table.rect().contains(t1.0, t1.1)
         {
-            return;
+            return Ok(());
         }
-        let old = self.layout;
+        let old = self.table.rect();
         let (mut x0, mut y0, mut x1, mut y1) = (t0.0, t0.1, t1.0, t1.1);
         if old.len() > 0 {
             // Grow with slack (a quarter of the current size, at least 2 tiles) so that a
@@ -335,32 +383,50 @@ impl OccupancyGrid {
             x1 = x1.max(old.tx0 + old.tw - 1);
             y1 = y1.max(old.ty0 + old.th - 1);
         }
-        let new = TileLayout {
+        // No tile moves: fields cached next to the old border saw only empty space beyond
+        // it, which is still empty, so they stay valid.
+        self.table.set_rect(TileLayout {
             tx0: x0,
             ty0: y0,
             tw: x1 - x0 + 1,
             th: y1 - y0 + 1,
-        };
-        let mut tiles: Vec<Option<Arc<Tile>>> = vec![None; new.len()];
-        let mut old_fields = self.fields.take();
-        let mut fields = old_fields.as_ref().map(|_| empty_field_cache(new.len()));
-        for s in 0..old.len() {
-            let (tx, ty) = old.tile_of_slot(s);
-            if let Some(ns) = new.slot(tx, ty) {
-                tiles[ns] = self.tiles[s].take();
-                if let (Some(new_f), Some(old_f)) = (&mut fields, &mut old_fields) {
-                    new_f[ns] = std::mem::take(&mut old_f[s]);
+        });
+        Ok(())
+    }
+
+    /// The slot of tile (tx, ty) for a write: stored now if it was not, with its eight
+    /// neighbours (whose cached fields and distance tiles its obstacles reach), each new
+    /// slot getting an empty entry in every per-slot table.
+    fn slot_for_write(&mut self, tx: i32, ty: i32) -> usize {
+        // (Written tiles lie in the covered rectangle, where `slot` sees every stored one.)
+        if let Some(s) = self.table.slot(tx, ty) {
+            if self.tiles[s].is_some() {
+                return s; // written before: its neighbours are stored already
+            }
+        }
+        for (dx, dy) in [
+            (0, 0),
+            (-1, -1),
+            (0, -1),
+            (1, -1),
+            (-1, 0),
+            (1, 0),
+            (-1, 1),
+            (0, 1),
+            (1, 1),
+        ] {
+            let (_, added) = self.table.insert(tx.wrapping_add(dx), ty.wrapping_add(dy));
+            if added {
+                self.tiles.push(None);
+                if let Some(f) = self.fields.get_mut() {
+                    f.push(OnceLock::new());
+                }
+                if let Some(d) = &mut self.distance {
+                    d.push_slot();
                 }
             }
         }
-        // Fields next to the old border saw only empty space beyond it, which is still
-        // empty: they stay valid.
-        if let Some(d) = &mut self.distance {
-            d.relayout(&old, &new);
-        }
-        self.layout = new;
-        self.tiles = tiles;
-        self.fields = fields.map(OnceLock::from).unwrap_or_default();
+        self.table.insert(tx, ty).0
     }
 
     /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
@@ -462,15 +528,25 @@ impl OccupancyGrid {
         // With an incremental distance field the table extends `radius` cells beyond
         // every end point, so that no obstacle's stamp is cut off.
         let margin = self.distance.as_ref().map_or(0, |d| d.radius());
-        self.ensure_covers(
+        let (lo, hi) = (
             CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
             CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
         );
+        self.ensure_covers(lo, hi)?;
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
-        // written under one copy-on-write check.
+        // written under one copy-on-write check. The slots are this scan's own, row-major
+        // over the tiles it touches (one tile of border): sorting by them sorts by
+        // (ty, tx), and their number is bounded by the map extent checked above.
+        let (t0, _) = split(lo);
+        let (t1, _) = split(hi);
+        let layout = TileLayout {
+            tx0: t0.0 - 1,
+            ty0: t0.1 - 1,
+            tw: t1.0 - t0.0 + 3,
+            th: t1.1 - t0.1 + 3,
+        };
         let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
         let mut hits: Vec<(u32, u16, i8, i8)> = Vec::with_capacity(segs.len());
-        let layout = self.layout;
         let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
             let ((tx, ty), local) = split(cell);
             if let Some(slot) = layout.slot(tx, ty) {
@@ -503,8 +579,16 @@ impl OccupancyGrid {
         } else {
             &[]
         };
-        self.apply(&free, m.l_free, protected, &mut changed, &mut flips);
+        self.apply(
+            &layout,
+            &free,
+            m.l_free,
+            protected,
+            &mut changed,
+            &mut flips,
+        );
         self.apply_hits(
+            &layout,
             &hits,
             m.l_occ,
             m.protect_scan_hits,
@@ -517,7 +601,7 @@ impl OccupancyGrid {
                 .iter()
                 .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
                 .collect();
-            d.repair(&self.layout, &mut cells, |c| self.is_obstacle(c));
+            d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
             self.distance = Some(d);
         }
         Ok(())
@@ -526,7 +610,7 @@ impl OccupancyGrid {
     /// Cell `local` of the tile in `slot`.
     #[inline]
     fn cell_of_slot(&self, slot: usize, local: usize) -> CellIndex {
-        let (tx, ty) = self.layout.tile_of_slot(slot);
+        let (tx, ty) = self.table.tile_of_slot(slot);
         let t = TILE_SIZE as i32;
         CellIndex::new(
             tx * t + (local % TILE_SIZE) as i32,
@@ -537,9 +621,11 @@ impl OccupancyGrid {
     /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
     /// (sorted by slot), copying shared tiles on first write and recording the slots where
     /// some cell changed obstacle status, and (with an incremental distance field) those
-    /// cells in `flips` as (slot, local index).
+    /// cells in `flips` as (slot, local index). `updates` and `protected` name tiles by
+    /// their slot in `scan` (the scan's tiles); `changed` and `flips` get the grid's slots.
     fn apply(
         &mut self,
+        scan: &TileLayout,
         updates: &[(u32, u16)],
         delta: f32,
         protected: &[(u32, u16, i8, i8)],
@@ -554,11 +640,12 @@ impl OccupancyGrid {
         );
         // Updates come sorted by tile slot: handle each tile's run at once.
         for run in updates.chunk_by(|a, b| a.0 == b.0) {
-            let slot = run[0].0 as usize;
+            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
+            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
             let mask = protected_mask(protected, run[0].0);
             let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
             // Skip the copy entirely when no value in the run would change (saturated cells).
-            let needs_write = match &self.tiles[slot] {
+            let needs_write = match stored {
                 None => run.iter().any(|&(_, l)| !skip(l)),
                 Some(t) => run.iter().any(|&(_, l)| {
                     let v = t.cells[l as usize];
@@ -568,6 +655,7 @@ impl OccupancyGrid {
             if !needs_write {
                 continue;
             }
+            let slot = self.slot_for_write(tx, ty);
             let tile = self.tile_for_write(slot);
             let mut status_changed = false;
             for &(_, l) in run {
@@ -614,6 +702,7 @@ impl OccupancyGrid {
     /// (running mean over the first [`HIT_CAP`] hits).
     fn apply_hits(
         &mut self,
+        scan: &TileLayout,
         updates: &[(u32, u16, i8, i8)],
         delta: f32,
         once: bool,
@@ -628,8 +717,9 @@ impl OccupancyGrid {
         );
         // Updates come sorted by tile slot: handle each tile's run at once.
         for run in updates.chunk_by(|a, b| a.0 == b.0) {
-            let slot = run[0].0 as usize;
-            let needs_write = match &self.tiles[slot] {
+            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
+            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
+            let needs_write = match stored {
                 None => true,
                 Some(t) => run.iter().any(|&(_, l, _, _)| {
                     let v = t.cells[l as usize];
@@ -640,6 +730,7 @@ impl OccupancyGrid {
             if !needs_write {
                 continue;
             }
+            let slot = self.slot_for_write(tx, ty);
             let tile = self.tile_for_write(slot);
             let mut field_changed = false;
             for (i, &(_, l, ox, oy)) in run.iter().enumerate() {
@@ -689,10 +780,10 @@ impl OccupancyGrid {
         changed.sort_unstable();
         changed.dedup();
         for s in changed {
-            let (tx, ty) = self.layout.tile_of_slot(s);
+            let (tx, ty) = self.table.tile_of_slot(s);
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(n) = self.layout.slot(tx + dx, ty + dy) {
+                    if let Some(n) = self.table.slot(tx + dx, ty + dy) {
                         fields[n] = OnceLock::new();
                     }
                 }
@@ -719,7 +810,7 @@ impl OccupancyGrid {
         let (tx_hi, ty_hi) = (max_x >> tiles::TILE_BITS, max_y >> tiles::TILE_BITS);
         for ty in ty_lo..=ty_hi {
             for tx in tx_lo..=tx_hi {
-                let Some(slot) = self.layout.slot(tx, ty) else {
+                let Some(slot) = self.table.slot(tx, ty) else {
                     continue;
                 };
                 let Some(tile) = &self.tiles[slot] else {
@@ -751,9 +842,9 @@ impl OccupancyGrid {
     fn field_tile(&self, slot: usize) -> &FieldTile {
         let fields = self
             .fields
-            .get_or_init(|| empty_field_cache(self.layout.len()));
+            .get_or_init(|| empty_field_cache(self.table.len()));
         fields[slot].get_or_init(|| {
-            let (tx, ty) = self.layout.tile_of_slot(slot);
+            let (tx, ty) = self.table.tile_of_slot(slot);
             let t = TILE_SIZE as i32;
             let margin = crate::likelihood::margin_cells_clamped(&self.params, self.resolution());
             match compute_region(
@@ -782,7 +873,7 @@ impl OccupancyGrid {
     #[inline]
     pub fn likelihood(&self, c: CellIndex) -> f32 {
         let ((tx, ty), local) = split(c);
-        match self.layout.slot(tx, ty) {
+        match self.table.slot(tx, ty) {
             Some(s) => self.field_tile(s).values[local],
             None => self.far_field.values[0],
         }
@@ -797,7 +888,7 @@ impl OccupancyGrid {
         let (u, v) = (u - 0.5, v - 0.5);
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
-        let (i, j) = (x0 as i32, y0 as i32);
+        let (i, j) = (clamp_cell(x0), clamp_cell(y0));
         let blk = self.field_block::<2>(i, j, false);
         let (m00, m10) = (blk[0][0] as f64, blk[0][1] as f64);
         let (m01, m11) = (blk[1][0] as f64, blk[1][1] as f64);
@@ -817,7 +908,7 @@ impl OccupancyGrid {
         let bits = tiles::TILE_BITS;
         let (tx, ty) = (i0 >> bits, j0 >> bits);
         if tx == (i0 + n) >> bits && ty == (j0 + n) >> bits {
-            let tile: &FieldTile = match self.layout.slot(tx, ty) {
+            let tile: &FieldTile = match self.table.slot(tx, ty) {
                 Some(s) => self.field_tile(s),
                 None => &self.far_field,
             };
@@ -848,7 +939,7 @@ impl OccupancyGrid {
     #[inline]
     pub fn distance_squared(&self, c: CellIndex) -> f32 {
         let ((tx, ty), local) = split(c);
-        match self.layout.slot(tx, ty) {
+        match self.table.slot(tx, ty) {
             Some(s) => self.field_tile(s).dist2[local],
             None => self.far_field.dist2[0],
         }
@@ -877,7 +968,7 @@ impl OccupancyGrid {
         let (x0, y0) = (u.floor(), v.floor());
         let (wx, dwx) = catmull_rom_weights(u - x0);
         let (wy, dwy) = catmull_rom_weights(v - y0);
-        let (i, j) = (x0 as i32, y0 as i32);
+        let (i, j) = (clamp_cell(x0), clamp_cell(y0));
         let blk = self.field_block::<4>(i - 1, j - 1, true);
         let (mut val, mut du, mut dv) = (0.0, 0.0, 0.0);
         for (b, (&wyb, &dwyb)) in wy.iter().zip(&dwy).enumerate() {
@@ -911,7 +1002,7 @@ impl OccupancyGrid {
         let max_y = min.y + h as i32 - 1;
         for ty in (min.y >> tiles::TILE_BITS)..=(max_y >> tiles::TILE_BITS) {
             for tx in (min.x >> tiles::TILE_BITS)..=(max_x >> tiles::TILE_BITS) {
-                let Some(slot) = self.layout.slot(tx, ty) else {
+                let Some(slot) = self.table.slot(tx, ty) else {
                     continue;
                 };
                 let f = self.field_tile(slot);
@@ -938,7 +1029,7 @@ impl OccupancyGrid {
         let mut hi = CellIndex::new(i32::MIN, i32::MIN);
         for (s, tile) in self.tiles.iter().enumerate() {
             let Some(tile) = tile else { continue };
-            let (tx, ty) = self.layout.tile_of_slot(s);
+            let (tx, ty) = self.table.tile_of_slot(s);
             for (k, &v) in tile.cells.iter().enumerate() {
                 if v != 0.0 {
                     let x = tx * t + (k % TILE_SIZE) as i32;
@@ -956,6 +1047,10 @@ impl OccupancyGrid {
     /// Exports the observed part of the grid as a [`GridMap`] (ROS convention: row 0 at the
     /// bottom, −1 unknown, else the occupancy probability in percent, rounded). An empty
     /// grid gives a 0×0 map.
+    ///
+    /// The map is dense over the bounding box of the observed cells, which lies within the
+    /// covered area: at most [`MAX_MAP_CELLS`] cells (one byte each), because
+    /// [`OccupancyGrid::ensure_covers`] refuses to grow the grid beyond that.
     pub fn to_grid_map(&self) -> GridMap {
         let Some((lo, hi)) = self.known_bounds() else {
             return GridMap::unknown(self.resolution(), self.frame.origin, 0, 0);
@@ -994,6 +1089,15 @@ fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; T
         }
         m
     })
+}
+
+/// A floored continuous cell coordinate as a cell index, clamped to ±2³⁰ so that the
+/// interpolation's block arithmetic (a few cells beyond it) cannot overflow for a point
+/// far off the map (such a point reads the far value either way).
+#[inline]
+fn clamp_cell(x: f64) -> i32 {
+    const L: f64 = (1u32 << 30) as f64;
+    x.clamp(-L, L) as i32
 }
 
 /// Catmull-Rom weights of the samples at −1, 0, 1, 2 for a point at t ∈ [0, 1), and

@@ -377,3 +377,95 @@ fn without_subcell_fields_tiles_keep_no_hit_statistics() {
     assert!(obstacles.iter().any(|&o| o));
     assert!(offsets.iter().all(|&o| o == (0, 0, 0)));
 }
+
+/// A grid with an incremental distance field, as grid FastSLAM's particles use.
+fn grid_with_distance() -> OccupancyGrid {
+    OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_incremental_distance(4)
+        .unwrap()
+}
+
+/// A scan far from the rest of the map (a glitched pose) costs the tiles it touches, not
+/// the box between: two rooms 800 m apart diagonally (16 000 cells at 5 cm, a box of
+/// 2.5·10⁸ cells that a dense table spans with 250 000 slots) store a few hundred tiles,
+/// and every value around the first room equals that of a grid that never saw the second.
+#[test]
+fn memory_grows_with_the_area_seen_not_with_the_box_of_far_scans() {
+    let near = Pose2::new(0.3, -0.2, 0.1);
+    let s = room_scan(&near, 2.0, 360);
+    let mut a = grid_with_distance();
+    a.try_integrate_scan(&near, &s).unwrap();
+    let mut b = grid_with_distance();
+    b.try_integrate_scan(&near, &s).unwrap();
+    b.try_integrate_scan(&Pose2::new(800.0, 790.0, 0.1), &s)
+        .unwrap();
+    assert!(b.table.rect().len() > tiles::DENSE_TABLE_MAX_TILES);
+    // Each room is 4 m = 80 cells across: 4×4 tiles, plus their neighbours.
+    assert_eq!(b.allocated_tiles(), 2 * a.allocated_tiles());
+    assert!(a.allocated_tiles() <= 16, "{}", a.allocated_tiles());
+    assert!(b.table.len() <= 2 * 36, "{} slots", b.table.len());
+    assert_eq!(b.tiles.len(), b.table.len());
+    // Clones copy the stored tiles' table only.
+    let c = b.clone();
+    assert_eq!(c.shared_tiles(), b.allocated_tiles());
+    // Same values around the first room, read through the hash index (b) and through the
+    // dense table (a): occupancy, lazy field, incremental distance field.
+    let (lo, hi) = a.covered_cells().unwrap();
+    let (fa, fb) = (a.distance_field().unwrap(), b.distance_field().unwrap());
+    let mut checked = 0;
+    for y in lo.y..=hi.y {
+        for x in lo.x..=hi.x {
+            let c = CellIndex::new(x, y);
+            assert_eq!(a.log_odds(c), b.log_odds(c), "{c:?}");
+            assert_eq!(a.likelihood(c), b.likelihood(c), "{c:?}");
+            assert_eq!(a.distance_squared(c), b.distance_squared(c), "{c:?}");
+            assert_eq!(fa.dist(c), fb.dist(c), "{c:?}");
+            checked += (fa.dist(c) < fa.max_units()) as usize;
+        }
+    }
+    assert!(checked > 500, "{checked} cells near obstacles");
+    let p = Point2::new(2.01, 0.37);
+    assert_eq!(a.likelihood_bicubic(&p), b.likelihood_bicubic(&p));
+    // Both rooms are in the export, which spans the box: 2.5·10⁸ cells is within
+    // MAX_MAP_CELLS, so it is made (not checked here: 256 MB); its bounds are.
+    let (klo, khi) = b.known_bounds().unwrap();
+    assert!(khi.x - klo.x > 16_000 && khi.y - klo.y > 15_800);
+}
+
+/// A scan that would stretch the map beyond its maximum extent (a 10 km or 1000 km
+/// odometry glitch) is refused with an error naming the bound, and changes nothing.
+#[test]
+fn a_scan_beyond_the_maximum_extent_is_refused_and_changes_nothing() {
+    let near = Pose2::new(0.3, -0.2, 0.1);
+    let s = room_scan(&near, 2.0, 360);
+    let mut g = grid_with_distance();
+    g.try_integrate_scan(&near, &s).unwrap();
+    let (tiles_before, bounds_before) = (g.allocated_tiles(), g.known_bounds());
+    let map_before = g.to_grid_map();
+    for far in [
+        Pose2::new(10_000.0, 0.0, 0.0),
+        Pose2::new(0.0, -1.0e6, 0.0),
+        // Within the per-side extent (2 km = 40 000 cells) but not the area (1.6·10⁹ cells).
+        Pose2::new(2_000.0, 2_000.0, 0.0),
+    ] {
+        let err = g.try_integrate_scan(&far, &s).unwrap_err();
+        let GridError::MapTooLarge { width, height, .. } = err else {
+            panic!("{err:?}");
+        };
+        assert!(
+            width.max(height) > MAX_MAP_EXTENT_CELLS || width * height > MAX_MAP_CELLS,
+            "{width} × {height}"
+        );
+        let msg = err.to_string();
+        assert!(
+            msg.contains("maximum extent") && msg.contains(&MAX_MAP_EXTENT_CELLS.to_string()),
+            "{msg}"
+        );
+    }
+    assert_eq!(g.allocated_tiles(), tiles_before);
+    assert_eq!(g.known_bounds(), bounds_before);
+    assert_eq!(g.to_grid_map(), map_before);
+    // The grid still takes scans near the map.
+    g.try_integrate_scan(&Pose2::new(1.0, 0.0, 0.0), &s)
+        .unwrap();
+}

@@ -1,10 +1,17 @@
-//! Fixed-size square tiles and the dense tile table of a grid.
+//! Fixed-size square tiles and the sparse tile table of a grid.
 //!
-//! A grid is a rectangle of tile slots; each slot holds `None` (never written: every cell
-//! unknown) or an `Arc<Tile>`. Cloning a grid clones the table of `Arc`s, never the cells;
-//! writing a tile that another grid shares copies that one tile first (copy-on-write).
+//! A grid covers a rectangle of tiles ([`TileLayout`], four integers: what the grid has
+//! been asked to cover), but stores only the tiles that hold data and their eight
+//! neighbours ([`TileIndex`]: tile coordinates → slot), so that its memory grows with the
+//! area actually observed, never with the bounding box of scans far apart (a glitched
+//! pose 10 km away costs the tiles that scan touches, not the 10 km between).
+//! Each slot holds `None` (never written: every cell unknown) or an `Arc<Tile>`. Cloning a
+//! grid clones the table of `Arc`s, never the cells; writing a tile that another grid
+//! shares copies that one tile first (copy-on-write).
 
 use crate::cell::CellIndex;
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 /// log₂ of the tile edge, in cells.
 pub const TILE_BITS: u32 = 5;
@@ -74,8 +81,8 @@ pub(crate) fn split(c: CellIndex) -> ((i32, i32), usize) {
     (t, local)
 }
 
-/// The rectangle of tile coordinates a grid currently covers: tiles
-/// [tx0, tx0 + tw) × [ty0, ty0 + th), stored row-major.
+/// A rectangle of tile coordinates, tiles [tx0, tx0 + tw) × [ty0, ty0 + th), with its
+/// slots numbered row-major (the area a grid covers, and the tiles one scan touches).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub(crate) struct TileLayout {
     pub(crate) tx0: i32,
@@ -117,6 +124,167 @@ impl TileLayout {
     }
 }
 
+/// The hash of a tile key: one multiply-xorshift round (splitmix64's finaliser), cheap
+/// enough for a look-up per beam end point and mixing both coordinates into the low bits
+/// (the bucket) and the high bits (the control byte).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct TileHasher(u64);
+
+impl Hasher for TileHasher {
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(self.0 ^ b as u64);
+        }
+    }
+
+    #[inline]
+    fn write_u64(&mut self, x: u64) {
+        let mut z = (x ^ self.0).wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        self.0 = z ^ (z >> 31);
+    }
+}
+
+/// The key of tile (tx, ty).
+#[inline]
+fn key(tx: i32, ty: i32) -> u64 {
+    ((ty as u32 as u64) << 32) | tx as u32 as u64
+}
+
+/// The sparse slot table: tile coordinates → slot, slots numbered 0, 1, … in the order the
+/// tiles were first stored. Slots are never removed, so a slot number stays valid for the
+/// grid's life (the per-slot tables beside it — tiles, cached fields, distance tiles —
+/// only grow by pushing).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct TileIndex {
+    slots: HashMap<u64, u32, BuildHasherDefault<TileHasher>>,
+    coords: Vec<(i32, i32)>,
+}
+
+impl TileIndex {
+    /// The slot of tile (tx, ty), if stored.
+    #[inline]
+    pub(crate) fn get(&self, tx: i32, ty: i32) -> Option<usize> {
+        self.slots.get(&key(tx, ty)).map(|&s| s as usize)
+    }
+
+    /// Tile coordinates of a slot.
+    #[inline]
+    pub(crate) fn tile_of_slot(&self, slot: usize) -> (i32, i32) {
+        self.coords[slot]
+    }
+
+    /// Number of slots.
+    #[inline]
+    pub(crate) fn len(&self) -> usize {
+        self.coords.len()
+    }
+
+    /// The slot of tile (tx, ty), and whether it was added now.
+    pub(crate) fn insert(&mut self, tx: i32, ty: i32) -> (usize, bool) {
+        let next = self.coords.len() as u32;
+        let s = *self.slots.entry(key(tx, ty)).or_insert(next);
+        if s == next {
+            self.coords.push((tx, ty));
+        }
+        (s as usize, s == next)
+    }
+}
+
+/// Largest covered rectangle, in tiles, for which a grid keeps a dense table of slot
+/// numbers beside its sparse index (2¹⁶ tiles: 256 KiB, a square of 8192 cells, 410 m at
+/// 5 cm). Such a table makes each look-up one array read, which the matchers' per-beam
+/// look-ups need; beyond it (scans kilometres apart) look-ups go through the hash index,
+/// so memory never grows with the covered area itself.
+pub(crate) const DENSE_TABLE_MAX_TILES: usize = 1 << 16;
+
+/// The covered rectangle and the stored tiles in it.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct TileTable {
+    /// The rectangle of tiles the grid covers (cells beyond it read as unknown and far
+    /// from any obstacle).
+    rect: TileLayout,
+    /// The tiles stored (those with data and their neighbours; a few just outside `rect`).
+    index: TileIndex,
+    /// Row-major over `rect`, the slot of each covered tile (`u32::MAX`: not stored), while
+    /// `rect` has at most [`DENSE_TABLE_MAX_TILES`] tiles.
+    dense: Option<Vec<u32>>,
+}
+
+impl TileTable {
+    /// The covered rectangle.
+    #[inline]
+    pub(crate) fn rect(&self) -> TileLayout {
+        self.rect
+    }
+
+    /// The slot of tile (tx, ty) when it is covered and stored. Inlined into the
+    /// matchers' per-beam loops: the dense table is one array read; the hash look-up is
+    /// kept out of line so that it does not stop the inlining.
+    #[inline(always)]
+    pub(crate) fn slot(&self, tx: i32, ty: i32) -> Option<usize> {
+        let s = self.rect.slot(tx, ty)?;
+        match &self.dense {
+            Some(d) => {
+                let v = d[s];
+                (v != u32::MAX).then_some(v as usize)
+            }
+            None => self.sparse_slot(tx, ty),
+        }
+    }
+
+    /// [`TileTable::slot`] through the hash index (maps too large for the dense table).
+    #[inline(never)]
+    fn sparse_slot(&self, tx: i32, ty: i32) -> Option<usize> {
+        self.index.get(tx, ty)
+    }
+
+    /// Tile coordinates of a slot.
+    #[inline]
+    pub(crate) fn tile_of_slot(&self, slot: usize) -> (i32, i32) {
+        self.index.tile_of_slot(slot)
+    }
+
+    /// Number of slots.
+    #[inline]
+    pub(crate) fn len(&self) -> usize {
+        self.index.len()
+    }
+
+    /// The slot of tile (tx, ty), covered or not, and whether it was added now.
+    pub(crate) fn insert(&mut self, tx: i32, ty: i32) -> (usize, bool) {
+        let (s, added) = self.index.insert(tx, ty);
+        if added {
+            if let (Some(d), Some(r)) = (&mut self.dense, self.rect.slot(tx, ty)) {
+                d[r] = s as u32;
+            }
+        }
+        (s, added)
+    }
+
+    /// Replaces the covered rectangle (rebuilding the dense table, or dropping it when
+    /// the rectangle is too large for one).
+    pub(crate) fn set_rect(&mut self, rect: TileLayout) {
+        self.rect = rect;
+        self.dense = (rect.len() <= DENSE_TABLE_MAX_TILES).then(|| {
+            let mut d = vec![u32::MAX; rect.len()];
+            for (s, &(tx, ty)) in self.index.coords.iter().enumerate() {
+                if let Some(r) = rect.slot(tx, ty) {
+                    d[r] = s as u32;
+                }
+            }
+            d
+        });
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,5 +307,18 @@ mod tests {
         assert_eq!(l.slot(1, 4), Some(7));
         assert_eq!(l.slot(2, 4), None);
         assert_eq!(l.tile_of_slot(7), (1, 4));
+    }
+
+    #[test]
+    fn tile_index_keeps_slots_and_separates_signs() {
+        let mut ix = TileIndex::default();
+        assert_eq!(ix.insert(-1, 0), (0, true));
+        assert_eq!(ix.insert(0, -1), (1, true));
+        assert_eq!(ix.insert(-1, 0), (0, false));
+        assert_eq!(ix.insert(i32::MIN, i32::MAX), (2, true));
+        assert_eq!(ix.get(0, -1), Some(1));
+        assert_eq!(ix.get(-1, -1), None);
+        assert_eq!(ix.tile_of_slot(2), (i32::MIN, i32::MAX));
+        assert_eq!(ix.len(), 3);
     }
 }

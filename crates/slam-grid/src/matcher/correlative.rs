@@ -9,6 +9,10 @@ use crate::scan::PreparedScan;
 use serde::{Deserialize, Serialize};
 use slam_models::Pose2;
 
+/// Most rotations searched on each side of the initial heading (the automatic step is at
+/// least 10⁻⁴ rad, so ≤ 31 416 within the largest window, π).
+const MAX_ROTATIONS: i32 = 100_000;
+
 /// Exhaustive search of a window of poses around the initial guess, made fast with two
 /// resolutions (Olson 2009, §IV):
 ///
@@ -88,8 +92,17 @@ impl CorrelativeMatcher {
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
-        check_input(scan, initial, self.min_points)?;
         let res = grid.resolution();
+        let f = self.coarse_factor as i32;
+        // The window's corners and widths are i32 cell arithmetic: keep them far from
+        // overflow (an initial pose 1e10 m off used to wrap them into an out-of-bounds index).
+        check_input(
+            grid,
+            scan,
+            initial,
+            self.min_points,
+            self.linear_window + f as f64 * res,
+        )?;
         let frame = grid.frame();
         let r_max = scan.max_point_range.max(res);
         let dtheta = if self.angular_step > 0.0 {
@@ -100,9 +113,17 @@ impl CorrelativeMatcher {
                 .acos()
                 .max(1e-4)
         };
-        let k_max = (self.angular_window / dtheta).ceil() as i32;
+        let k_max = (self.angular_window / dtheta).ceil();
+        if k_max > MAX_ROTATIONS as f64 {
+            return Err(GridError::InvalidConfig {
+                name: "correlative rotations per side (angular_window / angular_step)",
+                value: k_max,
+                expected: "at most 100000: a larger angular_step or a smaller angular_window",
+            });
+        }
+        let k_max = k_max as i32;
+        // Below 2^30 cells by the reach check above.
         let l = (self.linear_window / res).ceil() as i32;
-        let f = self.coarse_factor as i32;
         let n = scan.points.len();
 
         // End-point cells for every rotation (translation = initial), and their bounds.
@@ -124,15 +145,16 @@ impl CorrelativeMatcher {
         }
         // Window: every cell an end point can reach with offsets in [−l, l + f − 1].
         let min = CellIndex::new(lo.x - l, lo.y - l);
-        let w = (hi.x - lo.x + 2 * l + f) as usize;
-        let h = (hi.y - lo.y + 2 * l + f) as usize;
+        let w = hi.x as i64 - lo.x as i64 + 2 * l as i64 + f as i64;
+        let h = hi.y as i64 - lo.y as i64 + 2 * l as i64 + f as i64;
         if w.saturating_mul(h) > 64_000_000 {
             return Err(GridError::InvalidConfig {
                 name: "correlative search window (cells)",
-                value: (w * h) as f64,
+                value: w as f64 * h as f64,
                 expected: "at most 64e6 cells: shorten the matching range or the window",
             });
         }
+        let (w, h) = (w as usize, h as usize);
         let fine = grid.field_window(min, w, h);
         let coarse = sliding_max(&fine, w, h, f as usize);
         // Linear indices of each rotation's end points at offset (−l, −l).

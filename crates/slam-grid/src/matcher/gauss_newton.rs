@@ -149,7 +149,7 @@ impl GaussNewtonMatcher {
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
-        check_input(scan, initial, self.min_points)?;
+        check_input(grid, scan, initial, self.min_points, self.max_displacement)?;
         let sigma = if self.sigma > 0.0 {
             self.sigma
         } else {

@@ -69,7 +69,8 @@ impl HillClimbMatcher {
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
-        check_input(scan, initial, self.min_points)?;
+        let reach = self.linear_step * self.max_moves as f64;
+        check_input(grid, scan, initial, self.min_points, reach)?;
         let mut pose = *initial;
         let mut best = mean_interpolated(grid, scan, &pose);
         let (mut ls, mut las) = (self.linear_step, self.angular_step);

@@ -61,16 +61,35 @@ pub trait ScanMatcher {
     }
 }
 
-/// Rejects a non-finite initial pose and scans with fewer than `min_points` end points.
+/// Largest distance from the grid origin, in cells, that a matched pose may reach with its
+/// end points and its search window: 2³⁰ cells (53 687 km at 5 cm, the bound scan
+/// integration keeps too), far beyond any map ([`crate::MAX_MAP_EXTENT_CELLS`]) and far
+/// enough from `i32::MAX` that the matchers' cell arithmetic (window corners, widths,
+/// offsets) cannot overflow.
+pub const MAX_MATCH_CELLS: f64 = (1u32 << 30) as f64;
+
+/// Rejects a non-finite initial pose, scans with fewer than `min_points` end points, and
+/// an initial pose whose end points, moved by up to `reach` metres (the search window),
+/// would leave ±[`MAX_MATCH_CELLS`] cells of the grid origin.
 pub(crate) fn check_input(
+    grid: &OccupancyGrid,
     scan: &PreparedScan,
     initial: &Pose2,
     min_points: usize,
+    reach: f64,
 ) -> Result<(), GridError> {
     if !initial.is_finite() {
         return Err(GridError::NonFinite {
             what: "initial pose",
             value: f64::NAN,
+        });
+    }
+    let (u, v) = grid.frame().world_to_continuous(&initial.translation());
+    let far = u.abs().max(v.abs()) + (scan.max_point_range + reach) / grid.resolution() + 2.0;
+    if far.is_nan() || far > MAX_MATCH_CELLS {
+        return Err(GridError::OutOfGrid {
+            what: "scan matching around the initial pose",
+            cells: far,
         });
     }
     if scan.points.len() < min_points.max(1) {

@@ -173,3 +173,47 @@ fn errors_for_bad_input() {
         Err(GridError::TooFewPoints { .. })
     ));
 }
+
+/// A laser pose about 1e10 m off (a glitch) used to wrap the correlative matcher's i32
+/// window arithmetic into an out-of-bounds index; every matcher now refuses it with an
+/// error naming the bound, and poses just inside the bound are matched without panicking.
+#[test]
+fn far_off_initial_poses_are_errors_not_panics() {
+    let g = office_map(0.1);
+    let world = SegmentWorld::office();
+    let truth = Pose2::new(2.0, 3.0, 0.0);
+    let scan = world.scan(&truth, 180, std::f64::consts::PI, 30.0);
+    let p = PreparedScan::new(&scan).unwrap();
+    let matchers: [&dyn ScanMatcher; 4] = [
+        &CorrelativeMatcher::default(),
+        &RefinedCorrelativeMatcher::default(),
+        &HillClimbMatcher::default(),
+        &GaussNewtonMatcher::default(),
+    ];
+    for far in [
+        Pose2::new(1e10, 3.0, 0.0),
+        Pose2::new(2.0, -1e10, 0.3),
+        Pose2::new(-1e300, 1e300, 0.0),
+    ] {
+        for m in matchers {
+            let err = m.match_prepared(&g, &p, &far).unwrap_err();
+            assert!(matches!(err, GridError::OutOfGrid { .. }), "{err:?}");
+            assert!(err.to_string().contains("2^30 cells"), "{err}");
+        }
+    }
+    // 1e7 m = 10^8 cells at 0.1 m: inside the bound, far off the map. Whatever the
+    // matchers answer (no end point near an obstacle), they answer without panicking.
+    let off = Pose2::new(1e7, -1e7, 0.1);
+    for m in matchers {
+        let _ = m.match_prepared(&g, &p, &off);
+    }
+    // An absurd rotation count is a configuration error, not an allocation.
+    let fine = CorrelativeMatcher {
+        angular_step: 1e-12,
+        ..Default::default()
+    };
+    assert!(matches!(
+        fine.match_prepared(&g, &p, &truth),
+        Err(GridError::InvalidConfig { .. })
+    ));
+}
