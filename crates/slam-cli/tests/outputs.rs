@@ -181,6 +181,7 @@ fn run_out_is_new_empty_own_or_forced() {
         [
             ".slam-run",
             "config.toml",
+            "estimates.csv",
             "ground_truth.tum",
             "landmarks.csv",
             "map.png",
