@@ -41,6 +41,10 @@ pub enum Association {
 /// landmarks, already cost gigabytes on a large map; 10⁹ would be an allocation abort.
 pub const MAX_PARTICLES: usize = 100_000;
 
+/// Upper bound of [`FastSlamConfig::max_landmarks`]: each landmark costs every particle that
+/// holds it a small EKF and O(log N) tree nodes, so 10⁷ landmarks is already gigabytes.
+pub const MAX_LANDMARKS: usize = 10_000_000;
+
 /// FastSLAM settings. Every field has a documented default ([`FastSlamConfig::default`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -97,6 +101,11 @@ pub struct FastSlamConfig {
     pub association_radius: f64,
     /// Cell edge of each particle's spatial index, metres. Default 5 m.
     pub index_cell_size: f64,
+    /// Most landmarks a particle's map may hold (1 ..= [`MAX_LANDMARKS`]): an update that
+    /// could take a map past it (map size + observations) is refused with
+    /// [`FastSlamError::TooManyLandmarks`] before anything changes, so clutter or a
+    /// runaway association cannot grow memory without bound. Default 1,000,000.
+    pub max_landmarks: usize,
 }
 
 impl Default for FastSlamConfig {
@@ -120,6 +129,7 @@ impl Default for FastSlamConfig {
             provisional_steps: 5,
             association_radius: 3.0,
             index_cell_size: 5.0,
+            max_landmarks: 1_000_000,
         }
     }
 }
@@ -139,6 +149,13 @@ impl FastSlamConfig {
                 "particles",
                 self.particles,
                 "1 ..= 100000 (MAX_PARTICLES)",
+            ));
+        }
+        if !(1..=MAX_LANDMARKS).contains(&self.max_landmarks) {
+            return Err(bad(
+                "max_landmarks",
+                self.max_landmarks,
+                "1 ..= 10000000 (MAX_LANDMARKS)",
             ));
         }
         if !(self.p0.is_finite() && self.p0 > 0.0) {

@@ -27,6 +27,19 @@ pub enum FastSlamError {
     /// A model computation failed.
     #[error(transparent)]
     Model(#[from] ModelError),
+    /// An update could take a particle's map past [`crate::FastSlamConfig::max_landmarks`].
+    #[error(
+        "a particle's map holds {landmarks} landmarks and this update brings {observations} \
+         observations: more than max_landmarks = {max} could be mapped"
+    )]
+    TooManyLandmarks {
+        /// The largest map among the particles.
+        landmarks: usize,
+        /// Observations in the refused update.
+        observations: usize,
+        /// The configured bound.
+        max: usize,
+    },
     /// Every particle's weight vanished or became NaN (no particle explains the data).
     #[error("particle weights degenerated: {0}")]
     Degenerate(String),

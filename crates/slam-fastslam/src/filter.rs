@@ -265,6 +265,21 @@ impl LandmarkSlam for FastSlam {
                 raw: *z,
             });
         }
+        // Checked before anything changes: every observation could start a landmark.
+        let largest = self
+            .particles
+            .iter()
+            .map(|p| p.map.len())
+            .max()
+            .unwrap_or(0);
+        if largest.saturating_add(obs.len()) > self.config.max_landmarks {
+            return Err(FastSlamError::TooManyLandmarks {
+                landmarks: largest,
+                observations: obs.len(),
+                max: self.config.max_landmarks,
+            }
+            .into());
+        }
         let ctx = StepContext {
             config: &self.config,
             ln_p0: self.config.p0.ln(),
@@ -381,6 +396,7 @@ impl LandmarkSlam for FastSlam {
 mod tests {
     use super::*;
     use crate::config::Association;
+    use crate::config::MAX_LANDMARKS;
     use rand::{Rng, SeedableRng};
     use rand_distr::{Distribution, Normal};
     use slam_models::{LandmarkId, OdometryControl, Point2};
@@ -524,6 +540,49 @@ mod tests {
         for i in (0..8).filter(|&i| i != 5) {
             assert_eq!(after2[i], after[i], "particle {i} changed");
         }
+    }
+
+    /// The landmark cap: once a map could pass `max_landmarks`, the update is refused with
+    /// the bound named, and the filter is left exactly as it was (maps, pose, step count).
+    #[test]
+    fn landmark_cap_refuses_the_update_and_changes_nothing() {
+        let (data, _) = world(1, 40, false);
+        let max = 6;
+        let cfg = FastSlamConfig {
+            max_landmarks: max,
+            ..config(Variant::FastSlam2, 4)
+        };
+        let mut f = FastSlam::new(cfg, Pose2::IDENTITY, 3).unwrap();
+        let mut refused = false;
+        for (u, z) in &data {
+            f.predict(u).unwrap();
+            let (before, updates, pose) = (snapshot(&f), f.updates, f.pose());
+            match f.update(z) {
+                Ok(_) => assert!(f.particles.iter().all(|p| p.map.len() <= max)),
+                Err(e) => {
+                    let largest = before.iter().map(Vec::len).max().unwrap();
+                    assert!(largest + z.len() > max, "refused below the cap: {e}");
+                    assert!(e.to_string().contains("max_landmarks = 6"), "{e}");
+                    assert_eq!(snapshot(&f), before);
+                    assert_eq!((f.updates, f.pose()), (updates, pose));
+                    refused = true;
+                    break;
+                }
+            }
+        }
+        assert!(
+            refused,
+            "the world has more than {max} landmarks in view over the run"
+        );
+        let bad = FastSlamConfig {
+            max_landmarks: MAX_LANDMARKS + 1,
+            ..FastSlamConfig::default()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("max_landmarks"));
     }
 
     /// Bit-identical results on a rayon pool of 1 thread and one of 2 threads, for both

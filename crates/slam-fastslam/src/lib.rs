@@ -31,7 +31,7 @@ pub mod map;
 pub mod particle;
 pub mod tree;
 
-pub use config::{Association, FastSlamConfig, Variant, MAX_PARTICLES};
+pub use config::{Association, FastSlamConfig, Variant, MAX_LANDMARKS, MAX_PARTICLES};
 pub use error::FastSlamError;
 pub use filter::FastSlam;
 pub use particle::Particle;
