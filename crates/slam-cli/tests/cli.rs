@@ -4,39 +4,12 @@
 //! (These live in the slam-cli crate rather than the workspace's root `tests/` because the
 //! root package does not depend on slam-cli, and `CARGO_BIN_EXE_slam` only exists here.)
 
-use slam_cli::{filters, main_with_args, CliError, Outcome};
+mod common;
+use common::{dataset, scratch, slam, slam_bin};
+
+use slam_cli::{filters, CliError, Outcome};
 use slam_io::eval::chi2_quantile;
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-/// A fresh, empty folder under the system temp dir, unique to this test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("slam-cli-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-/// Runs the program in-process; returns the outcome and what it printed.
-fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
-    let mut out = Vec::new();
-    let all = std::iter::once("slam").chain(args.iter().copied());
-    let r = main_with_args(all, &mut out);
-    (r, String::from_utf8(out).unwrap())
-}
-
-/// Runs the built binary; returns exit code, stdout, stderr.
-fn slam_bin(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_slam"))
-        .args(args)
-        .output()
-        .expect("the slam binary runs");
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
 
 fn available(kind: filters::DataKind) -> Vec<&'static str> {
     filters::filters()
@@ -44,26 +17,6 @@ fn available(kind: filters::DataKind) -> Vec<&'static str> {
         .filter(|f| f.kind == kind && f.unavailable.is_none())
         .map(|f| f.name)
         .collect()
-}
-
-/// `../shared/datasets` beside the checkout (or `$SLAM_DATASETS`); `None` with a SKIPPED
-/// line when missing, a failure under `CI=true`.
-fn dataset(rel: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("SLAM_DATASETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    let p = base.join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI")
-        .map(|v| v == "true" || v == "1")
-        .unwrap_or(false)
-    {
-        panic!("dataset {} is missing and CI=true", p.display());
-    }
-    eprintln!("SKIPPED: dataset {} not found", p.display());
-    None
 }
 
 const METRIC_KEYS: [&str; 23] = [

@@ -5,29 +5,13 @@
 //! binary run with its peak resident memory (VmHWM) sampled from `/proc`: each run must
 //! stay under 100 MB, or stop with a clear error naming the cause.
 
+mod common;
+use common::dataset;
+
 use std::io::Read;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
-
-/// `../shared/datasets/REL` beside the checkout (or under `$SLAM_DATASETS`); `None` with a
-/// SKIPPED line when missing, a failure under `CI=true` (as in `cli.rs`).
-fn dataset(rel: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("SLAM_DATASETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    let p = base.join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    assert!(
-        !matches!(std::env::var("CI").as_deref(), Ok("true" | "1")),
-        "dataset {} is missing and CI=true",
-        p.display()
-    );
-    eprintln!("SKIPPED: dataset {} not found", p.display());
-    None
-}
 
 /// `log` with the odometry of its middle FLASER record (laser and odometry pose fields)
 /// moved by `dx` metres.

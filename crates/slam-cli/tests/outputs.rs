@@ -7,26 +7,13 @@
 //! Ctrl-C leaves nothing. The evo figures are in `tests/fixtures/evo/` with the command lines
 //! that made them (its README).
 
-use slam_cli::{main_with_args, CliError, Outcome};
+mod common;
+use common::{dataset, scratch, slam};
+
+use slam_cli::{CliError, Outcome};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
-
-/// A fresh, empty folder under the system temp dir, unique to this test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("slam-outputs-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-/// Runs the program in-process; returns the outcome and what it printed.
-fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
-    let mut out = Vec::new();
-    let all = std::iter::once("slam").chain(args.iter().copied());
-    let r = main_with_args(all, &mut out);
-    (r, String::from_utf8(out).unwrap())
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -44,23 +31,6 @@ fn names(dir: &Path) -> Vec<String> {
 
 fn metrics(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap()
-}
-
-/// `../shared/datasets/<rel>` (or under `$SLAM_DATASETS`); `None` with a SKIPPED line when
-/// missing, a failure under `CI=true`.
-fn dataset(rel: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("SLAM_DATASETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    let p = base.join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
-        panic!("dataset {} is missing and CI=true", p.display());
-    }
-    eprintln!("SKIPPED: dataset {} not found", p.display());
-    None
 }
 
 /// Issue 17's reproduction: `slam sim figure8 --out s`, then `slam sim loop --out s`, then

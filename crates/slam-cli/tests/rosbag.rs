@@ -1,9 +1,12 @@
 //! `slam run` and `slam info` on ROS 2 bags (the fixtures of slam-io, written by the Python
 //! `rosbags` package from the first 875 lines of the real Intel log).
 
-use slam_cli::{main_with_args, CliError, Outcome};
+mod common;
+use common::{dataset, scratch, slam};
+
+use slam_cli::Outcome;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 fn fixture(name: &str) -> String {
@@ -12,37 +15,6 @@ fn fixture(name: &str) -> String {
         .join(name)
         .display()
         .to_string()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("slam-cli-rosbag-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
-    let mut out = Vec::new();
-    let all = std::iter::once("slam").chain(args.iter().copied());
-    let r = main_with_args(all, &mut out);
-    (r, String::from_utf8(out).unwrap())
-}
-
-/// `../shared/datasets` beside the checkout (or `$SLAM_DATASETS`); `None` with a SKIPPED
-/// line when missing, a failure under `CI=true`.
-fn dataset(rel: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("SLAM_DATASETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    let p = base.join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
-        panic!("dataset {} is missing and CI=true", p.display());
-    }
-    eprintln!("SKIPPED: dataset {} not found", p.display());
-    None
 }
 
 /// TUM lines → time in µs → (x, y, yaw), the last line of each time.

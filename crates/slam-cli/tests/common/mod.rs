@@ -1,0 +1,56 @@
+//! Helpers shared by the slam-cli integration tests (each test file has `mod common;`).
+#![allow(dead_code)]
+
+use slam_cli::{main_with_args, CliError, Outcome};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// A fresh, empty folder under the system temp dir, unique to this test binary and test.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!(
+        "slam-cli-{}-{}-{name}",
+        env!("CARGO_CRATE_NAME"),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the program in-process; returns the outcome and what it printed.
+pub fn slam(args: &[&str]) -> (Result<Outcome, CliError>, String) {
+    let mut out = Vec::new();
+    let all = std::iter::once("slam").chain(args.iter().copied());
+    let r = main_with_args(all, &mut out);
+    (r, String::from_utf8(out).unwrap())
+}
+
+/// Runs the built binary; returns exit code, stdout, stderr.
+pub fn slam_bin(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_slam"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// `../shared/datasets/<rel>` beside the checkout (or under `$SLAM_DATASETS`); `None` with a
+/// SKIPPED line when missing, a failure under `CI=true`.
+pub fn dataset(rel: &str) -> Option<PathBuf> {
+    let base = std::env::var_os("SLAM_DATASETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
+    let p = base.join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
+        panic!("dataset {} is missing and CI=true", p.display());
+    }
+    eprintln!("SKIPPED: dataset {} not found", p.display());
+    None
+}
