@@ -6,6 +6,7 @@
 use crate::cli::OptimizeArgs;
 use crate::config;
 use crate::error::CliError;
+use crate::outdir::{OutDir, Owner};
 use serde::Serialize;
 use slam_graph::{IterationInfo, Optimizer, OptimizerConfig, RobustKernel, StopReason};
 use std::io::Write;
@@ -63,15 +64,19 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     if let Some(k) = &args.kernel {
         cfg.kernel = parse_kernel(k)?;
     }
+    // Written like slam run's outputs: staged, renamed into place, result.json last; only a
+    // new or empty folder, or this command's own earlier output, is written into.
+    let mut inputs = vec![("GRAPH", args.graph.as_path())];
+    if let Some(c) = &args.config {
+        inputs.push(("--config", c.as_path()));
+    }
+    let staging = OutDir::prepare(&args.out, Owner::Optimize, false, &inputs)?;
+    let stage = staging.stage().to_path_buf();
     let before = slam_io::g2o::read_g2o(&args.graph)?;
     let mut graph = before.clone();
     let report = Optimizer::new(&graph, cfg)?.optimize(&mut graph)?;
-    std::fs::create_dir_all(&args.out).map_err(|e| CliError::Write {
-        path: args.out.clone(),
-        source: e,
-    })?;
-    slam_io::g2o::write_g2o(&args.out.join("optimized.g2o"), &graph)?;
-    slam_io::graph_picture::save_before_after(&before, &graph, &args.out.join("graph.png"))?;
+    slam_io::g2o::write_g2o(&stage.join("optimized.g2o"), &graph)?;
+    slam_io::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
     let result = OptimizeOutput {
         input: args.graph.display().to_string(),
         nodes: graph.nodes().len(),
@@ -84,13 +89,14 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
         iterations: report.iterations,
     };
     let write = |name: &str, text: String| {
-        let p = args.out.join(name);
+        let p = stage.join(name);
         std::fs::write(&p, text).map_err(|e| CliError::Write { path: p, source: e })
     };
     let json = serde_json::to_string_pretty(&result)
         .map_err(|e| CliError::InvalidArgument(format!("result.json: {e}")))?;
     write("result.json", json + "\n")?;
     write("config.toml", config::to_toml(&cfg))?;
+    staging.commit(&["optimized.g2o", "graph.png", "config.toml", "result.json"])?;
     let _ = writeln!(
         out,
         "{}: {} nodes, {} edges\n  χ² {:.6e} → {:.6e} in {} iterations ({:?})\n  wrote {}",
@@ -139,6 +145,7 @@ mod tests {
     #[test]
     fn writes_the_outputs() {
         let dir = std::env::temp_dir().join(format!("slam-cli-opt-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let input = dir.join("square.g2o");
         let mut text = String::new();
@@ -184,6 +191,28 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(out.join("result.json")).unwrap())
                 .unwrap();
         assert_eq!(json["final_chi2"].as_f64(), Some(r.final_chi2));
+
+        // Its own earlier output is replaced; a folder of someone else's files is refused
+        // before any work and left as it was; so is a folder holding the input.
+        assert!(crate::main_with_args(args, &mut sink).is_ok());
+        assert!(!out.join(".slam-partial").exists());
+        let foreign = dir.join("foreign");
+        std::fs::create_dir_all(&foreign).unwrap();
+        std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
+        let mut into_foreign = args;
+        into_foreign[4] = foreign.to_str().unwrap();
+        let e = crate::main_with_args(into_foreign, &mut sink)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not empty") && e.contains("notes.txt"), "{e}");
+        let names: Vec<_> = std::fs::read_dir(&foreign).unwrap().flatten().collect();
+        assert_eq!(names.len(), 1);
+        let mut into_input_dir = args;
+        into_input_dir[4] = dir.to_str().unwrap();
+        let e = crate::main_with_args(into_input_dir, &mut sink)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("lies inside"), "{e}");
 
         std::fs::write(&input, "VERTEX_SE2 0 0 0 0\nEDGE_SE3 0 1\n").unwrap();
         let e = crate::main_with_args(args, &mut sink)

@@ -51,6 +51,8 @@ pub(crate) enum Owner {
     Run,
     /// `slam sim`: marker `.slam-sim`.
     Sim,
+    /// `slam optimize`: marker `.slam-optimize`.
+    Optimize,
 }
 
 impl Owner {
@@ -58,6 +60,7 @@ impl Owner {
         match self {
             Owner::Run => ".slam-run",
             Owner::Sim => ".slam-sim",
+            Owner::Optimize => ".slam-optimize",
         }
     }
 
@@ -65,6 +68,7 @@ impl Owner {
         match self {
             Owner::Run => "slam run",
             Owner::Sim => "slam sim",
+            Owner::Optimize => "slam optimize",
         }
     }
 }
@@ -162,12 +166,14 @@ impl OutDir {
                         ))
                     }
                     Owner::Run => {}
-                    Owner::Sim => {
+                    Owner::Sim | Owner::Optimize => {
                         return invalid(format!(
-                            "--out {} is not empty ({shown}) and is not a folder slam sim \
-                             wrote; slam sim writes only into a new or empty folder, so that \
-                             it never overwrites a dataset",
-                            dir.display()
+                            "--out {} is not empty ({shown}) and is not a folder {} \
+                             wrote; {} writes only into a new or empty folder (or its own \
+                             earlier output), so that it never overwrites a user's files",
+                            dir.display(),
+                            owner.command(),
+                            owner.command()
                         ))
                     }
                 }
