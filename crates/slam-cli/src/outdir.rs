@@ -166,14 +166,20 @@ impl OutDir {
                         ))
                     }
                     Owner::Run => {}
-                    Owner::Sim | Owner::Optimize => {
+                    Owner::Sim => {
                         return invalid(format!(
-                            "--out {} is not empty ({shown}) and is not a folder {} \
-                             wrote; {} writes only into a new or empty folder (or its own \
-                             earlier output), so that it never overwrites a user's files",
-                            dir.display(),
-                            owner.command(),
-                            owner.command()
+                            "--out {} is not empty ({shown}) and is not a folder slam sim \
+                             wrote; slam sim writes only into a new or empty folder, so that \
+                             it never overwrites a dataset",
+                            dir.display()
+                        ))
+                    }
+                    Owner::Optimize => {
+                        return invalid(format!(
+                            "--out {} is not empty ({shown}) and is not a folder slam \
+                             optimize wrote; slam optimize writes only into a new or empty \
+                             folder, so that it never overwrites a user's files",
+                            dir.display()
                         ))
                     }
                 }

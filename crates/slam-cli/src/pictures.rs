@@ -102,6 +102,9 @@ pub(crate) fn laser_picture(
     pic.trajectory(trajectory, RED, "estimate")
 }
 
+/// The file that marks a `--frames` folder as partial while its run is not complete.
+pub(crate) const FRAMES_INCOMPLETE: &str = "INCOMPLETE.txt";
+
 /// `--frames DIR --frame-every K`: one PNG every K steps of a landmark run (and after the
 /// last step), `DIR/frame-000001.png`, `frame-000002.png`, … numbered consecutively (as
 /// video tools expect; the step is in each frame's title), for making an animation. Every frame
@@ -140,6 +143,18 @@ impl Frames {
         } else {
             std::fs::create_dir_all(dir).map_err(write_err)?;
         }
+        // Marks the frames as partial until the run completes (Ctrl-C, an error): a folder
+        // with this file is not a whole animation. [`Frames::finish`] removes it.
+        let marker = dir.join(FRAMES_INCOMPLETE);
+        std::fs::write(
+            &marker,
+            "The run writing these frames did not complete (interrupted or failed): \
+             the frames here are partial.\n",
+        )
+        .map_err(|source| CliError::Write {
+            path: marker.clone(),
+            source,
+        })?;
         let mut window: Vec<Point2> = ground_truth
             .unwrap_or(&[])
             .iter()
@@ -151,6 +166,15 @@ impl Frames {
             every: every.max(1),
             window,
             written: 0,
+        })
+    }
+
+    /// The run completed: the frames are whole, so the partial marker goes.
+    pub(crate) fn finish(self) -> Result<(), CliError> {
+        let marker = self.dir.join(FRAMES_INCOMPLETE);
+        std::fs::remove_file(&marker).map_err(|source| CliError::Write {
+            path: marker,
+            source,
         })
     }
 
@@ -212,6 +236,19 @@ impl Frames {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Until the run completes, a frames folder says it is partial; `finish` clears that
+    /// (a run stopped by Ctrl-C or an error never calls it).
+    #[test]
+    fn frames_are_marked_partial_until_finished() {
+        let dir = std::env::temp_dir().join(format!("slam-frames-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let frames = Frames::new(&dir, 10, None, None).unwrap();
+        assert!(dir.join(FRAMES_INCOMPLETE).is_file());
+        frames.finish().unwrap();
+        assert!(std::fs::read_dir(&dir).unwrap().next().is_none());
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     #[test]
     fn titles_name_filter_data_particles_and_seed() {

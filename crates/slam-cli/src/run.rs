@@ -517,6 +517,9 @@ fn run_landmark(
     }
     let wall = start.elapsed().saturating_sub(frame_time).as_secs_f64();
     progress.finish();
+    if let Some(f) = frames {
+        f.finish()?;
+    }
 
     // The full-SLAM path (entry 0 the initial pose, entry k the pose after step k, by the
     // LandmarkSlam contract) and the map, both the final best particle's: read together,
