@@ -158,6 +158,18 @@ pub struct RunArgs {
           value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub frame_every: u64,
 
+    /// Also write the run as an MCAP file of ROS 2 messages (map, trajectory, poses, tf,
+    /// scans, particles, landmarks; see docs/rosbag.md), for Foxglove or `ros2 bag play`.
+    /// Not one of the inputs, not inside --out; an existing MCAP file is replaced.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
+
+    /// With --mcap: steps between two snapshots of the trajectory, map and landmarks
+    /// (default: about 100 snapshots per run).
+    #[arg(long, value_name = "K", requires = "mcap",
+          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub mcap_every: Option<u64>,
+
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,

@@ -4,7 +4,8 @@
 //! slam run  --filter <name> (--sim <scenario> [--seed N] [--steps N] | --dataset <path> [--robot N]
 //!           [--scan-topic T] [--odom-topic T] [--laser-pose x,y,θ])
 //!           [--particles N] [--config <file.toml>] [--ground-truth <file.tum>] [--relations <file>]
-//!           [--out <dir>] [--force] [--threads N] [--frames <dir> [--frame-every K]] [--quiet]
+//!           [--out <dir>] [--force] [--threads N] [--frames <dir> [--frame-every K]]
+//!           [--mcap <file.mcap> [--mcap-every K]] [--quiet]
 //! slam sim  <scenario> [--seed N] [--steps N] --out <dir>
 //! slam eval --estimate <file.tum> (--ground-truth <file.tum> | --relations <file>)
 //! slam optimize <graph.g2o> --out <dir> [--config <file.toml>] [--kernel <name:param>]
@@ -26,7 +27,8 @@
 //! `map.png` has a title (filter, data, particle count, seed), a legend, and axes and a
 //! scale bar in metres. With `--frames DIR` a landmark run also writes
 //! `DIR/frame-000001.png`, … every `--frame-every` steps, the frames of an animation of the
-//! run.
+//! run. With `--mcap FILE` the run is also written as an MCAP file of ROS 2 messages for
+//! Foxglove and `ros2 bag play` (docs/rosbag.md).
 
 #![warn(missing_docs)]
 
@@ -37,6 +39,7 @@ pub mod eval;
 pub mod filters;
 mod info;
 mod list;
+mod mcap;
 pub mod metrics;
 pub mod optimize;
 mod outdir;

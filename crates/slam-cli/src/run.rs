@@ -26,6 +26,7 @@
 use crate::cli::RunArgs;
 use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
+use crate::mcap::McapRecorder;
 use crate::metrics::{self, Metrics};
 use crate::outdir::{OutDir, Owner};
 use crate::pictures;
@@ -166,6 +167,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     }
     if let Some(map) = args.sim.as_deref().and_then(replay_map) {
         inputs.push(("--sim replay map", map));
+    }
+    if let Some(mcap) = &args.mcap {
+        crate::mcap::check_path(mcap, &inputs, &out_dir)?;
     }
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let mut input = load_input(args)?;
@@ -468,6 +472,16 @@ fn run_landmark(
     };
     // Drawing frames is output, not filtering: its time is taken off the run's wall time.
     let mut frame_time = std::time::Duration::ZERO;
+    let true_landmarks: Option<Vec<slam_models::Point2>> = dataset
+        .landmarks
+        .as_ref()
+        .map(|l| l.iter().map(|(_, p)| *p).collect());
+    let mut mcap = McapRecorder::create(ctx.args, steps.len(), true_landmarks.as_deref())?;
+    // The odometry frame of the ROS output: the controls' noise-free dead reckoning.
+    let odometry = mcap
+        .as_ref()
+        .map(|_| slam_io::dead_reckoning(dataset))
+        .unwrap_or_default();
 
     let mut online = Vec::with_capacity(steps.len());
     let mut estimates = Vec::with_capacity(steps.len());
@@ -513,9 +527,17 @@ fn run_landmark(
             )?;
             frame_time += t0.elapsed();
         }
+        if let Some(r) = &mut mcap {
+            r.landmark_step(step.t, odometry.get(k).map(|p| p.pose), filter.as_ref())?;
+        }
         progress.set(k + 1);
     }
-    let wall = start.elapsed().saturating_sub(frame_time).as_secs_f64();
+    let mcap_time = mcap.as_ref().map(McapRecorder::elapsed).unwrap_or_default();
+    let wall = start
+        .elapsed()
+        .saturating_sub(frame_time)
+        .saturating_sub(mcap_time)
+        .as_secs_f64();
     progress.finish();
     if let Some(f) = frames {
         f.finish()?;
@@ -592,6 +614,14 @@ fn run_landmark(
             slam_io::tum::write_tum(&p, gt)?;
             files.push(p);
         }
+    }
+    if let Some(r) = mcap {
+        notes.push(r.finish(
+            trajectory,
+            None,
+            Some(&landmarks),
+            ground_truth.map(Vec::as_slice),
+        )?);
     }
     let p = dir.join("landmarks.csv");
     slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
@@ -705,6 +735,7 @@ fn run_scan(
         filter.render_map(res).ok_or_else(cannot_render)?;
     }
     let records = &dataset.records;
+    let mut mcap = McapRecorder::create(ctx.args, records.len(), None)?;
     let mut progress = Progress::new(records.len(), ctx.args.quiet);
     let start = Instant::now();
     // Odometry jumps the filter skipped (only with `odometry_jump.on_jump = "skip"`):
@@ -729,6 +760,9 @@ fn run_scan(
             jumps += step.odometry_jumps_skipped;
             first_jump.get_or_insert((k, record.t));
         }
+        if let Some(r) = &mut mcap {
+            r.scan_step(record, filter.as_ref())?;
+        }
         progress.set(k + 1);
     }
     if let Some((k, t)) = first_jump {
@@ -740,7 +774,9 @@ fn run_scan(
     // The filter's own map is part of the timed run; a re-rendering (output, not filtering)
     // is made after the clock and the memory peak are read, and replaces it.
     let own_map = ctx.args.map_resolution.is_none().then(|| filter.map());
-    let wall = start.elapsed().as_secs_f64();
+    // Writing the MCAP file is output, not filtering.
+    let mcap_time = mcap.as_ref().map(McapRecorder::elapsed).unwrap_or_default();
+    let wall = start.elapsed().saturating_sub(mcap_time).as_secs_f64();
     progress.finish();
     let peak_rss_mb = metrics::peak_rss_mb();
     let map = match own_map {
@@ -794,6 +830,14 @@ fn run_scan(
             slam_io::tum::write_tum(&p, gt)?;
             files.push(p);
         }
+    }
+    if let Some(r) = mcap {
+        notes.push(r.finish(
+            &trajectory,
+            Some(&map),
+            None,
+            ground_truth.as_deref(),
+        )?);
     }
     slam_io::ros_map::write_ros_map(dir, "map", &map)?;
     files.push(dir.join("map.pgm"));

@@ -9,7 +9,8 @@
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
 //!   [`carmen::write_carmen`], [`picture`] (PNG), [`g2o::write_g2o`], [`graph_picture`] (a
-//!   pose graph before and after optimisation).
+//!   pose graph before and after optimisation), `mcap_out` (a run as an MCAP file of ROS 2
+//!   messages for Foxglove and `ros2 bag play`, feature `rosbag`).
 //! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
 //!   chi-square bands).
 //!
@@ -32,6 +33,8 @@ pub mod freiburg;
 pub mod g2o;
 pub mod graph_picture;
 pub mod landmarks_csv;
+#[cfg(feature = "rosbag")]
+pub mod mcap_out;
 pub mod mrclam;
 pub mod picture;
 pub mod relations;

@@ -187,6 +187,12 @@ impl<'a> Cdr<'a> {
         Ok(v)
     }
 
+    /// A `uint8` (`int8` and `bool` are read as their byte); used by the run writer's tests.
+    #[cfg(test)]
+    pub fn u8(&mut self, what: &str) -> Result<u8, CdrError> {
+        Ok(self.take(1, what)?[0])
+    }
+
     /// Skips a fixed-size `float64[n]` array.
     pub fn skip_f64s(&mut self, n: usize, what: &str) -> Result<(), CdrError> {
         self.align(8)?;

@@ -44,9 +44,9 @@
 //! The whole file is read into memory; every length inside a message is checked against the
 //! bytes left before it is allocated.
 
-mod cdr;
+pub(crate) mod cdr;
 mod container;
-mod msgs;
+pub(crate) mod msgs;
 
 pub use container::TopicInfo;
 

@@ -1,0 +1,178 @@
+//! `slam run --mcap FILE`: the run as an MCAP file of ROS 2 messages (slam-io's
+//! [`McapRunWriter`]), fed by the run loops one step at a time.
+//!
+//! [`McapRecorder`] is the whole hook: the run loops call [`McapRecorder::scan_step`] or
+//! [`McapRecorder::landmark_step`] after each filter step and [`McapRecorder::finish`] with
+//! the run's result. Snapshots (`/trajectory`, `/map`, `/landmarks`) are taken every
+//! `--mcap-every` steps, by default about 100 per run; the time spent writing is output,
+//! not filtering, and is taken off the run's wall time ([`McapRecorder::elapsed`]).
+//!
+//! The file is refused, before any data is loaded ([`check_path`]), when it is one of the
+//! run's inputs, lies inside the output folder (whose contents the run replaces), or exists
+//! and is not an MCAP file; an existing MCAP file is replaced. The file appears only when
+//! the run completes (slam-io writes `FILE.partial` and renames it).
+
+use crate::cli::RunArgs;
+use crate::error::CliError;
+use slam_io::mcap_out::{McapRunOptions, McapRunWriter, RunEnd, RunStep};
+use slam_models::{GridMap, LandmarkEstimate, LandmarkSlam, Point2, Pose2, ScanRecord, ScanSlam};
+use slam_models::TimedPose;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Snapshots per run when `--mcap-every` is not given.
+const DEFAULT_SNAPSHOTS: usize = 100;
+
+/// Checks `--mcap` against the inputs and the output folder (module doc).
+pub(crate) fn check_path(
+    mcap: &Path,
+    inputs: &[(&str, &Path)],
+    out_dir: &Path,
+) -> Result<(), CliError> {
+    let refuse = |why: String| {
+        CliError::InvalidArgument(format!("--mcap {}: {why}", mcap.display()))
+    };
+    let parent = match mcap.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if mcap.file_name().is_none() || mcap.is_dir() {
+        return Err(refuse("a file name is needed".into()));
+    }
+    let parent = parent
+        .canonicalize()
+        .map_err(|e| refuse(format!("its folder cannot be used ({e})")))?;
+    let target = parent.join(mcap.file_name().unwrap_or_default());
+    for (option, input) in inputs {
+        if input.canonicalize().is_ok_and(|p| p == target) {
+            return Err(refuse(format!("it is the {option} input")));
+        }
+    }
+    let out = out_dir.canonicalize().unwrap_or_else(|_| out_dir.to_path_buf());
+    if target.starts_with(&out) {
+        return Err(refuse(format!(
+            "it lies inside the output folder {} (whose contents the run replaces); write it \
+             beside the folder",
+            out_dir.display()
+        )));
+    }
+    if target.exists() {
+        let mut magic = [0u8; 8];
+        let is_mcap = std::fs::File::open(&target)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+            .is_ok()
+            && magic == *b"\x89MCAP0\r\n";
+        if !is_mcap {
+            return Err(refuse(
+                "the file exists and is not an MCAP file; it is left alone".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Writes a run to `--mcap` (module doc).
+pub(crate) struct McapRecorder {
+    writer: McapRunWriter,
+    path: PathBuf,
+    /// Time spent writing and taking snapshots.
+    spent: Duration,
+}
+
+impl McapRecorder {
+    /// The recorder of a run of `steps` steps, or `None` without `--mcap`.
+    pub fn create(
+        args: &RunArgs,
+        steps: usize,
+        true_landmarks: Option<&[Point2]>,
+    ) -> Result<Option<Self>, CliError> {
+        let Some(path) = &args.mcap else {
+            return Ok(None);
+        };
+        let every = match args.mcap_every {
+            Some(k) => k as usize,
+            None => steps.div_ceil(DEFAULT_SNAPSHOTS).max(1),
+        };
+        let options = McapRunOptions {
+            snapshot_every: every,
+            true_landmarks: true_landmarks.map(<[Point2]>::to_vec).unwrap_or_default(),
+        };
+        Ok(Some(McapRecorder {
+            writer: McapRunWriter::create(path, options)?,
+            path: path.clone(),
+            spent: Duration::ZERO,
+        }))
+    }
+
+    /// Time spent writing so far (output, not filtering).
+    pub fn elapsed(&self) -> Duration {
+        self.spent
+    }
+
+    /// After a laser filter's `process(record)`: pose, odometry, scan, particles, and at
+    /// snapshot steps the map.
+    pub fn scan_step(&mut self, record: &ScanRecord, filter: &dyn ScanSlam) -> Result<(), CliError> {
+        let t0 = Instant::now();
+        let map = self.writer.snapshot_due().then(|| filter.map());
+        let particles = filter.particles();
+        self.writer.step(&RunStep {
+            t: record.t,
+            pose: filter.pose(),
+            odometry: Some(record.odometry),
+            scan: record.scan.as_ref(),
+            particles: particles.as_deref(),
+            map: map.as_ref(),
+            landmarks: None,
+        })?;
+        self.spent += t0.elapsed();
+        Ok(())
+    }
+
+    /// After a landmark filter's `predict` + `update` at time `t`: pose, the dead-reckoned
+    /// odometry, particles, and at snapshot steps the landmarks.
+    pub fn landmark_step(
+        &mut self,
+        t: f64,
+        odometry: Option<Pose2>,
+        filter: &dyn LandmarkSlam,
+    ) -> Result<(), CliError> {
+        let t0 = Instant::now();
+        let landmarks = self.writer.snapshot_due().then(|| filter.landmarks());
+        let particles = filter.particles();
+        self.writer.step(&RunStep {
+            t,
+            pose: filter.pose(),
+            odometry,
+            scan: None,
+            particles: particles.as_deref(),
+            map: None,
+            landmarks: landmarks.as_deref(),
+        })?;
+        self.spent += t0.elapsed();
+        Ok(())
+    }
+
+    /// Writes the end (the run's trajectory, final map or landmarks, ground truth in the
+    /// estimate's frame) and closes the file; returns the line for the run's summary.
+    pub fn finish(
+        self,
+        trajectory: &[TimedPose],
+        map: Option<&GridMap>,
+        landmarks: Option<&[LandmarkEstimate]>,
+        ground_truth: Option<&[TimedPose]>,
+    ) -> Result<String, CliError> {
+        let counts = self.writer.finish(&RunEnd {
+            trajectory,
+            map,
+            landmarks,
+            ground_truth,
+        })?;
+        let total: u64 = counts.values().sum();
+        let topics: Vec<String> = counts.iter().map(|(t, n)| format!("{t} {n}")).collect();
+        Ok(format!(
+            "wrote {} ({total} ROS 2 messages: {})",
+            self.path.display(),
+            topics.join(", ")
+        ))
+    }
+}
