@@ -85,6 +85,9 @@ def read_yaml_map(out):
     while len(parts) < 4:
         while data[pos:pos + 1].isspace():
             pos += 1
+        if data[pos:pos + 1] == b'#':  # a comment, to the end of its line
+            pos = data.index(b'\n', pos)
+            continue
         end = pos
         while not data[end:end + 1].isspace():
             end += 1
@@ -135,7 +138,7 @@ def main():
         for schema, channel, message, ros in reader.iter_decoded_messages():
             counts[channel.topic] += 1
             again = TS.deserialize_cdr(message.data, schema.name)
-            if type(again).__name__ != schema.name.split('/')[-1]:
+            if type(again).__name__ != schema.name.replace('/', '__'):
                 fail(f'{channel.topic}: rosbags decoded a {type(again).__name__}')
             stamp = None
             if hasattr(ros, 'header'):
@@ -219,7 +222,21 @@ def main():
         csv = [l for l in (args.out / 'landmarks.csv').read_text().splitlines()[1:] if l.strip()]
         if markers[0].action != 3 or len(ellipses) != len(csv):
             fail(f'/landmarks: {len(ellipses)} ellipses, landmarks.csv {len(csv)} rows')
-        line += f'; /landmarks {len(ellipses)} ellipses = landmarks.csv rows'
+        # Each ellipse's axis end points lie on the 95 % contour of landmarks.csv's
+        # covariance: d^T S^-1 d = chi2_2(0.95) = 5.991.
+        rows = {int(r.split(',')[0]): [float(v) for v in r.split(',')[1:]] for r in csv}
+        for m in ellipses:
+            x, y, cxx, cxy, cyy = rows[m.id]
+            if abs(m.pose.position.x - x) > 1e-9 or abs(m.pose.position.y - y) > 1e-9:
+                fail(f'/landmarks: ellipse {m.id} not at landmarks.csv\'s mean')
+            det = cxx * cyy - cxy * cxy
+            a = yaw(m.pose.orientation)
+            for half, ang in ((m.scale.x / 2, a), (m.scale.y / 2, a + math.pi / 2)):
+                dx, dy = half * math.cos(ang), half * math.sin(ang)
+                d2 = (cyy * dx * dx - 2 * cxy * dx * dy + cxx * dy * dy) / det
+                if half > 1e-3 and abs(d2 - 5.991) > 0.01:
+                    fail(f'/landmarks: ellipse {m.id} axis at Mahalanobis^2 {d2}, not 5.991')
+        line += f'; /landmarks {len(ellipses)} ellipses = landmarks.csv rows, on its 95 % contours'
     print(line)
 
 

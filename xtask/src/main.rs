@@ -11,6 +11,8 @@
 //!   into `slam-out/eval/`; not part of the test suite.
 //! * `cargo xtask eval robust [--seeds N] [--only NAME]`: grid FastSLAM's robustness suite
 //!   (see [`robust`]), writing into `slam-out/robust/`.
+//! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers
+//!   (see [`mcap_check`]), writing into `slam-out/mcap/`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
@@ -35,10 +37,11 @@ fn main() -> ExitCode {
         Some("tidy") => tidy(),
         Some("bench") => bench(args.get(1).map(String::as_str)),
         Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
+        Some("eval") if args.get(1).map(String::as_str) == Some("mcap") => mcap_check(),
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap]>"
             );
             return ExitCode::from(2);
         }
@@ -430,6 +433,92 @@ fn eval(extra: &[String]) -> Result<(), String> {
         let mut cmd = Command::new(&exe);
         cmd.args(line.split_whitespace()).args(extra);
         run(&format!("eval line {}: slam {line}", i + 1), &mut cmd)?;
+    }
+    Ok(())
+}
+
+/// `cargo xtask eval mcap`: the MCAP files `slam run --mcap` writes, read back by
+/// independent readers. Makes a Python venv (`$MCAP_VENV`, default `/tmp/slam-mcap-venv`)
+/// with the `mcap`, `mcap-ros2-support` and `rosbags` packages, runs grid FastSLAM on the
+/// ROS 2 bag fixture (`/tf` odometry, laser mounted off-centre), FastSLAM 1.0 and the EKF on
+/// the simulated `loop`, each with `--mcap`, and checks every file with
+/// `scripts/check_mcap.py` (every topic present, every message decoded by `mcap-ros2` and by
+/// `rosbags` with its own ROS 2 definitions, the map's dimensions, origin and cells against
+/// map.yaml/map.pgm, the path against trajectory.tum, tf against the poses, the ellipses
+/// against landmarks.csv).
+fn mcap_check() -> Result<(), String> {
+    let venv = std::env::var_os("MCAP_VENV")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("/tmp/slam-mcap-venv"));
+    let python = venv.join("bin").join("python");
+    if !python.exists() {
+        run(
+            "make the Python venv",
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+        )?;
+        run(
+            "install mcap, mcap-ros2-support, rosbags",
+            Command::new(&python).args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "mcap==1.6.0",
+                "mcap-ros2-support==0.6.0",
+                "rosbags==0.11.9",
+            ]),
+        )?;
+    }
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"));
+    let exe = target.join("release").join("slam");
+    let out = std::path::Path::new("slam-out/mcap");
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let bag = "crates/slam-io/tests/fixtures/rosbag/intel-tf";
+    let cases: [(&str, &[&str], &str); 3] = [
+        (
+            "gridfast-intel-tf",
+            &["--filter", "gridfast", "--dataset", bag],
+            "/map,/particles,/pose,/scan,/tf,/tf_static,/trajectory",
+        ),
+        (
+            "fastslam1-loop",
+            &["--filter", "fastslam1", "--sim", "loop"],
+            "/ground_truth,/landmarks,/particles,/pose,/tf,/trajectory",
+        ),
+        (
+            "ekf-loop",
+            &["--filter", "ekf", "--sim", "loop"],
+            "/ground_truth,/landmarks,/pose,/tf,/trajectory",
+        ),
+    ];
+    for (name, args, topics) in cases {
+        let dir = out.join(name);
+        let file = out.join(format!("{name}.mcap"));
+        run(
+            &format!("slam run {name} --mcap"),
+            Command::new(&exe)
+                .arg("run")
+                .args(args)
+                .args(["--quiet", "--out"])
+                .arg(&dir)
+                .arg("--mcap")
+                .arg(&file),
+        )?;
+        run(
+            &format!("check {name}"),
+            Command::new(&python)
+                .arg("scripts/check_mcap.py")
+                .arg(&file)
+                .arg("--out")
+                .arg(&dir)
+                .args(["--topics", topics]),
+        )?;
     }
     Ok(())
 }

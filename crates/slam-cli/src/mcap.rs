@@ -15,8 +15,8 @@
 use crate::cli::RunArgs;
 use crate::error::CliError;
 use slam_io::mcap_out::{McapRunOptions, McapRunWriter, RunEnd, RunStep};
-use slam_models::{GridMap, LandmarkEstimate, LandmarkSlam, Point2, Pose2, ScanRecord, ScanSlam};
 use slam_models::TimedPose;
+use slam_models::{GridMap, LandmarkEstimate, LandmarkSlam, Point2, Pose2, ScanRecord, ScanSlam};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -29,15 +29,32 @@ pub(crate) fn check_path(
     inputs: &[(&str, &Path)],
     out_dir: &Path,
 ) -> Result<(), CliError> {
-    let refuse = |why: String| {
-        CliError::InvalidArgument(format!("--mcap {}: {why}", mcap.display()))
-    };
+    let refuse =
+        |why: String| CliError::InvalidArgument(format!("--mcap {}: {why}", mcap.display()));
     let parent = match mcap.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
     if mcap.file_name().is_none() || mcap.is_dir() {
         return Err(refuse("a file name is needed".into()));
+    }
+    // Inside the output folder, lexically (the folder may not exist yet) or through links.
+    let inside_out = |p: &Path| {
+        let out = out_dir.canonicalize().ok();
+        std::path::absolute(out_dir).is_ok_and(|o| p.starts_with(o))
+            || out.is_some_and(|o| p.starts_with(o))
+    };
+    let inside = |p: &Path| {
+        inside_out(p).then(|| {
+            refuse(format!(
+                "it lies inside the output folder {} (whose contents the run replaces); write \
+                 it beside the folder",
+                out_dir.display()
+            ))
+        })
+    };
+    if let Some(e) = std::path::absolute(mcap).ok().and_then(|p| inside(&p)) {
+        return Err(e);
     }
     let parent = parent
         .canonicalize()
@@ -48,13 +65,8 @@ pub(crate) fn check_path(
             return Err(refuse(format!("it is the {option} input")));
         }
     }
-    let out = out_dir.canonicalize().unwrap_or_else(|_| out_dir.to_path_buf());
-    if target.starts_with(&out) {
-        return Err(refuse(format!(
-            "it lies inside the output folder {} (whose contents the run replaces); write it \
-             beside the folder",
-            out_dir.display()
-        )));
+    if let Some(e) = inside(&target) {
+        return Err(e);
     }
     if target.exists() {
         let mut magic = [0u8; 8];
@@ -111,7 +123,11 @@ impl McapRecorder {
 
     /// After a laser filter's `process(record)`: pose, odometry, scan, particles, and at
     /// snapshot steps the map.
-    pub fn scan_step(&mut self, record: &ScanRecord, filter: &dyn ScanSlam) -> Result<(), CliError> {
+    pub fn scan_step(
+        &mut self,
+        record: &ScanRecord,
+        filter: &dyn ScanSlam,
+    ) -> Result<(), CliError> {
         let t0 = Instant::now();
         let map = self.writer.snapshot_due().then(|| filter.map());
         let particles = filter.particles();

@@ -832,12 +832,7 @@ fn run_scan(
         }
     }
     if let Some(r) = mcap {
-        notes.push(r.finish(
-            &trajectory,
-            Some(&map),
-            None,
-            ground_truth.as_deref(),
-        )?);
+        notes.push(r.finish(&trajectory, Some(&map), None, ground_truth.as_deref())?);
     }
     slam_io::ros_map::write_ros_map(dir, "map", &map)?;
     files.push(dir.join("map.pgm"));

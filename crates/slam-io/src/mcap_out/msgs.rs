@@ -279,7 +279,11 @@ pub(crate) fn laser_scan(stamp: Stamp, frame: &str, scan: &LaserScan) -> Vec<u8>
     w.f32(scan.max_range);
     w.count(n);
     for &r in &scan.ranges {
-        w.f32(if r >= scan.max_range { f64::INFINITY } else { r });
+        w.f32(if r >= scan.max_range {
+            f64::INFINITY
+        } else {
+            r
+        });
     }
     w.count(0);
     w.into_bytes()

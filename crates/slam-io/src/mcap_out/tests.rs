@@ -130,7 +130,11 @@ fn d_markers(b: &[u8]) -> Vec<DMarker> {
         let kind = c.i32("type").unwrap();
         let action = c.i32("action").unwrap();
         let pose = d_pose(&mut c).unwrap();
-        let scale = [c.f64("sx").unwrap(), c.f64("sy").unwrap(), c.f64("sz").unwrap()];
+        let scale = [
+            c.f64("sx").unwrap(),
+            c.f64("sy").unwrap(),
+            c.f64("sz").unwrap(),
+        ];
         for _ in 0..4 {
             let a = c.f32("rgba").unwrap();
             assert!((0.0..=1.0).contains(&a));
@@ -226,7 +230,11 @@ fn pose_of(k: usize) -> Pose2 {
 }
 
 fn odom_of(k: usize) -> Pose2 {
-    Pose2::new(0.11 * k as f64 + 1.0, -0.01 * k as f64, 0.031 * k as f64 + 2.5)
+    Pose2::new(
+        0.11 * k as f64 + 1.0,
+        -0.01 * k as f64,
+        0.031 * k as f64 + 2.5,
+    )
 }
 
 fn particles_of(k: usize) -> Vec<WeightedPose> {
@@ -351,7 +359,10 @@ fn every_message_reads_back_with_its_values() {
         assert!(normalize(p.theta - pose_of(k).theta).abs() < 1e-12);
         let tf = crate::rosbag::msgs::tf_message(tf).unwrap();
         assert_eq!(tf.len(), 2);
-        assert_eq!((tf[0].parent.as_str(), tf[0].child.as_str()), ("map", "odom"));
+        assert_eq!(
+            (tf[0].parent.as_str(), tf[0].child.as_str()),
+            ("map", "odom")
+        );
         assert_eq!(
             (tf[1].parent.as_str(), tf[1].child.as_str()),
             ("odom", "base_link")
@@ -428,8 +439,14 @@ fn every_message_reads_back_with_its_values() {
     }
 
     // Landmarks: DELETEALL, one ellipse per landmark, the means, the true landmarks.
-    let marks: Vec<_> = seen["/landmarks"].iter().map(|(_, b)| d_markers(b)).collect();
-    for (ms, want) in marks.iter().zip([landmarks(9), landmarks(19), landmarks(99)]) {
+    let marks: Vec<_> = seen["/landmarks"]
+        .iter()
+        .map(|(_, b)| d_markers(b))
+        .collect();
+    for (ms, want) in marks
+        .iter()
+        .zip([landmarks(9), landmarks(19), landmarks(99)])
+    {
         assert_eq!((ms[0].action, ms[0].kind), (3, 0));
         let ellipses: Vec<_> = ms.iter().filter(|m| m.ns == "ellipses").collect();
         assert_eq!(ellipses.len(), want.len());
@@ -480,7 +497,9 @@ fn an_unfinished_run_leaves_no_file_and_bad_values_are_errors() {
     w.step(&RunStep::new(1.0, Pose2::default())).unwrap();
     let e = w.step(&RunStep::new(-1.0, Pose2::default())).unwrap_err();
     assert!(e.to_string().contains("step 1: time -1 s"), "{e}");
-    let e = w.step(&RunStep::new(f64::NAN, Pose2::default())).unwrap_err();
+    let e = w
+        .step(&RunStep::new(f64::NAN, Pose2::default()))
+        .unwrap_err();
     assert!(e.to_string().contains("[0, 2^31)"), "{e}");
     let mut bad = grid(0);
     bad.cells[7] = 101;
@@ -514,7 +533,12 @@ fn stamps_are_the_nearest_nanosecond() {
     // Epoch times of the Intel log, and small ones: the stamp is the f64 time rounded to
     // the nanosecond, checked against Rust's exact decimal formatting of the f64 (t·10⁹ in
     // f64 would be off by up to 64 ns at these magnitudes).
-    for t in [976_052_890.244_09, 976_052_857.338_1, 1.5e9 + 0.123_456_789, 12.000_000_5] {
+    for t in [
+        976_052_890.244_09,
+        976_052_857.338_1,
+        1.5e9 + 0.123_456_789,
+        12.000_000_5,
+    ] {
         let s = stamp_of(t).unwrap();
         let text = format!("{t:.9}");
         let (sec, frac) = text.split_once('.').unwrap();
@@ -570,7 +594,8 @@ fn schemas_name_every_type_they_use_once() {
                 continue;
             };
             let t = t.split('[').next().unwrap();
-            if t.contains('/') && !line.contains('=') && format!("{t}") != ty.replace("/msg/", "/") {
+            if t.contains('/') && !line.contains('=') && format!("{t}") != ty.replace("/msg/", "/")
+            {
                 assert_eq!(s.matches(&format!("\nMSG: {t}\n")).count(), 1, "{ty}: {t}");
             }
         }
@@ -594,8 +619,8 @@ fn stamp_ns(ns: i64) -> Stamp {
 /// recomputed from the decoded yaw: both to within rounding).
 #[test]
 fn encoder_matches_the_rosbags_writer() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures/rosbag/intel-tf/intel-tf.mcap");
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/rosbag/intel-tf/intel-tf.mcap");
     let buf = std::fs::read(&path).unwrap();
     let (mut scans, mut tfs) = (0, 0);
     for m in mcap::MessageStream::new(&buf).unwrap() {
