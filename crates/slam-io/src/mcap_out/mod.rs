@@ -135,6 +135,28 @@ pub type TopicCounts = BTreeMap<String, u64>;
 type Inner = mcap::Writer<BufWriter<File>>;
 
 /// Writes a run as an MCAP file of ROS 2 messages (module doc).
+///
+/// # Example
+///
+/// ```
+/// use slam_io::mcap_out::{McapRunOptions, McapRunWriter, RunEnd, RunStep};
+/// use slam_io::{Pose2, TimedPose};
+///
+/// let path = std::env::temp_dir().join(format!("doc-{}.mcap", std::process::id()));
+/// let mut w = McapRunWriter::create(&path, McapRunOptions::default())?;
+/// let mut trajectory = Vec::new();
+/// for k in 0..3 {
+///     let (t, pose) = (10.0 + k as f64, Pose2::new(k as f64, 0.0, 0.0));
+///     let mut step = RunStep::new(t, pose);
+///     step.odometry = Some(pose);
+///     w.step(&step)?;
+///     trajectory.push(TimedPose { t, pose });
+/// }
+/// let counts = w.finish(&RunEnd { trajectory: &trajectory, ..Default::default() })?;
+/// assert_eq!((counts["/pose"], counts["/tf"], counts["/trajectory"]), (3, 3, 1));
+/// # std::fs::remove_file(&path).unwrap();
+/// # Ok::<(), slam_io::IoError>(())
+/// ```
 pub struct McapRunWriter {
     path: PathBuf,
     partial: PathBuf,
