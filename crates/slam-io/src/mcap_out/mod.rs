@@ -561,7 +561,8 @@ fn landmark_markers<'a>(landmarks: &[LandmarkEstimate], truth: &[Point2]) -> Vec
         out.push(Marker {
             ns: "ellipses",
             // The landmark's id where it fits a marker id, else a negative one of its own.
-            id: i32::try_from(l.id.0).unwrap_or(-1 - (k as i32)),
+            id: i32::try_from(l.id.0)
+                .unwrap_or_else(|_| i32::try_from(k).map_or(i32::MIN, |k| -1 - k)),
             kind: Some(MarkerKind::Cylinder),
             pose: Pose2::new(l.mean.x, l.mean.y, angle),
             // A floor on the size keeps a nearly certain landmark visible.
