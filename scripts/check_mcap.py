@@ -18,7 +18,9 @@ Checks against the run's other outputs (written by other code of slam-rs, in --o
 * the last /trajectory has as many poses as trajectory.tum has records, with the same
   times (1 us) and positions (1e-6 m);
 * every /tf message's map -> odom composed with odom -> base_link is the /pose estimate of
-  the same stamp (1e-6 m, 1e-6 rad).
+  the same stamp (1e-6 m, 1e-6 rad);
+* every channel's offered_qos_profiles parses as YAML with the keys and integer policies
+  rosbag2's QoS decoder reads (/tf_static and /map transient local).
 
     check_mcap.py RUN.mcap --out RUN_DIR --topics /pose,/tf,... [--laser]
 Exit status 0 when every check passes; the summary is printed.
@@ -33,6 +35,7 @@ from pathlib import Path
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.typesys import Stores, get_typestore
+from ruamel.yaml import YAML
 
 TS = get_typestore(Stores.ROS2_HUMBLE)
 
@@ -130,6 +133,17 @@ def main():
                 fail(f'{ch.topic}: message encoding {ch.message_encoding}')
             if 'offered_qos_profiles' not in ch.metadata:
                 fail(f'{ch.topic}: no offered_qos_profiles')
+            # The keys and integer policies rosbag2's QoS decoder reads (rosbag2_storage
+            # qos.cpp: integer history means the metadata-version-8 form); /tf_static and /map
+            # transient local (1), the rest volatile (2); reliable (1), keep last (1).
+            (qos,) = YAML(typ='safe').load(ch.metadata['offered_qos_profiles'])
+            keys = {'history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan',
+                    'liveliness', 'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
+            latched = ch.topic in ('/tf_static', '/map')
+            if set(qos) != keys or (qos['history'], qos['reliability'], qos['liveliness']) != (1, 1, 1) \
+                    or qos['durability'] != (1 if latched else 2) \
+                    or any(set(qos[d]) != {'sec', 'nsec'} for d in ('deadline', 'lifespan', 'liveliness_lease_duration')):
+                fail(f'{ch.topic}: offered_qos_profiles {qos}')
 
         counts = Counter()
         last = {}

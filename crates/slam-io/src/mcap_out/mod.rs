@@ -595,7 +595,9 @@ fn landmark_markers<'a>(landmarks: &[LandmarkEstimate], truth: &[Point2]) -> Vec
 }
 
 /// The `offered_qos_profiles` channel metadata `ros2 bag play` republishes with (the
-/// rosbag2 YAML of ROS 2 Humble, which later releases read too): reliable, keep last;
+/// rosbag2 YAML with integer policies, metadata version ≤ 8 as Humble writes it; later
+/// releases' decoder, rosbag2_storage `qos.cpp`, detects the integer form and reads it
+/// too): reliable, keep last;
 /// `/tf_static` and `/map` transient local with depth 1 (latched, as tf2's static
 /// broadcaster and map_server publish them, so RViz's late subscribers get them), the
 /// others volatile with depth 10.
