@@ -160,7 +160,7 @@ pub struct RunArgs {
 
     /// Also write the run as an MCAP file of ROS 2 messages (map, trajectory, poses, tf,
     /// scans, particles, landmarks; see docs/rosbag.md), for Foxglove or `ros2 bag play`.
-    /// Not one of the inputs, not inside --out; an existing MCAP file is replaced.
+    /// Not an input nor inside an input folder or --out; an existing MCAP file is replaced.
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
 

@@ -8,7 +8,7 @@
 //! not filtering, and is taken off the run's wall time ([`McapRecorder::elapsed`]).
 //!
 //! The file is refused, before any data is loaded ([`check_path`]), when it is one of the
-//! run's inputs, lies inside the output folder (whose contents the run replaces), or exists
+//! run's inputs or lies inside an input folder, lies inside the output folder (whose contents the run replaces), or exists
 //! and is not an MCAP file; an existing MCAP file is replaced. The file appears only when
 //! the run completes (slam-io writes `FILE.partial` and renames it).
 
@@ -61,8 +61,16 @@ pub(crate) fn check_path(
         .map_err(|e| refuse(format!("its folder cannot be used ({e})")))?;
     let target = parent.join(mcap.file_name().unwrap_or_default());
     for (option, input) in inputs {
-        if input.canonicalize().is_ok_and(|p| p == target) {
-            return Err(refuse(format!("it is the {option} input")));
+        match input.canonicalize() {
+            Ok(p) if p == target => return Err(refuse(format!("it is the {option} input"))),
+            // A rosbag2 or Freiburg folder: its files are the input too.
+            Ok(p) if p.is_dir() && target.starts_with(&p) => {
+                return Err(refuse(format!(
+                    "it lies inside the {option} input folder {}",
+                    input.display()
+                )))
+            }
+            _ => {}
         }
     }
     if let Some(e) = inside(&target) {

@@ -157,6 +157,37 @@ fn mcap_paths_that_would_lose_data_are_refused_before_the_run() {
     let e = run(&notes);
     assert!(e.contains("not an MCAP file"), "{e}");
     assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine");
+    // A storage file of a rosbag2 folder given as the input.
+    let folder = dir.join("bag");
+    std::fs::create_dir_all(&folder).unwrap();
+    std::fs::copy(
+        fixture("intel-tf/metadata.yaml"),
+        folder.join("metadata.yaml"),
+    )
+    .unwrap();
+    std::fs::copy(
+        fixture("intel-tf/intel-tf.mcap"),
+        folder.join("intel-tf.mcap"),
+    )
+    .unwrap();
+    let (r, _) = slam(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--dataset",
+        folder.to_str().unwrap(),
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+        "--mcap",
+        folder.join("intel-tf.mcap").to_str().unwrap(),
+    ]);
+    let e = r.unwrap_err().to_string();
+    assert!(e.contains("inside the --dataset input folder"), "{e}");
+    assert_eq!(
+        std::fs::read(folder.join("intel-tf.mcap")).unwrap(),
+        std::fs::read(fixture("intel-tf/intel-tf.mcap")).unwrap()
+    );
     let e = run(&dir.join("no-such-folder/run.mcap"));
     assert!(e.contains("its folder cannot be used"), "{e}");
     // Nothing was run: no output folder.
