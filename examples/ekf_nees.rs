@@ -14,7 +14,7 @@
 //! it over the first lap and the whole run.
 
 use slam_ekf::{EkfConfig, EkfSlam};
-use slam_io::eval::{chi2_band, nees_pose};
+use slam_eval::metrics::{chi2_band, nees_pose};
 use slam_io::picture::{plot_series, Series, BLUE};
 use slam_models::LandmarkSlam;
 use slam_sim::scenario::{generate, ScenarioOptions};

@@ -7,13 +7,13 @@
 //! ```
 //!
 //! Per cell: final position error (m) and the landmark map error of the best particle's map
-//! (`slam_io::eval::landmark_error`: by id under known ids, otherwise nearest neighbour
+//! (`slam_eval::metrics::landmark_error`: by id under known ids, otherwise nearest neighbour
 //! within 1 m; RMSE over the matched pairs, unaligned since the simulated frame is anchored
 //! at the known initial pose), means over the seeds, with dead reckoning for scale.
 //! "Spurious" estimates matched no true landmark (persisting clutter or duplicates).
 
 use slam_fastslam::{Association, FastSlam, FastSlamConfig, Variant};
-use slam_io::eval::landmark_error;
+use slam_eval::metrics::landmark_error;
 use slam_models::{LandmarkEstimate, LandmarkSlam, Pose2};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::{LandmarkSimRun, SimOutput};

@@ -89,7 +89,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let traj = slam.trajectory();
     let span =
         records.last().map(|r| r.t).unwrap_or(0.0) - records.first().map(|r| r.t).unwrap_or(0.0);
-    let e = slam_io::eval::relations_error(&traj, &rel);
+    let e = slam_eval::metrics::relations_error(&traj, &rel);
     println!(
         "proposal={proposal:?} particles={particles} threads={threads} seed={seed} records={} processed={processed} \
          resamples={resamples} match_failures={failures}",

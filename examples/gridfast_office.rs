@@ -15,7 +15,7 @@
 //! the anchored curves on log–log axes (improved in orange, odometry in blue).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
-use slam_io::eval;
+use slam_eval::metrics as eval;
 use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
 use slam_models::ScanSlam;
 use slam_sim::scenario::{generate, ScenarioOptions};

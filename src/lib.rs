@@ -14,7 +14,8 @@
 //! | [`gridfast`] | `slam-gridfast` | grid-based FastSLAM |
 //! | [`graph`] | `slam-graph` | pose graphs and their sparse least-squares optimiser |
 //! | [`sim`] | `slam-sim` | simulators and scenarios |
-//! | [`io`] | `slam-io` | dataset readers/writers, metrics |
+//! | [`io`] | `slam-io` | dataset readers and writers |
+//! | [`eval`] | `slam-eval` | running a filter over a dataset, metrics, filters from a config |
 //!
 //! Dependencies point one way: `models` at the bottom; `ekf`, `fastslam`, `grid`, `sim`, `io`
 //! on it; `gridfast` on `grid`; `graph` on `models` (and `io` on `graph` for g2o files); the `slam` command-line program (`slam-cli`) on top.
@@ -28,6 +29,7 @@ pub use slam_fastslam as fastslam;
 pub use slam_graph as graph;
 pub use slam_grid as grid;
 pub use slam_gridfast as gridfast;
+pub use slam_eval as eval;
 pub use slam_io as io;
 pub use slam_models as models;
 pub use slam_sim as sim;

@@ -6,7 +6,7 @@
 mod common;
 
 use slam_ekf::{Association, AssociationMode, EkfConfig, EkfSlam};
-use slam_io::eval::{ate, chi2_band, landmark_error, nees_pose};
+use slam_eval::metrics::{ate, chi2_band, landmark_error, nees_pose};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 use slam_models::{LandmarkDataset, LandmarkId, LandmarkSlam, TimedPose};

@@ -5,7 +5,7 @@
 mod common;
 
 use slam::fastslam::{Association, FastSlam, FastSlamConfig, Variant};
-use slam::io::eval::{ate, landmark_error};
+use slam::eval::metrics::{ate, landmark_error};
 use slam::models::measurement::RangeBearingModel;
 use slam::models::motion::{MotionModels, OdometryModel, VelocityModel};
 use slam::models::{LandmarkDataset, LandmarkId, LandmarkSlam, Pose2, TimedPose};

@@ -185,7 +185,7 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
             .collect()
     };
     // Both start in their own frame: the ground truth is anchored on each one's first pose.
-    use slam::io::eval::{anchor_at_first_match, ate, rpe};
+    use slam::eval::metrics::{anchor_at_first_match, ate, rpe};
     let est = at_scans(&all);
     let odo = at_scans(&slam::io::odometry_trajectory(&data));
     let (gt_sm, gt_od) = (

@@ -184,7 +184,7 @@ fn intel_prefix_relations_error() {
         "{} relations in the prefix",
         inside.len()
     );
-    let odo = slam::io::eval::relations_error(&dead_reckoning(records), &inside);
+    let odo = slam::eval::metrics::relations_error(&dead_reckoning(records), &inside);
     let config = GridFastConfig {
         particles: 10,
         ..Default::default()
@@ -195,7 +195,7 @@ fn intel_prefix_relations_error() {
     }
     let traj = slam.trajectory();
     assert_eq!(traj.len(), records.len());
-    let e = slam::io::eval::relations_error(&traj, &inside);
+    let e = slam::eval::metrics::relations_error(&traj, &inside);
     eprintln!(
         "intel prefix: {} relations; odometry {:.3} m / {:.2} deg; gridfast {:.4} m / {:.3} deg",
         e.used, odo.trans_mean, odo.rot_mean_deg, e.trans_mean, e.rot_mean_deg
@@ -229,7 +229,7 @@ fn intel_whole_log_beats_gmapping() {
         slam.process(r).unwrap();
     }
     assert_eq!(slam.processed_scans(), 910);
-    let e = slam::io::eval::relations_error(&slam.trajectory(), &relations);
+    let e = slam::eval::metrics::relations_error(&slam.trajectory(), &relations);
     eprintln!(
         "intel whole log, 30 particles, seed 0: {} relations, {:.4} m / {:.3} deg",
         e.used, e.trans_mean, e.rot_mean_deg

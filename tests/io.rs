@@ -3,7 +3,7 @@
 
 mod common;
 
-use slam::io::eval;
+use slam::eval::metrics as eval;
 use slam::io::{carmen, freiburg, mrclam, relations, tum};
 use slam_models::{LandmarkId, Pose2, TimedPose};
 

@@ -80,9 +80,12 @@ pub enum CliError {
         #[source]
         source: std::io::Error,
     },
-    /// Reading a dataset, writing an output or computing a metric failed in slam-io.
+    /// Reading a dataset or writing an output failed in slam-io.
     #[error(transparent)]
     Io(#[from] slam_io::IoError),
+    /// A metric could not be computed (slam-eval).
+    #[error(transparent)]
+    Eval(#[from] slam_eval::EvalError),
     /// The simulator rejected the scenario or its options.
     #[error(transparent)]
     Sim(#[from] slam_sim::SimError),

@@ -3,7 +3,7 @@
 
 use crate::cli::EvalArgs;
 use crate::error::CliError;
-use crate::metrics::finite;
+use slam_eval::metrics_json::finite;
 use serde::Serialize;
 use std::io::Write;
 
@@ -39,7 +39,7 @@ pub struct EvalReport {
 /// Prints to stderr one warning line per trajectory whose stamps repeat or step back (one
 /// line for both when they come from the same log), saying how they are associated.
 pub(crate) fn warn_stamp_order(est: &[slam_models::TimedPose], gt: &[slam_models::TimedPose]) {
-    use slam_io::eval::{same_stamps, stamp_order_warning};
+    use slam_eval::metrics::{same_stamps, stamp_order_warning};
     let lines = if same_stamps(est, gt) {
         vec![stamp_order_warning(
             gt,
@@ -72,11 +72,11 @@ pub fn eval(args: &EvalArgs, out: &mut dyn Write) -> Result<EvalReport, CliError
     if let Some(p) = &args.ground_truth {
         let gt = slam_io::tum::read_tum(p)?;
         warn_stamp_order(&est, &gt);
-        let ate = slam_io::eval::ate(&est, &gt)?;
+        let ate = slam_eval::metrics::ate(&est, &gt)?;
         r.ate_rmse_m = finite(Some(ate.rmse));
         r.ate_rmse_aligned_m = finite(Some(ate.rmse_aligned));
         r.ate_matched = Some(ate.matched);
-        let rpe = slam_io::eval::rpe(&est, &gt)?;
+        let rpe = slam_eval::metrics::rpe(&est, &gt)?;
         r.rpe_trans_mean_m = finite(Some(rpe.trans_mean));
         r.rpe_rot_mean_deg = finite(Some(rpe.rot_mean_deg));
         let _ = writeln!(
@@ -93,7 +93,7 @@ pub fn eval(args: &EvalArgs, out: &mut dyn Write) -> Result<EvalReport, CliError
     }
     if let Some(p) = &args.relations {
         let rel = slam_io::relations::read_relations(p)?;
-        let e = slam_io::eval::relations_error(&est, &rel);
+        let e = slam_eval::metrics::relations_error(&est, &rel);
         r.relations_used = Some(e.used);
         r.relations_dropped = Some(e.dropped);
         if e.used > 0 {

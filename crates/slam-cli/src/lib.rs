@@ -40,7 +40,6 @@ pub mod filters;
 mod info;
 mod list;
 mod mcap;
-pub mod metrics;
 pub mod optimize;
 mod outdir;
 mod pictures;
@@ -50,7 +49,7 @@ pub mod sim;
 
 pub use error::CliError;
 pub use eval::EvalReport;
-pub use metrics::Metrics;
+pub use slam_eval::Metrics;
 pub use optimize::OptimizeOutput;
 pub use run::RunReport;
 pub use sim::SimReport;

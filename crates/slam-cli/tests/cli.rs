@@ -8,7 +8,7 @@ mod common;
 use common::{dataset, scratch, slam, slam_bin};
 
 use slam_cli::{filters, CliError, Outcome};
-use slam_io::eval::chi2_quantile;
+use slam_eval::metrics::chi2_quantile;
 use std::path::{Path, PathBuf};
 
 fn available(kind: filters::DataKind) -> Vec<&'static str> {
@@ -185,10 +185,10 @@ fn fastslam2_full_slam_path_on_the_loop() {
         let truth = loop_truth(seed);
         let written = slam_io::tum::read_tum(&dir.join("trajectory.tum")).unwrap();
         assert_eq!(written.len(), truth.len());
-        let ate = slam_io::eval::ate(&written, &truth).unwrap();
+        let ate = slam_eval::metrics::ate(&written, &truth).unwrap();
         assert!((ate.rmse_aligned - num(&m, "ate_rmse_aligned_m")).abs() < 1e-6);
         let on = slam_io::tum::read_tum(&dir.join("trajectory-online.tum")).unwrap();
-        let ate_on = slam_io::eval::ate(&on, &truth).unwrap();
+        let ate_on = slam_eval::metrics::ate(&on, &truth).unwrap();
         assert!((ate_on.rmse_aligned - num(&m, "online_ate_rmse_aligned_m")).abs() < 1e-6);
         assert!(num(&m, "online_rpe_trans_mean_m") > 0.0);
         if seed == 0 {

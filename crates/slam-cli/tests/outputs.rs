@@ -498,7 +498,7 @@ fn evo(case: &str, figure: &str) -> f64 {
 /// `--align_origin`). Agreement to 1 mm and 1e-3 degrees.
 #[test]
 fn our_figures_match_evo() {
-    use slam_io::eval::{anchor_at_first_match, ate, rpe};
+    use slam_eval::metrics::{anchor_at_first_match, ate, rpe};
     use slam_io::tum::read_tum;
     let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/evo");
     let loop_gt = read_tum(&fx.join("loop-ground_truth.tum")).unwrap();

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use thiserror::Error;
 
-/// What went wrong while reading, writing or evaluating. File errors always name the file,
+/// What went wrong while reading or writing. File errors always name the file,
 /// and parse errors the 1-based line number and what was expected there.
 #[derive(Debug, Error)]
 pub enum IoError {
@@ -124,9 +124,6 @@ pub enum IoError {
         /// The bound on |x| and |y|, metres ([`crate::picture::MAX_COORDINATE_M`]).
         bound: f64,
     },
-    /// An evaluation could not be computed (no matching timestamps, too few points, …).
-    #[error("evaluation: {0}")]
-    Eval(String),
 }
 
 impl IoError {

@@ -1,4 +1,4 @@
-//! # slam-io: datasets in, maps and metrics out
+//! # slam-io: datasets in, trajectories, maps and pictures out
 //!
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
@@ -11,8 +11,8 @@
 //!   [`carmen::write_carmen`], [`picture`] (PNG), [`g2o::write_g2o`], [`graph_picture`] (a
 //!   pose graph before and after optimisation), `mcap_out` (a run as an MCAP file of ROS 2
 //!   messages for Foxglove and `ros2 bag play`, feature `rosbag`).
-//! * Metrics: [`eval`] (ATE, RPE, relations metric, landmark map error, NEES/NIS with
-//!   chi-square bands).
+//!
+//! Metrics computed from these (ATE, RPE, the relations metric, NEES) live in `slam-eval`.
 //!
 //! Bad input is an [`IoError`] naming the file, the 1-based line and what was expected;
 //! NaN/∞ values and empty files are errors; nothing panics on user data. Data a reader
@@ -27,7 +27,6 @@ pub mod carmen;
 mod dataset;
 pub mod error;
 pub mod estimates_csv;
-pub mod eval;
 mod font;
 pub mod freiburg;
 pub mod g2o;

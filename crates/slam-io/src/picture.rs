@@ -1001,7 +1001,7 @@ pub struct Axes {
 
 /// A line plot of one or more series over shared `x` values, with an optional horizontal
 /// band [lo, hi] shaded light blue and outlined (e.g. the chi-square 95 % band of an
-/// average NEES, from [`crate::eval::chi2_band`]). Bounds fit the data and the band; light
+/// average NEES, from `slam_eval::metrics::chi2_band`). Bounds fit the data and the band; light
 /// grey lines mark a 1-2-5 grid in y, labelled with its values, and the x axis carries
 /// 1-2-5 tick values. Non-finite points break the line. Errors
 /// when a series' length differs from `x`'s or nothing is finite.

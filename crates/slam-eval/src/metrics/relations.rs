@@ -4,7 +4,7 @@
 //! translational [m] and rotational [deg] errors, separately.
 
 use super::{mean_std, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
-use crate::relations::Relation;
+use slam_io::relations::Relation;
 use serde::Serialize;
 use slam_models::TimedPose;
 
@@ -40,7 +40,7 @@ pub fn relations_error(est: &[TimedPose], rel: &[Relation]) -> RelationsResult {
 }
 
 /// For each relation, the estimated poses x₁, x₂ at t1 and t2 (looked up as in the module
-/// docs of [`crate::eval`]), δ = x₁⁻¹ ⊕ x₂ (`x1.between(x2)`), and the error
+/// docs of [`crate::metrics`]), δ = x₁⁻¹ ⊕ x₂ (`x1.between(x2)`), and the error
 /// E = δ*⁻¹ ⊕ δ: trans = ‖(E.x, E.y)‖ (which equals ‖t(δ) − t(δ*)‖) and
 /// rot = |normalize(θ(δ) − θ(δ*))| in degrees. Relations with an end that finds no pose
 /// are dropped and counted; non-finite estimated poses are not used.

@@ -1,4 +1,4 @@
-//! `metrics.json`: the numbers every run writes, a contract other tools read.
+//! `metrics.json`: the numbers every `slam run` writes, a contract other tools read.
 //!
 //! The keys are exactly the fields of [`Metrics`], in this order; a figure that cannot be
 //! computed for a run (no ground truth, no clock, no landmarks, …) is `null`, never a
@@ -163,8 +163,8 @@ impl Metrics {
     }
 }
 
-/// `Some(v)` only when `v` is finite.
-pub(crate) fn finite(v: Option<f64>) -> Option<f64> {
+/// `Some(v)` only when `v` is finite (JSON has no NaN or ∞: such a figure is written as null).
+pub fn finite(v: Option<f64>) -> Option<f64> {
     v.filter(|x| x.is_finite())
 }
 

@@ -2,7 +2,7 @@
 //! the TUM RGB-D benchmark definitions, restricted to SE(2)).
 
 use super::{associate, errors_as_is_and_aligned, mean_std, rms, DEFAULT_MAX_DT};
-use crate::error::IoError;
+use crate::error::EvalError;
 use serde::Serialize;
 use slam_models::{Point2, Pose2, TimedPose};
 
@@ -62,7 +62,7 @@ pub fn anchor_at_first_match(trajectory: &[TimedPose], gt: &[TimedPose]) -> Vec<
 }
 
 /// [`ate_with`] with `max_dt` = [`DEFAULT_MAX_DT`].
-pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
+pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, EvalError> {
     ate_with(est, gt, DEFAULT_MAX_DT)
 }
 
@@ -75,20 +75,20 @@ pub fn ate(est: &[TimedPose], gt: &[TimedPose]) -> Result<AteResult, IoError> {
 /// # Example
 ///
 /// ```
-/// use slam_io::eval::ate;
+/// use slam_eval::metrics::ate;
 /// use slam_models::{Pose2, TimedPose};
 /// let gt = [TimedPose { t: 0.0, pose: Pose2::new(0.0, 0.0, 0.0) }, TimedPose { t: 1.0, pose: Pose2::new(1.0, 0.0, 0.0) }];
 /// let est = [TimedPose { t: 0.0, pose: Pose2::new(0.0, 0.0, 0.0) }, TimedPose { t: 1.0, pose: Pose2::new(1.0, 0.2, 0.0) }];
 /// let r = ate(&est, &gt)?;
 /// assert!((r.rmse - (0.04f64 / 2.0).sqrt()).abs() < 1e-12); // errors 0 and 0.2 m
-/// # Ok::<(), slam_io::IoError>(())
+/// # Ok::<(), slam_eval::EvalError>(())
 /// ```
-pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteResult, IoError> {
+pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteResult, EvalError> {
     check(est, "estimate")?;
     check(gt, "ground truth")?;
     let pairs = matched_pairs(est, gt, max_dt);
     if pairs.is_empty() {
-        return Err(IoError::Eval(format!(
+        return Err(EvalError::Metric(format!(
             "ATE: none of the {} ground-truth poses has an estimate within {max_dt} s ({} estimated poses)",
             gt.len(),
             est.len()
@@ -108,12 +108,12 @@ pub fn ate_with(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Result<AteR
     })
 }
 
-fn check(t: &[TimedPose], what: &str) -> Result<(), IoError> {
+fn check(t: &[TimedPose], what: &str) -> Result<(), EvalError> {
     match t
         .iter()
         .position(|p| !(p.t.is_finite() && p.pose.is_finite()))
     {
-        Some(i) => Err(IoError::Eval(format!("{what} pose {i} is not finite"))),
+        Some(i) => Err(EvalError::Metric(format!("{what} pose {i} is not finite"))),
         None => Ok(()),
     }
 }
@@ -134,7 +134,7 @@ pub struct RpeResult {
 }
 
 /// [`rpe_with`] with `max_dt` = [`DEFAULT_MAX_DT`] and consecutive matched poses (stride 1).
-pub fn rpe(est: &[TimedPose], gt: &[TimedPose]) -> Result<RpeResult, IoError> {
+pub fn rpe(est: &[TimedPose], gt: &[TimedPose]) -> Result<RpeResult, EvalError> {
     rpe_with(est, gt, DEFAULT_MAX_DT, 1)
 }
 
@@ -147,15 +147,15 @@ pub fn rpe_with(
     gt: &[TimedPose],
     max_dt: f64,
     stride: usize,
-) -> Result<RpeResult, IoError> {
+) -> Result<RpeResult, EvalError> {
     check(est, "estimate")?;
     check(gt, "ground truth")?;
     if stride == 0 {
-        return Err(IoError::Eval("RPE: stride must be at least 1".into()));
+        return Err(EvalError::Metric("RPE: stride must be at least 1".into()));
     }
     let pairs = matched_pairs(est, gt, max_dt);
     if pairs.len() <= stride {
-        return Err(IoError::Eval(format!(
+        return Err(EvalError::Metric(format!(
             "RPE: {} matched poses, need at least {}",
             pairs.len(),
             stride + 1

@@ -1,0 +1,23 @@
+//! # slam-eval: run a filter over a dataset and score it
+//!
+//! The layer between the filter crates and a front end (the `slam` program, a benchmark, a
+//! test), so that none of them writes its own run loop or re-implements a metric:
+//!
+//! * [`metrics`]: ATE, RPE, the Kümmerle et al. relations metric, landmark map error,
+//!   NEES/NIS with chi-square bands, each checked against hand-computed cases.
+//! * [`Metrics`]: the figures of one run, as `metrics.json` holds them.
+//!
+//! Readers and writers stay in `slam-io` (formats only); filters never do I/O.
+
+#![warn(missing_docs)]
+
+pub mod error;
+pub mod metrics;
+pub mod metrics_json;
+
+pub use error::EvalError;
+pub use metrics_json::{peak_rss_mb, Metrics};
+
+/// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user
+/// compiles with this crate alone.
+pub use slam_models::{LandmarkDataset, LandmarkSlam, Pose2, ScanDataset, ScanSlam, TimedPose};
