@@ -1,4 +1,5 @@
-//! Filter configuration files: TOML deserialised straight into a filter's config struct.
+//! Configuration files (`slam optimize`'s; filters' are read by `slam_eval::factory`): TOML
+//! deserialised straight into a config struct.
 //!
 //! Every config struct of slam-rs is `#[serde(deny_unknown_fields, default)]`, so a file may
 //! set any subset of the keys (the rest keep their documented defaults) and a misspelt key
@@ -9,12 +10,10 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::path::Path;
 
-/// A loaded configuration and the top-level keys the file set explicitly.
+/// A loaded configuration.
 pub(crate) struct Loaded<C> {
     /// The configuration: the file's values over the defaults.
     pub config: C,
-    /// Top-level keys present in the file (empty without a file).
-    pub keys: Vec<String>,
 }
 
 /// Reads `path` into `C`, or returns `C::default()` when no file is given.
@@ -24,7 +23,6 @@ pub(crate) fn load<C: DeserializeOwned + Default>(
     let Some(path) = path else {
         return Ok(Loaded {
             config: C::default(),
-            keys: Vec::new(),
         });
     };
     let text = std::fs::read_to_string(path).map_err(|e| CliError::Read {
@@ -37,11 +35,7 @@ pub(crate) fn load<C: DeserializeOwned + Default>(
 /// Parses TOML `text` (read from `path`, for messages) into `C`.
 pub(crate) fn parse<C: DeserializeOwned>(text: &str, path: &Path) -> Result<Loaded<C>, CliError> {
     let config = toml::from_str::<C>(text).map_err(|e| config_error(text, path, &e))?;
-    // The file parsed as C, so it parses as a table too.
-    let keys = toml::from_str::<toml::Table>(text)
-        .map(|t| t.keys().cloned().collect())
-        .unwrap_or_default();
-    Ok(Loaded { config, keys })
+    Ok(Loaded { config })
 }
 
 /// Serialises a config back to TOML (for the `config.toml` a run writes beside its output).
@@ -84,7 +78,6 @@ mod tests {
                 sigma: 0.0
             }
         );
-        assert_eq!(l.keys, vec!["particles".to_string()]);
     }
 
     #[test]

@@ -39,19 +39,7 @@ pub struct EvalReport {
 /// Prints to stderr one warning line per trajectory whose stamps repeat or step back (one
 /// line for both when they come from the same log), saying how they are associated.
 pub(crate) fn warn_stamp_order(est: &[slam_models::TimedPose], gt: &[slam_models::TimedPose]) {
-    use slam_eval::metrics::{same_stamps, stamp_order_warning};
-    let lines = if same_stamps(est, gt) {
-        vec![stamp_order_warning(
-            gt,
-            "estimate and ground truth (same stamps)",
-        )]
-    } else {
-        vec![
-            stamp_order_warning(est, "estimate"),
-            stamp_order_warning(gt, "ground truth"),
-        ]
-    };
-    for l in lines.into_iter().flatten() {
+    for l in slam_eval::metrics::stamp_order_warnings(est, gt) {
         eprintln!("slam: warning: {l}");
     }
 }

@@ -1,116 +1,23 @@
-//! The filters the program knows, and building one by name behind `Box<dyn LandmarkSlam>` or
-//! `Box<dyn ScanSlam>`.
+//! The filters the program knows ([`slam_eval::factory`]'s registry), and building one by
+//! name behind `Box<dyn LandmarkSlam>` or `Box<dyn ScanSlam>`.
 //!
 //! Each filter's configuration comes from its crate's config struct: the `Default` (documented
 //! there), then the `--config` TOML file over it, then `--particles` over that. For simulated
 //! runs the filter's motion and sensor noise default to the models the data was generated
-//! with, unless the file sets `motion` or `sensor` itself.
+//! with, unless the file sets `motion` or `sensor` itself
+//! ([`slam_sim::NoiseModels::apply_to`]); the run says so in one line.
 
-use crate::config;
 use crate::error::CliError;
-use slam_models::measurement::RangeBearingModel;
-use slam_models::motion::MotionModels;
+use slam_eval::factory::{self, FactoryError, FilterConfig, ParsedConfig};
 use slam_models::{LandmarkSlam, Pose2, ScanSlam};
+use slam_sim::NoiseModels;
 use std::path::Path;
 
-/// The two kinds of data (and of filters).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DataKind {
-    /// Range-bearing observations of point landmarks.
-    Landmark,
-    /// Odometry and laser scans.
-    Laser,
-}
-
-impl DataKind {
-    /// `"landmark"` or `"laser"`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            DataKind::Landmark => "landmark",
-            DataKind::Laser => "laser",
-        }
-    }
-}
-
-/// A filter the program knows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct FilterInfo {
-    /// The `--filter` name.
-    pub name: &'static str,
-    /// The data it runs on.
-    pub kind: DataKind,
-    /// One line: what it is.
-    pub description: &'static str,
-    /// True for particle filters (`--particles` applies).
-    pub particle_filter: bool,
-    /// `None` when built into this program; otherwise why not.
-    pub unavailable: Option<&'static str>,
-}
-
-/// Every filter, in a fixed order.
-pub fn filters() -> Vec<FilterInfo> {
-    vec![
-        FilterInfo {
-            name: "ekf",
-            kind: DataKind::Landmark,
-            description:
-                "EKF-SLAM (PR ch. 10), dense covariance, known or unknown data association",
-            particle_filter: false,
-            unavailable: None,
-        },
-        FilterInfo {
-            name: "fastslam1",
-            kind: DataKind::Landmark,
-            description:
-                "FastSLAM 1.0 (Montemerlo et al. 2002, PR ch. 13), a landmark EKF per particle",
-            particle_filter: true,
-            unavailable: None,
-        },
-        FilterInfo {
-            name: "fastslam2",
-            kind: DataKind::Landmark,
-            description:
-                "FastSLAM 2.0 (Montemerlo et al. 2003), proposal using the current observations",
-            particle_filter: true,
-            unavailable: None,
-        },
-        FilterInfo {
-            name: "scanmatch",
-            kind: DataKind::Laser,
-            description: "scan-matching odometry against an occupancy grid (no loop closure)",
-            particle_filter: false,
-            unavailable: None,
-        },
-        FilterInfo {
-            name: "gridfast",
-            kind: DataKind::Laser,
-            description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
-            particle_filter: true,
-            unavailable: None,
-        },
-    ]
-}
+pub use slam_eval::factory::{filters, names_of, DataKind, FilterInfo};
 
 /// The filter called `name`, whether or not it is available.
 pub fn find(name: &str) -> Result<FilterInfo, CliError> {
-    let all = filters();
-    all.iter()
-        .find(|f| f.name == name)
-        .copied()
-        .ok_or_else(|| CliError::UnknownFilter {
-            name: name.to_string(),
-            known: all.iter().map(|f| f.name).collect::<Vec<_>>().join(", "),
-        })
-}
-
-/// Names of the filters of one kind, comma separated.
-pub(crate) fn names_of(kind: DataKind) -> String {
-    filters()
-        .iter()
-        .filter(|f| f.kind == kind)
-        .map(|f| f.name)
-        .collect::<Vec<_>>()
-        .join(", ")
+    factory::find(name).map_err(|e| factory_error(e, None))
 }
 
 /// Everything a filter needs besides its name.
@@ -124,7 +31,7 @@ pub(crate) struct Setup<'a> {
     /// The robot's initial pose (landmark data).
     pub initial_pose: Pose2,
     /// The noise models simulated data was generated with.
-    pub sim_models: Option<(MotionModels, RangeBearingModel)>,
+    pub sim_noise: Option<NoiseModels>,
 }
 
 /// A built filter and the configuration it runs with (as TOML, written beside the output).
@@ -133,12 +40,29 @@ pub(crate) struct Built<F: ?Sized> {
     pub filter: Box<F>,
     /// The effective configuration, TOML.
     pub config_toml: String,
+    /// One line when the simulator's noise models replaced the filter's.
+    pub noise_note: Option<String>,
 }
 
-fn unavailable(info: &FilterInfo) -> CliError {
-    CliError::FilterUnavailable {
-        name: info.name.to_string(),
-        reason: info.unavailable.unwrap_or("not built in").to_string(),
+/// A factory error as the program reports it (a config file's errors name the file).
+fn factory_error(e: FactoryError, path: Option<&Path>) -> CliError {
+    match e {
+        FactoryError::UnknownFilter { name, known } => CliError::UnknownFilter { name, known },
+        FactoryError::Parse { line, message } => match path {
+            Some(path) => CliError::Config {
+                path: path.to_path_buf(),
+                line,
+                message,
+            },
+            None => CliError::InvalidArgument(message),
+        },
+        FactoryError::Invalid { filter, message } => CliError::FilterConfig {
+            filter: filter.to_string(),
+            message,
+        },
+        e @ (FactoryError::VariantMismatch { .. }
+        | FactoryError::NotAParticleFilter { .. }
+        | FactoryError::WrongKind { .. }) => CliError::InvalidArgument(e.to_string()),
     }
 }
 
@@ -154,42 +78,47 @@ pub(crate) fn check_particles(info: &FilterInfo, given: bool) -> Result<(), CliE
     Ok(())
 }
 
-/// The checks every filter build starts with: `--particles` only for particle filters, and
-/// the filter must be available in this build.
-fn check_buildable(info: &FilterInfo, setup: &Setup<'_>) -> Result<(), CliError> {
+/// The configuration: `--config` over the defaults, `--particles` over that, and on
+/// simulated data the simulator's noise models where the file sets none.
+fn configure(info: &FilterInfo, setup: &Setup<'_>) -> Result<(ParsedConfig, Option<String>), CliError> {
     check_particles(info, setup.particles.is_some())?;
-    if info.unavailable.is_some() {
-        return Err(unavailable(info));
+    if let Some(reason) = info.unavailable {
+        return Err(CliError::FilterUnavailable {
+            name: info.name.to_string(),
+            reason: reason.to_string(),
+        });
     }
-    Ok(())
-}
-
-/// A filter's constructor rejected its configuration.
-fn config_error(info: &FilterInfo, e: &dyn std::fmt::Display) -> CliError {
-    CliError::FilterConfig {
-        filter: info.name.to_string(),
-        message: e.to_string(),
-    }
-}
-
-/// On simulated data, a filter uses the simulator's own noise models (its "true" model),
-/// except where the config file sets `motion` or `sensor` itself.
-fn apply_sim_noise(
-    config_keys: &[String],
-    setup: &Setup<'_>,
-    motion: &mut MotionModels,
-    sensor: &mut RangeBearingModel,
-) {
-    let Some((sim_motion, sim_sensor)) = setup.sim_models else {
-        return;
+    let mut parsed = match setup.config_path {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| CliError::Read {
+                path: path.to_path_buf(),
+                source: e,
+            })?;
+            FilterConfig::from_toml_for(info.name, &text)
+                .map_err(|e| factory_error(e, Some(path)))?
+        }
+        None => ParsedConfig {
+            config: FilterConfig::default_for(info.name).map_err(|e| factory_error(e, None))?,
+            keys: Vec::new(),
+        },
     };
-    let has = |k: &str| config_keys.iter().any(|x| x == k);
-    if !has("motion") {
-        *motion = sim_motion;
+    if let Some(n) = setup.particles {
+        parsed
+            .config
+            .set_particles(n)
+            .map_err(|e| factory_error(e, None))?;
     }
-    if !has("sensor") {
-        *sensor = sim_sensor;
-    }
+    let note = setup.sim_noise.and_then(|noise| {
+        let applied = parsed.apply_sim_noise(&noise);
+        let which = match (applied.motion, applied.sensor) {
+            (true, true) => "motion and sensor noise models",
+            (true, false) => "motion noise model (the config file sets `sensor`)",
+            (false, true) => "sensor noise model (the config file sets `motion`)",
+            (false, false) => return None,
+        };
+        Some(format!("the filter uses the simulator's {which}"))
+    });
+    Ok((parsed, note))
 }
 
 /// Builds a landmark filter.
@@ -197,51 +126,16 @@ pub(crate) fn build_landmark(
     info: &FilterInfo,
     setup: &Setup<'_>,
 ) -> Result<Built<dyn LandmarkSlam>, CliError> {
-    check_buildable(info, setup)?;
-    let invalid = |e: &dyn std::fmt::Display| config_error(info, e);
-    match info.name {
-        "ekf" => {
-            use slam_ekf::{EkfConfig, EkfSlam};
-            let mut loaded = config::load::<EkfConfig>(setup.config_path)?;
-            let c = &mut loaded.config;
-            apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
-            let config_toml = config::to_toml(&loaded.config);
-            let f = EkfSlam::new(loaded.config, setup.initial_pose).map_err(|e| invalid(&e))?;
-            Ok(Built {
-                filter: Box::new(f),
-                config_toml,
-            })
-        }
-        "fastslam1" | "fastslam2" => {
-            use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
-            let mut loaded = config::load::<FastSlamConfig>(setup.config_path)?;
-            let variant = if info.name == "fastslam1" {
-                Variant::FastSlam1
-            } else {
-                Variant::FastSlam2
-            };
-            if loaded.keys.iter().any(|k| k == "variant") && loaded.config.variant != variant {
-                return Err(CliError::InvalidArgument(format!(
-                    "the config file sets variant = {:?} but --filter is {}; remove `variant` or pick the other filter",
-                    loaded.config.variant, info.name
-                )));
-            }
-            let c = &mut loaded.config;
-            c.variant = variant;
-            apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
-            if let Some(n) = setup.particles {
-                c.particles = n;
-            }
-            let config_toml = config::to_toml(&loaded.config);
-            let f = FastSlam::new(loaded.config, setup.initial_pose, setup.seed)
-                .map_err(|e| invalid(&e))?;
-            Ok(Built {
-                filter: Box::new(f),
-                config_toml,
-            })
-        }
-        _ => Err(unavailable(info)),
-    }
+    let (parsed, noise_note) = configure(info, setup)?;
+    let filter = parsed
+        .config
+        .build_landmark(setup.initial_pose, setup.seed)
+        .map_err(|e| factory_error(e, None))?;
+    Ok(Built {
+        filter,
+        config_toml: parsed.config.table_toml(),
+        noise_note,
+    })
 }
 
 /// Builds a laser (scan) filter.
@@ -249,34 +143,16 @@ pub(crate) fn build_scan(
     info: &FilterInfo,
     setup: &Setup<'_>,
 ) -> Result<Built<dyn ScanSlam>, CliError> {
-    check_buildable(info, setup)?;
-    let invalid = |e: &dyn std::fmt::Display| config_error(info, e);
-    match info.name {
-        "scanmatch" => {
-            use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
-            let loaded = config::load::<ScanMatchConfig>(setup.config_path)?;
-            let config_toml = config::to_toml(&loaded.config);
-            let f = ScanMatchOdometry::new(loaded.config).map_err(|e| invalid(&e))?;
-            Ok(Built {
-                filter: Box::new(f),
-                config_toml,
-            })
-        }
-        "gridfast" => {
-            use slam_gridfast::{GridFastConfig, GridFastSlam};
-            let mut loaded = config::load::<GridFastConfig>(setup.config_path)?;
-            if let Some(n) = setup.particles {
-                loaded.config.particles = n;
-            }
-            let config_toml = config::to_toml(&loaded.config);
-            let f = GridFastSlam::new(loaded.config, setup.seed).map_err(|e| invalid(&e))?;
-            Ok(Built {
-                filter: Box::new(f),
-                config_toml,
-            })
-        }
-        _ => Err(unavailable(info)),
-    }
+    let (parsed, noise_note) = configure(info, setup)?;
+    let filter = parsed
+        .config
+        .build_scan(setup.seed)
+        .map_err(|e| factory_error(e, None))?;
+    Ok(Built {
+        filter,
+        config_toml: parsed.config.table_toml(),
+        noise_note,
+    })
 }
 
 #[cfg(test)]

@@ -26,21 +26,21 @@
 use crate::cli::RunArgs;
 use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
+use slam_eval::run::{
+    run_landmarks_observed, run_scans_observed, Flow, LandmarkProgress, ObserverError,
+    RunError, RunOptions, ScanProgress,
+};
+use slam_eval::Metrics;
 use crate::mcap::McapRecorder;
-use slam_eval::metrics_json::{self as metrics, Metrics};
 use crate::outdir::{OutDir, Owner};
 use crate::pictures;
 use crate::progress::Progress;
 use crate::sim::{generate_exact, replay_map, scenario_options};
-use slam_io::estimates_csv::PoseEstimateRow;
-use slam_eval::metrics as eval;
 use slam_io::Dataset;
-use slam_models::measurement::RangeBearingModel;
-use slam_models::motion::MotionModels;
-use slam_models::{LandmarkDataset, LandmarkSlam, LandmarkStep, ScanDataset, TimedPose};
+use slam_sim::NoiseModels;
+use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// What `slam run` did.
 #[derive(Debug, Clone)]
@@ -68,7 +68,7 @@ enum Data {
     Landmark {
         dataset: LandmarkDataset,
         /// The simulator's noise models (simulated runs only).
-        sim_models: Option<(MotionModels, RangeBearingModel)>,
+        sim_noise: Option<NoiseModels>,
     },
     Laser(ScanDataset),
 }
@@ -136,7 +136,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         particles: args.particles.map(|p| p as usize),
         seed: args.seed,
         initial_pose: slam_models::Pose2::default(),
-        sim_models: None,
+        sim_noise: None,
     };
     match info.kind {
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
@@ -199,8 +199,8 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         match &mut input.data {
             Data::Landmark {
                 dataset,
-                sim_models,
-            } => run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_models),
+                sim_noise,
+            } => run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_noise),
             Data::Laser(dataset) => run_scan(&ctx, &input.name, input.has_clock, dataset),
         }
     };
@@ -301,8 +301,8 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
                     has_clock: true,
                     simulated: true,
                     data: Data::Landmark {
+                        sim_noise: Some(run.noise_models()),
                         dataset: run.dataset,
-                        sim_models: Some((run.motion, run.sensor)),
                     },
                 }
             }
@@ -366,7 +366,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
             simulated: false,
             data: Data::Landmark {
                 dataset: d,
-                sim_models: None,
+                sim_noise: None,
             },
         },
         Dataset::Scan(d) => Input {
@@ -398,32 +398,54 @@ fn file_safe(name: &str) -> String {
         .collect()
 }
 
-/// Time span of the data (last time − first, in file order), or `None` when the data has
-/// no usable clock: step indices (Freiburg course data), or timestamps so coarse that fewer
-/// than a tenth of the steps have distinct times (some GMapping logs printed times as
-/// `1.13486e+09`); the latter adds a summary note.
-fn data_duration(times: &[f64], has_clock: bool, notes: &mut Vec<String>) -> Option<f64> {
-    if !has_clock || times.len() < 2 {
-        return None;
-    }
-    let mut distinct = times.to_vec();
-    distinct.sort_by(f64::total_cmp);
-    distinct.dedup();
-    if distinct.len() < 2 || distinct.len() * 10 < times.len() {
-        notes.push(format!(
-            "no data duration / real-time factor: timestamps too coarse ({} distinct times for {} steps)",
-            distinct.len(),
-            times.len()
-        ));
-        return None;
-    }
-    Some(times[times.len() - 1] - times[0])
-}
-
 fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
     move |e| CliError::Write {
         path: path.to_path_buf(),
         source: e,
+    }
+}
+
+/// The library's run options for this run.
+fn run_options<'a>(ctx: &'a RunContext<'_>, name: &'a str, has_clock: bool) -> RunOptions<'a> {
+    RunOptions {
+        dataset_name: Some(name),
+        ground_truth: ctx.ground_truth.as_deref(),
+        relations: ctx.relations.as_deref(),
+        times_are_indices: !has_clock,
+        map_resolution: ctx.args.map_resolution,
+    }
+}
+
+/// A run error as the program reports it: a stop is Ctrl-C's, an observer's error is the
+/// program's own (a frame it could not write).
+fn run_error(e: RunError) -> CliError {
+    match e {
+        RunError::Step {
+            filter,
+            step,
+            t,
+            source,
+        } => CliError::FilterStep {
+            filter,
+            step,
+            t,
+            source,
+        },
+        RunError::Stopped { done, steps } => CliError::Interrupted { step: done, steps },
+        RunError::Observer { source, .. } => match source.downcast::<CliError>() {
+            Ok(e) => *e,
+            Err(e) => CliError::InvalidArgument(e.to_string()),
+        },
+        RunError::CannotRender { filter, .. } => CliError::InvalidArgument(format!(
+            "--map-resolution: filter `{filter}` keeps no scans to re-render its map from (gridfast does)"
+        )),
+    }
+}
+
+/// Prints the run's warnings on stderr.
+fn warn(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("slam: warning: {w}");
     }
 }
 
@@ -432,7 +454,7 @@ fn run_landmark(
     name: &str,
     has_clock: bool,
     dataset: &LandmarkDataset,
-    sim_models: Option<(MotionModels, RangeBearingModel)>,
+    sim_noise: Option<NoiseModels>,
 ) -> Result<Finished, CliError> {
     let info = &ctx.info;
     let built = filters::build_landmark(
@@ -442,19 +464,14 @@ fn run_landmark(
             particles: ctx.args.particles.map(|p| p as usize),
             seed: ctx.args.seed,
             initial_pose: dataset.initial_pose,
-            sim_models,
+            sim_noise,
         },
     )?;
     let mut filter = built.filter;
     let steps = &dataset.steps;
     let ground_truth = ctx.ground_truth.as_ref().or(dataset.ground_truth.as_ref());
-    // NEES needs the true pose at every step: a ground truth with exactly the steps' times.
-    let truth_per_step = ground_truth.filter(|g| {
-        g.len() == steps.len() && g.iter().zip(steps).all(|(p, s)| (p.t - s.t).abs() < 1e-9)
-    });
-
     let particle_count = filter.particles().map(|p| p.len());
-    let seeded = sim_models.is_some() || particle_count.is_some();
+    let seeded = sim_noise.is_some() || particle_count.is_some();
     let title = pictures::title(
         info.name,
         name,
@@ -470,8 +487,6 @@ fn run_landmark(
         )?),
         None => None,
     };
-    // Drawing frames is output, not filtering: its time is taken off the run's wall time.
-    let mut frame_time = std::time::Duration::ZERO;
     let true_landmarks: Option<Vec<slam_models::Point2>> = dataset
         .landmarks
         .as_ref()
@@ -482,131 +497,54 @@ fn run_landmark(
         .as_ref()
         .map(|_| slam_io::dead_reckoning(dataset))
         .unwrap_or_default();
-
-    let mut online = Vec::with_capacity(steps.len());
-    let mut estimates = Vec::with_capacity(steps.len());
     let mut progress = Progress::new(steps.len(), ctx.args.quiet);
-    let start = Instant::now();
-    for (k, step) in steps.iter().enumerate() {
-        if crate::stop_requested() {
-            return Err(CliError::Interrupted {
-                step: k,
-                steps: steps.len(),
-            });
-        }
-        let fail = |source| CliError::FilterStep {
-            filter: info.name.to_string(),
-            step: k,
-            t: step.t,
-            source,
-        };
-        filter.predict(&step.control).map_err(fail)?;
-        filter.update(&step.observations).map_err(fail)?;
-        online.push(TimedPose {
-            t: step.t,
-            pose: filter.pose(),
-        });
-        let (mean, covariance) = filter.pose_gaussian();
-        estimates.push(PoseEstimateRow {
-            step: k,
-            t: step.t,
-            pose: mean,
-            covariance,
-            nees: truth_per_step.map(|truth| eval::nees_pose(&mean, &covariance, &truth[k].pose)),
-        });
+    // Progress, the --frames pictures, --mcap and Ctrl-C, after every step (not timed).
+    let mut observer = |p: &LandmarkProgress<'_>| -> Result<Flow, ObserverError> {
         if let Some(f) = &mut frames {
-            let t0 = Instant::now();
             f.step(
-                k,
-                steps.len(),
+                p.step,
+                p.steps,
                 &title,
-                filter.as_ref(),
-                &online,
+                p.filter,
+                p.online,
                 ground_truth.map(Vec::as_slice),
                 dataset.landmarks.as_deref(),
             )?;
-            frame_time += t0.elapsed();
         }
         if let Some(r) = &mut mcap {
-            r.landmark_step(step.t, odometry.get(k).map(|p| p.pose), filter.as_ref())?;
+            let t = steps[p.step].t;
+            r.landmark_step(t, odometry.get(p.step).map(|q| q.pose), p.filter)?;
         }
-        progress.set(k + 1);
-    }
-    let mcap_time = mcap.as_ref().map(McapRecorder::elapsed).unwrap_or_default();
-    let wall = start
-        .elapsed()
-        .saturating_sub(frame_time)
-        .saturating_sub(mcap_time)
-        .as_secs_f64();
+        progress.set(p.step + 1);
+        Ok(if crate::stop_requested() {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
+    };
+    let opts = run_options(ctx, name, has_clock);
+    let run = run_landmarks_observed(filter.as_mut(), dataset, &opts, &mut observer)
+        .map_err(run_error)?;
     progress.finish();
     if let Some(f) = frames {
         f.finish()?;
     }
-
-    // The full-SLAM path (entry 0 the initial pose, entry k the pose after step k, by the
-    // LandmarkSlam contract) and the map, both the final best particle's: read together,
-    // with no filter call between them.
-    let full = full_trajectory(&*filter, steps);
-    let landmarks = filter.landmarks();
+    warn(&run.warnings);
     let particles = filter.particles();
-    let mut m = Metrics::new(info.name, name, steps.len());
-    let mut notes = Vec::new();
-    let times: Vec<f64> = steps.iter().map(|s| s.t).collect();
-    let span = data_duration(&times, has_clock, &mut notes);
-    m.set_timing(wall, span);
-    let trajectory = full.as_ref().unwrap_or(&online);
-    if let Some(gt) = ground_truth {
-        trajectory_metrics(&mut m, trajectory, gt);
-        let mut o = Metrics::new(info.name, name, steps.len());
-        trajectory_metrics(&mut o, &online, gt);
-        m.online_ate_rmse_m = o.ate_rmse_m;
-        m.online_ate_rmse_aligned_m = o.ate_rmse_aligned_m;
-        m.online_rpe_trans_mean_m = o.rpe_trans_mean_m;
-        m.online_rpe_rot_mean_deg = o.rpe_rot_mean_deg;
-    }
-    if let Some(rel) = &ctx.relations {
-        notes.push(relations_metrics(&mut m, trajectory, rel));
-    }
-    if let Some(truth) = &dataset.landmarks {
-        let by_id = steps
-            .iter()
-            .flat_map(|s| &s.observations)
-            .any(|o| o.id.is_some());
-        if !landmarks.is_empty() && !truth.is_empty() {
-            let e = eval::landmark_error(&landmarks, truth, by_id);
-            m.landmark_rmse_m = metrics::finite(Some(e.rmse));
-            m.landmark_rmse_aligned_m = metrics::finite(Some(e.rmse_aligned));
-            notes.push(format!(
-                "{} landmarks mapped: {} matched to the {} true ones ({}), {} true ones unmatched, {} spurious",
-                landmarks.len(),
-                e.matched,
-                truth.len(),
-                if by_id { "by id" } else { "by nearest neighbour within 1 m" },
-                e.unmatched_true,
-                e.spurious
-            ));
-        }
-    }
-    let nees: Vec<f64> = estimates.iter().filter_map(|e| e.nees).collect();
-    if let Some(s) = eval::nees_summary(&nees) {
-        m.nees_pose_in_band_fraction = Some(s.in_band_fraction);
-        m.nees_pose_median = metrics::finite(Some(s.median));
-        m.nees_pose_mean = metrics::finite(Some(s.mean));
-    }
-    m.peak_rss_mb = metrics::peak_rss_mb();
+    let trajectory = run.trajectory();
 
     let dir = ctx.stage;
     let mut files = Vec::new();
     let p = dir.join("trajectory.tum");
     slam_io::tum::write_tum(&p, trajectory)?;
     files.push(p);
-    if full.is_some() {
+    if run.full_path.is_some() {
         let p = dir.join("trajectory-online.tum");
-        slam_io::tum::write_tum(&p, &online)?;
+        slam_io::tum::write_tum(&p, &run.online)?;
         files.push(p);
     }
     let p = dir.join("estimates.csv");
-    slam_io::estimates_csv::write_estimates_csv(&p, &estimates)?;
+    slam_io::estimates_csv::write_estimates_csv(&p, &run.estimates)?;
     files.push(p);
     if ctx.simulated {
         if let Some(gt) = &dataset.ground_truth {
@@ -615,16 +553,17 @@ fn run_landmark(
             files.push(p);
         }
     }
+    let mut notes: Vec<String> = built.noise_note.into_iter().chain(run.notes).collect();
     if let Some(r) = mcap {
         notes.push(r.finish(
             trajectory,
             None,
-            Some(&landmarks),
+            Some(&run.landmarks),
             ground_truth.map(Vec::as_slice),
         )?);
     }
     let p = dir.join("landmarks.csv");
-    slam_io::landmarks_csv::write_landmarks_csv(&p, &landmarks)?;
+    slam_io::landmarks_csv::write_landmarks_csv(&p, &run.landmarks)?;
     files.push(p);
     let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
     let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
@@ -652,7 +591,7 @@ fn run_landmark(
     let pic = pictures::landmark_picture(&pictures::LandmarkLayers {
         title,
         estimate: &poses,
-        estimate_label: if full.is_some() {
+        estimate_label: if run.full_path.is_some() {
             "best particle's path (full SLAM)"
         } else if particles.is_some() {
             "online estimate (best particle at each step)"
@@ -661,7 +600,7 @@ fn run_landmark(
         },
         particle_paths: &particle_paths,
         particle_landmarks: &particle_landmarks,
-        landmarks: &landmarks,
+        landmarks: &run.landmarks,
         particles: particles.as_deref(),
         ground_truth: gt_poses.as_deref(),
         true_landmarks: dataset.landmarks.as_deref(),
@@ -673,37 +612,13 @@ fn run_landmark(
     std::fs::write(&p, &built.config_toml).map_err(write_err(&p))?;
     files.push(p);
     let p = dir.join("metrics.json");
-    m.write(&p).map_err(write_err(&p))?;
+    run.metrics.write(&p).map_err(write_err(&p))?;
     files.push(p);
     Ok(Finished {
-        metrics: m,
+        metrics: run.metrics,
         files,
         notes,
     })
-}
-
-/// The filter's full-SLAM path paired with the steps' times: entry k + 1 of
-/// [`LandmarkSlam::full_path`] is the pose after step k (entry 0, the initial pose, has no
-/// step and is not written). `None` for filters without a path (the EKF), and, with a
-/// warning, when the path breaks the one-pose-per-update contract.
-fn full_trajectory(filter: &dyn LandmarkSlam, steps: &[LandmarkStep]) -> Option<Vec<TimedPose>> {
-    let path = filter.full_path()?;
-    if path.len() != steps.len() + 1 {
-        eprintln!(
-            "slam: warning: filter `{}` returned a path of {} poses for {} steps (the LandmarkSlam contract is the initial pose plus one per step); writing its online estimates instead",
-            filter.name(),
-            path.len(),
-            steps.len()
-        );
-        return None;
-    }
-    Some(
-        steps
-            .iter()
-            .zip(&path[1..])
-            .map(|(s, &pose)| TimedPose { t: s.t, pose })
-            .collect(),
-    )
 }
 
 fn run_scan(
@@ -720,108 +635,34 @@ fn run_scan(
             particles: ctx.args.particles.map(|p| p as usize),
             seed: ctx.args.seed,
             initial_pose: slam_models::Pose2::default(),
-            sim_models: None,
+            sim_noise: None,
         },
     )?;
     let mut filter = built.filter;
-    // Ask before the run whether the filter can re-render its map at all.
-    let cannot_render = || {
-        CliError::InvalidArgument(format!(
-            "--map-resolution: filter `{}` keeps no scans to re-render its map from (gridfast does)",
-            info.name
-        ))
-    };
-    if let Some(res) = ctx.args.map_resolution {
-        filter.render_map(res).ok_or_else(cannot_render)?;
-    }
-    let records = &dataset.records;
-    let mut mcap = McapRecorder::create(ctx.args, records.len(), None)?;
-    let mut progress = Progress::new(records.len(), ctx.args.quiet);
-    let start = Instant::now();
-    // Odometry jumps the filter skipped (only with `odometry_jump.on_jump = "skip"`):
-    // how many, and the first record's index and time.
-    let (mut jumps, mut first_jump) = (0usize, None);
-    for (k, record) in records.iter().enumerate() {
-        if crate::stop_requested() {
-            return Err(CliError::Interrupted {
-                step: k,
-                steps: records.len(),
-            });
-        }
-        let step = filter
-            .process(record)
-            .map_err(|source| CliError::FilterStep {
-                filter: info.name.to_string(),
-                step: k,
-                t: record.t,
-                source,
-            })?;
-        if step.odometry_jumps_skipped > 0 {
-            jumps += step.odometry_jumps_skipped;
-            first_jump.get_or_insert((k, record.t));
-        }
+    let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;
+    let mut progress = Progress::new(dataset.records.len(), ctx.args.quiet);
+    let mut observer = |p: &ScanProgress<'_>| -> Result<Flow, ObserverError> {
         if let Some(r) = &mut mcap {
-            r.scan_step(record, filter.as_ref())?;
+            r.scan_step(p.record, p.filter)?;
         }
-        progress.set(k + 1);
-    }
-    if let Some((k, t)) = first_jump {
-        eprintln!(
-            "slam: warning: skipped {jumps} odometry jump(s) beyond odometry_jump.max_jump, taken as no motion (first at record {k}, t = {t} s)"
-        );
-    }
-    let trajectory = filter.trajectory();
-    // The filter's own map is part of the timed run; a re-rendering (output, not filtering)
-    // is made after the clock and the memory peak are read, and replaces it.
-    let own_map = ctx.args.map_resolution.is_none().then(|| filter.map());
-    // Writing the MCAP file is output, not filtering.
-    let mcap_time = mcap.as_ref().map(McapRecorder::elapsed).unwrap_or_default();
-    let wall = start.elapsed().saturating_sub(mcap_time).as_secs_f64();
-    progress.finish();
-    let peak_rss_mb = metrics::peak_rss_mb();
-    let map = match own_map {
-        Some(map) => map,
-        None => ctx
-            .args
-            .map_resolution
-            .and_then(|res| filter.render_map(res))
-            .ok_or_else(cannot_render)?,
+        progress.set(p.step + 1);
+        Ok(if crate::stop_requested() {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        })
     };
+    let opts = run_options(ctx, name, has_clock);
+    let run =
+        run_scans_observed(filter.as_mut(), dataset, &opts, &mut observer).map_err(run_error)?;
+    progress.finish();
+    warn(&run.warnings);
     let particles = filter.particles();
-    if trajectory.len() != records.len() {
-        eprintln!(
-            "slam: warning: filter `{}` returned {} poses for {} records (the ScanSlam contract is one per record)",
-            info.name,
-            trajectory.len(),
-            records.len()
-        );
-    }
-
-    let mut m = Metrics::new(info.name, name, records.len());
-    let mut notes = Vec::new();
-    let times: Vec<f64> = records.iter().map(|r| r.t).collect();
-    let span = data_duration(&times, has_clock, &mut notes);
-    m.set_timing(wall, span);
-    // Laser filters start at the identity pose (ScanSlam takes no initial pose), so the
-    // ground truth is re-expressed in the estimate's frame, anchored at their first common
-    // pose: "as is" then means "sharing the start frame", as for landmark runs.
-    let ground_truth = ctx
-        .ground_truth
-        .as_ref()
-        .or(dataset.ground_truth.as_ref())
-        .map(|gt| eval::anchor_at_first_match(&trajectory, gt));
-    if let Some(gt) = &ground_truth {
-        trajectory_metrics(&mut m, &trajectory, gt);
-    }
-    if let Some(rel) = &ctx.relations {
-        notes.push(relations_metrics(&mut m, &trajectory, rel));
-    }
-    m.peak_rss_mb = peak_rss_mb;
 
     let dir = ctx.stage;
     let mut files = Vec::new();
     let p = dir.join("trajectory.tum");
-    slam_io::tum::write_tum(&p, &trajectory)?;
+    slam_io::tum::write_tum(&p, &run.trajectory)?;
     files.push(p);
     if ctx.simulated {
         // The simulator's own frame, not the anchored copy the metrics use.
@@ -831,14 +672,23 @@ fn run_scan(
             files.push(p);
         }
     }
+    let mut notes = run.notes;
     if let Some(r) = mcap {
-        notes.push(r.finish(&trajectory, Some(&map), None, ground_truth.as_deref())?);
+        notes.push(r.finish(
+            &run.trajectory,
+            Some(&run.map),
+            None,
+            run.reference.as_deref(),
+        )?);
     }
-    slam_io::ros_map::write_ros_map(dir, "map", &map)?;
+    slam_io::ros_map::write_ros_map(dir, "map", &run.map)?;
     files.push(dir.join("map.pgm"));
     files.push(dir.join("map.yaml"));
-    let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    let poses: Vec<_> = run.trajectory.iter().map(|t| t.pose).collect();
+    let gt_poses: Option<Vec<_>> = run
+        .reference
+        .as_ref()
+        .map(|g| g.iter().map(|t| t.pose).collect());
     let particle_count = particles.as_ref().map(Vec::len);
     let title = pictures::title(
         info.name,
@@ -848,7 +698,7 @@ fn run_scan(
     );
     let pic = pictures::laser_picture(
         title,
-        &map,
+        &run.map,
         &poses,
         gt_poses.as_deref().map(|g| {
             let label = if ctx.ground_truth.is_some() {
@@ -867,58 +717,13 @@ fn run_scan(
     std::fs::write(&p, &built.config_toml).map_err(write_err(&p))?;
     files.push(p);
     let p = dir.join("metrics.json");
-    m.write(&p).map_err(write_err(&p))?;
+    run.metrics.write(&p).map_err(write_err(&p))?;
     files.push(p);
     Ok(Finished {
-        metrics: m,
+        metrics: run.metrics,
         files,
         notes,
     })
-}
-
-/// ATE (as is, aligned) and RPE against a ground-truth trajectory. A metric that cannot be
-/// computed (no pose matched in time, …) stays null, with a warning on stderr: the run's
-/// outputs are still written.
-fn trajectory_metrics(m: &mut Metrics, trajectory: &[TimedPose], gt: &[TimedPose]) {
-    crate::eval::warn_stamp_order(trajectory, gt);
-    match eval::ate(trajectory, gt) {
-        Ok(ate) => {
-            m.ate_rmse_m = Some(ate.rmse);
-            m.ate_rmse_aligned_m = Some(ate.rmse_aligned);
-        }
-        Err(e) => eprintln!("slam: warning: no ATE: {e}"),
-    }
-    match eval::rpe(trajectory, gt) {
-        Ok(rpe) => {
-            m.rpe_trans_mean_m = Some(rpe.trans_mean);
-            m.rpe_rot_mean_deg = Some(rpe.rot_mean_deg);
-        }
-        Err(e) => eprintln!("slam: warning: no RPE: {e}"),
-    }
-}
-
-/// The Kümmerle et al. relations metric; returns a line for the summary.
-fn relations_metrics(
-    m: &mut Metrics,
-    trajectory: &[TimedPose],
-    relations: &[slam_io::relations::Relation],
-) -> String {
-    let r = eval::relations_error(trajectory, relations);
-    if r.used > 0 {
-        m.relations_trans_mean_m = Some(r.trans_mean);
-        m.relations_rot_mean_deg = Some(r.rot_mean_deg);
-        format!(
-            "relations error {:.3} ± {:.3} m / {:.2} ± {:.2} deg ({} relations used, {} without both ends in the trajectory)",
-            r.trans_mean, r.trans_std, r.rot_mean_deg, r.rot_std_deg, r.used, r.dropped
-        )
-    } else {
-        let msg = format!(
-            "no relations metric: none of the {} relations has both ends in the trajectory (within 6 ms); is it on the same clock?",
-            relations.len()
-        );
-        eprintln!("slam: warning: {msg}");
-        msg
-    }
 }
 
 /// `x` with 3 decimals, or in scientific notation when huge (a diverged NEES).
@@ -1007,21 +812,4 @@ fn print_summary(
         .filter_map(|f| f.file_name().map(|n| n.to_string_lossy().to_string()))
         .collect();
     let _ = writeln!(out, "  wrote {}/{{{}}}", dir.display(), names.join(", "));
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn data_duration_needs_a_usable_clock() {
-        let mut notes = Vec::new();
-        assert_eq!(data_duration(&[1.0, 1.5, 4.0], true, &mut notes), Some(3.0));
-        assert_eq!(data_duration(&[1.0, 1.5, 4.0], false, &mut notes), None);
-        assert!(notes.is_empty());
-        // 3 distinct times for 40 steps: printed with too few digits.
-        let coarse: Vec<f64> = (0..40).map(|k| 1.0e9 + (k / 15) as f64 * 1e4).collect();
-        assert_eq!(data_duration(&coarse, true, &mut notes), None);
-        assert_eq!(notes.len(), 1);
-    }
 }

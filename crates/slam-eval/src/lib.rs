@@ -6,17 +6,31 @@
 //! * [`metrics`]: ATE, RPE, the Kümmerle et al. relations metric, landmark map error,
 //!   NEES/NIS with chi-square bands, each checked against hand-computed cases.
 //! * [`Metrics`]: the figures of one run, as `metrics.json` holds them.
+//! * [`run_landmarks`] / [`run_scans`]: drive a `&mut dyn LandmarkSlam` / `&mut dyn
+//!   ScanSlam` over a dataset and score it ([`run`]), with an observer for progress,
+//!   pictures and Ctrl-C.
+//! * [`factory`]: a [`FilterConfig`] tagged by the filter's name (`filter = "ekf"`, …)
+//!   builds a `Box<dyn LandmarkSlam>` / `Box<dyn ScanSlam>`, so swapping the filter is a
+//!   config change; [`filters`](factory::filters) lists them.
 //!
 //! Readers and writers stay in `slam-io` (formats only); filters never do I/O.
 
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod factory;
 pub mod metrics;
 pub mod metrics_json;
+pub mod run;
 
 pub use error::EvalError;
+pub use factory::{FactoryError, FilterConfig};
 pub use metrics_json::{peak_rss_mb, Metrics};
+pub use run::{
+    run_landmarks, run_landmarks_observed, run_scans, run_scans_observed, Flow, LandmarkObserver,
+    LandmarkProgress, LandmarkRun, ObserverError, RunError, RunOptions, ScanObserver,
+    ScanProgress, ScanRun,
+};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user
 /// compiles with this crate alone.

@@ -120,3 +120,67 @@ pub use slam_models::{LandmarkDataset, LaserScan, Pose2, RangeBearing, ScanDatas
 pub mod prelude {
     pub use slam_models::prelude::*;
 }
+
+/// The noise models simulated landmark data was generated with: the "true" models a filter
+/// run on that data should assume, unless its configuration says otherwise. A filter left at
+/// its own defaults on simulated data assumes noise the data does not have and is less
+/// accurate with no warning, so the rule is an explicit call a front end can report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseModels {
+    /// The motion model ([`LandmarkSimRun::motion`]).
+    pub motion: MotionModels,
+    /// The range-bearing sensor model ([`LandmarkSimRun::sensor`]).
+    pub sensor: RangeBearingModel,
+}
+
+/// Which models [`NoiseModels::apply_to`] replaced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct NoiseApplied {
+    /// The motion model was replaced by the simulator's.
+    pub motion: bool,
+    /// The sensor model was replaced by the simulator's.
+    pub sensor: bool,
+}
+
+impl NoiseApplied {
+    /// True when either model was replaced.
+    pub fn any(&self) -> bool {
+        self.motion || self.sensor
+    }
+}
+
+impl NoiseModels {
+    /// The simulator's noise rule: a filter's motion and sensor models become these, except
+    /// a model its configuration sets explicitly (`config_sets_motion`,
+    /// `config_sets_sensor`), which is kept. Returns what was replaced, so that a front end
+    /// can say so.
+    pub fn apply_to(
+        &self,
+        motion: &mut MotionModels,
+        sensor: &mut RangeBearingModel,
+        config_sets_motion: bool,
+        config_sets_sensor: bool,
+    ) -> NoiseApplied {
+        if !config_sets_motion {
+            *motion = self.motion;
+        }
+        if !config_sets_sensor {
+            *sensor = self.sensor;
+        }
+        NoiseApplied {
+            motion: !config_sets_motion,
+            sensor: !config_sets_sensor,
+        }
+    }
+}
+
+impl LandmarkSimRun {
+    /// The nominal noise models this data was generated with ([`NoiseModels::apply_to`]
+    /// copies them into a filter's configuration).
+    pub fn noise_models(&self) -> NoiseModels {
+        NoiseModels {
+            motion: self.motion,
+            sensor: self.sensor,
+        }
+    }
+}

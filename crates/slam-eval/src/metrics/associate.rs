@@ -108,6 +108,24 @@ pub fn stamp_order_warning(traj: &[TimedPose], what: &str) -> Option<String> {
     })
 }
 
+/// The [`stamp_order_warning`] lines for an estimate scored against a ground truth: one
+/// for both when they come from the same log ([`same_stamps`]), else one per trajectory
+/// whose stamps repeat or step back.
+pub fn stamp_order_warnings(est: &[TimedPose], gt: &[TimedPose]) -> Vec<String> {
+    let lines = if same_stamps(est, gt) {
+        vec![stamp_order_warning(
+            gt,
+            "estimate and ground truth (same stamps)",
+        )]
+    } else {
+        vec![
+            stamp_order_warning(est, "estimate"),
+            stamp_order_warning(gt, "ground truth"),
+        ]
+    };
+    lines.into_iter().flatten().collect()
+}
+
 /// How an estimate is read at a time t.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum PoseLookup {

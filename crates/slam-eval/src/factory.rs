@@ -1,0 +1,483 @@
+//! Filters built from a configuration: swapping the filter is a config change.
+//!
+//! A [`FilterConfig`] is tagged by the filter's name and carries that filter's own config
+//! struct (with its documented `Default`). As a TOML file, the tag is the `filter` key and
+//! the filter's keys sit beside it, exactly as in `configs/<name>.toml`:
+//!
+//! ```
+//! use slam_eval::factory::FilterConfig;
+//! let parsed = FilterConfig::from_toml("filter = \"fastslam2\"\nparticles = 50\n")?;
+//! assert_eq!(parsed.config.name(), "fastslam2");
+//! let filter = parsed.config.build_landmark(Default::default(), 7)?;
+//! assert_eq!(filter.name(), "fastslam2");
+//! # Ok::<(), slam_eval::factory::FactoryError>(())
+//! ```
+//!
+//! [`filters`] lists every filter with its data kind and a one-line description (what
+//! `slam list` prints). The list is open: a filter family added later (pose graphs) gets a
+//! variant, a [`FilterInfo`] and a build arm here, and every front end picks it up.
+
+use serde::{Deserialize, Serialize};
+use slam_ekf::{EkfConfig, EkfSlam};
+use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
+use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
+use slam_gridfast::{GridFastConfig, GridFastSlam};
+use slam_models::{LandmarkSlam, Pose2, ScanSlam};
+use slam_sim::{NoiseApplied, NoiseModels};
+use thiserror::Error;
+
+/// The two kinds of data (and of filters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DataKind {
+    /// Range-bearing observations of point landmarks ([`LandmarkSlam`]).
+    Landmark,
+    /// Odometry and laser scans ([`ScanSlam`]).
+    Laser,
+}
+
+impl DataKind {
+    /// `"landmark"` or `"laser"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DataKind::Landmark => "landmark",
+            DataKind::Laser => "laser",
+        }
+    }
+}
+
+/// A filter the factory knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FilterInfo {
+    /// The filter's name: the config tag, `slam run --filter`.
+    pub name: &'static str,
+    /// The data it runs on.
+    pub kind: DataKind,
+    /// One line: what it is.
+    pub description: &'static str,
+    /// True for particle filters (a particle count applies).
+    pub particle_filter: bool,
+    /// `None` when built into this library; otherwise why not.
+    pub unavailable: Option<&'static str>,
+}
+
+/// Every filter, in a fixed order.
+pub fn filters() -> Vec<FilterInfo> {
+    vec![
+        FilterInfo {
+            name: "ekf",
+            kind: DataKind::Landmark,
+            description:
+                "EKF-SLAM (PR ch. 10), dense covariance, known or unknown data association",
+            particle_filter: false,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "fastslam1",
+            kind: DataKind::Landmark,
+            description:
+                "FastSLAM 1.0 (Montemerlo et al. 2002, PR ch. 13), a landmark EKF per particle",
+            particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "fastslam2",
+            kind: DataKind::Landmark,
+            description:
+                "FastSLAM 2.0 (Montemerlo et al. 2003), proposal using the current observations",
+            particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "scanmatch",
+            kind: DataKind::Laser,
+            description: "scan-matching odometry against an occupancy grid (no loop closure)",
+            particle_filter: false,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "gridfast",
+            kind: DataKind::Laser,
+            description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
+            particle_filter: true,
+            unavailable: None,
+        },
+    ]
+}
+
+/// The filter called `name`, whether or not it is available.
+pub fn find(name: &str) -> Result<FilterInfo, FactoryError> {
+    filters()
+        .into_iter()
+        .find(|f| f.name == name)
+        .ok_or_else(|| FactoryError::UnknownFilter {
+            name: name.to_string(),
+            known: known_names(),
+        })
+}
+
+/// Names of the filters of one kind, comma separated.
+pub fn names_of(kind: DataKind) -> String {
+    filters()
+        .iter()
+        .filter(|f| f.kind == kind)
+        .map(|f| f.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn known_names() -> String {
+    filters()
+        .iter()
+        .map(|f| f.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Why a filter could not be configured or built.
+#[derive(Debug, Error)]
+pub enum FactoryError {
+    /// No filter has this name.
+    #[error("unknown filter `{name}` (known: {known})")]
+    UnknownFilter {
+        /// The name asked for.
+        name: String,
+        /// The known names, comma separated.
+        known: String,
+    },
+    /// The configuration text is not valid: TOML syntax, a missing `filter` tag, an unknown
+    /// key, a value of the wrong type.
+    #[error("{}{message}", line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    Parse {
+        /// 1-based line of the offending text, when known.
+        line: Option<usize>,
+        /// What was wrong, naming the key.
+        message: String,
+    },
+    /// The FastSLAM table's `variant` contradicts the tag.
+    #[error("the config sets variant = {variant:?} but the filter is {filter}; remove `variant` or pick the other filter")]
+    VariantMismatch {
+        /// The tag.
+        filter: &'static str,
+        /// The table's variant.
+        variant: Variant,
+    },
+    /// A particle count was given to a filter without particles.
+    #[error("a particle count applies to particle filters ({}); `{filter}` has none", particle_filter_names())]
+    NotAParticleFilter {
+        /// The filter.
+        filter: &'static str,
+    },
+    /// A landmark filter was asked for a scan filter's build, or the other way round.
+    #[error("`{filter}` is a {kind} filter")]
+    WrongKind {
+        /// The filter.
+        filter: &'static str,
+        /// Its kind, `"landmark"` or `"laser"`.
+        kind: &'static str,
+    },
+    /// The filter's constructor rejected its configuration (the filter crate's message
+    /// names the field and the bound).
+    #[error("filter `{filter}`: {message}")]
+    Invalid {
+        /// The filter.
+        filter: &'static str,
+        /// The constructor's error, in words.
+        message: String,
+    },
+}
+
+fn particle_filter_names() -> String {
+    filters()
+        .iter()
+        .filter(|f| f.particle_filter)
+        .map(|f| f.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A filter and its configuration: the tag `filter = "<name>"` and that filter's own table.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "filter", rename_all = "kebab-case")]
+pub enum FilterConfig {
+    /// EKF-SLAM.
+    Ekf(EkfConfig),
+    /// FastSLAM 1.0 (the table's `variant` is set to match).
+    Fastslam1(FastSlamConfig),
+    /// FastSLAM 2.0 (the table's `variant` is set to match).
+    Fastslam2(FastSlamConfig),
+    /// Scan-matching odometry.
+    Scanmatch(ScanMatchConfig),
+    /// Grid-based FastSLAM.
+    Gridfast(GridFastConfig),
+}
+
+/// A configuration parsed from text, with the top-level keys the text set explicitly (a
+/// rule such as the simulator's noise models applies only to keys the user left out).
+#[derive(Debug, Clone)]
+pub struct ParsedConfig {
+    /// The configuration: the text's values over the filter's defaults.
+    pub config: FilterConfig,
+    /// Top-level keys the text set, besides the `filter` tag.
+    pub keys: Vec<String>,
+}
+
+impl ParsedConfig {
+    /// Whether the text set the top-level key `key`.
+    pub fn sets(&self, key: &str) -> bool {
+        self.keys.iter().any(|k| k == key)
+    }
+
+    /// Applies the simulator's noise rule ([`NoiseModels::apply_to`]) to a landmark
+    /// filter's `motion` and `sensor`, keeping those the text set; scan filters are left
+    /// as they are (nothing applied).
+    pub fn apply_sim_noise(&mut self, noise: &NoiseModels) -> NoiseApplied {
+        let (motion, sensor) = (self.sets("motion"), self.sets("sensor"));
+        match &mut self.config {
+            FilterConfig::Ekf(c) => noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor),
+            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
+                noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor)
+            }
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => NoiseApplied::default(),
+        }
+    }
+}
+
+impl FilterConfig {
+    /// The filter called `name` with its default configuration.
+    pub fn default_for(name: &str) -> Result<Self, FactoryError> {
+        Ok(match find(name)?.name {
+            "ekf" => FilterConfig::Ekf(EkfConfig::default()),
+            "fastslam1" => FilterConfig::Fastslam1(FastSlamConfig {
+                variant: Variant::FastSlam1,
+                ..FastSlamConfig::default()
+            }),
+            "fastslam2" => FilterConfig::Fastslam2(FastSlamConfig {
+                variant: Variant::FastSlam2,
+                ..FastSlamConfig::default()
+            }),
+            "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
+            "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
+            other => {
+                return Err(FactoryError::UnknownFilter {
+                    name: other.to_string(),
+                    known: known_names(),
+                })
+            }
+        })
+    }
+
+    /// Parses a tagged TOML configuration: `filter = "<name>"` and the filter's keys
+    /// (any subset; the rest keep their defaults). An unknown tag, a missing tag, an unknown
+    /// key or a wrong type is a [`FactoryError`] naming it.
+    pub fn from_toml(text: &str) -> Result<ParsedConfig, FactoryError> {
+        let table = parse_table(text)?;
+        let name = match table.get("filter") {
+            Some(toml::Value::String(s)) => s.clone(),
+            Some(other) => {
+                return Err(FactoryError::Parse {
+                    line: None,
+                    message: format!("`filter` must be a filter name (a string), not {other}"),
+                })
+            }
+            None => {
+                return Err(FactoryError::Parse {
+                    line: None,
+                    message: format!("no `filter` key naming the filter (one of {})", known_names()),
+                })
+            }
+        };
+        Self::from_toml_for(&name, text)
+    }
+
+    /// Parses the TOML table of the filter called `name` (a `configs/<name>.toml` file, the
+    /// `--config` of `slam run`): the filter's keys over its defaults. A `filter` key, if
+    /// present, must name the same filter.
+    pub fn from_toml_for(name: &str, text: &str) -> Result<ParsedConfig, FactoryError> {
+        let info = find(name)?;
+        let mut table = parse_table(text)?;
+        if let Some(tag) = table.remove("filter") {
+            if tag.as_str() != Some(info.name) {
+                return Err(FactoryError::Parse {
+                    line: None,
+                    message: format!("the config file is for filter {tag}, not `{}`", info.name),
+                });
+            }
+        }
+        let keys: Vec<String> = table.keys().cloned().collect();
+        // Deserialised from the text (the tag blanked out) rather than the table, so that
+        // toml's error spans point into the user's text.
+        let body = blank_filter_key(text);
+        let config = match info.name {
+            "ekf" => FilterConfig::Ekf(de(&body)?),
+            "fastslam1" | "fastslam2" => {
+                let mut c: FastSlamConfig = de(&body)?;
+                let (variant, filter) = if info.name == "fastslam1" {
+                    (Variant::FastSlam1, "fastslam1")
+                } else {
+                    (Variant::FastSlam2, "fastslam2")
+                };
+                if keys.iter().any(|k| k == "variant") && c.variant != variant {
+                    return Err(FactoryError::VariantMismatch {
+                        filter,
+                        variant: c.variant,
+                    });
+                }
+                c.variant = variant;
+                if info.name == "fastslam1" {
+                    FilterConfig::Fastslam1(c)
+                } else {
+                    FilterConfig::Fastslam2(c)
+                }
+            }
+            "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
+            "gridfast" => FilterConfig::Gridfast(de(&body)?),
+            other => {
+                return Err(FactoryError::UnknownFilter {
+                    name: other.to_string(),
+                    known: known_names(),
+                })
+            }
+        };
+        Ok(ParsedConfig { config, keys })
+    }
+
+    /// The filter's name (the tag).
+    pub fn name(&self) -> &'static str {
+        match self {
+            FilterConfig::Ekf(_) => "ekf",
+            FilterConfig::Fastslam1(_) => "fastslam1",
+            FilterConfig::Fastslam2(_) => "fastslam2",
+            FilterConfig::Scanmatch(_) => "scanmatch",
+            FilterConfig::Gridfast(_) => "gridfast",
+        }
+    }
+
+    /// The filter's kind.
+    pub fn kind(&self) -> DataKind {
+        match self {
+            FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
+                DataKind::Landmark
+            }
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => DataKind::Laser,
+        }
+    }
+
+    /// Sets the particle count of a particle filter; an error for the others.
+    pub fn set_particles(&mut self, n: usize) -> Result<(), FactoryError> {
+        match self {
+            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => c.particles = n,
+            FilterConfig::Gridfast(c) => c.particles = n,
+            FilterConfig::Ekf(_) | FilterConfig::Scanmatch(_) => {
+                return Err(FactoryError::NotAParticleFilter {
+                    filter: self.name(),
+                })
+            }
+        }
+        Ok(())
+    }
+
+    /// The filter's own table as TOML, without the tag (what `slam run` writes as
+    /// `config.toml`, and reads back with [`from_toml_for`](Self::from_toml_for)).
+    pub fn table_toml(&self) -> String {
+        let text = match self {
+            FilterConfig::Ekf(c) => toml::to_string_pretty(c),
+            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => toml::to_string_pretty(c),
+            FilterConfig::Scanmatch(c) => toml::to_string_pretty(c),
+            FilterConfig::Gridfast(c) => toml::to_string_pretty(c),
+        };
+        text.unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
+    }
+
+    /// Builds a landmark filter starting at `initial_pose`, its random numbers from `seed`
+    /// (particle filters).
+    pub fn build_landmark(
+        &self,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Box<dyn LandmarkSlam>, FactoryError> {
+        let invalid = |e: &dyn std::fmt::Display| FactoryError::Invalid {
+            filter: self.name(),
+            message: e.to_string(),
+        };
+        Ok(match self {
+            FilterConfig::Ekf(c) => {
+                Box::new(EkfSlam::new(c.clone(), initial_pose).map_err(|e| invalid(&e))?)
+            }
+            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
+                Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
+            }
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => {
+                return Err(FactoryError::WrongKind {
+                    filter: self.name(),
+                    kind: DataKind::Laser.as_str(),
+                })
+            }
+        })
+    }
+
+    /// Builds a scan filter (scan filters start at the identity pose), its random numbers
+    /// from `seed` (particle filters).
+    pub fn build_scan(&self, seed: u64) -> Result<Box<dyn ScanSlam>, FactoryError> {
+        let invalid = |e: &dyn std::fmt::Display| FactoryError::Invalid {
+            filter: self.name(),
+            message: e.to_string(),
+        };
+        Ok(match self {
+            FilterConfig::Scanmatch(c) => {
+                Box::new(ScanMatchOdometry::new(c.clone()).map_err(|e| invalid(&e))?)
+            }
+            FilterConfig::Gridfast(c) => {
+                Box::new(GridFastSlam::new(c.clone(), seed).map_err(|e| invalid(&e))?)
+            }
+            FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
+                return Err(FactoryError::WrongKind {
+                    filter: self.name(),
+                    kind: DataKind::Landmark.as_str(),
+                })
+            }
+        })
+    }
+}
+
+fn parse_table(text: &str) -> Result<toml::Table, FactoryError> {
+    toml::from_str::<toml::Table>(text).map_err(|e| toml_error(text, &e))
+}
+
+fn de<C: serde::de::DeserializeOwned>(text: &str) -> Result<C, FactoryError> {
+    toml::from_str::<C>(text).map_err(|e| toml_error(text, &e))
+}
+
+/// The text with a top-level `filter = …` line turned into a comment (same line count, so
+/// error lines stay right).
+fn blank_filter_key(text: &str) -> String {
+    let mut in_root = true;
+    text.lines()
+        .map(|l| {
+            let t = l.trim_start();
+            if t.starts_with('[') {
+                in_root = false;
+            }
+            let is_tag = in_root
+                && t.strip_prefix("filter")
+                    .is_some_and(|rest| rest.trim_start().starts_with('='));
+            if is_tag {
+                format!("# {l}")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// A TOML error as one line: the line it is on and toml's own message (which names an
+/// unknown key and lists the expected ones).
+fn toml_error(text: &str, e: &toml::de::Error) -> FactoryError {
+    let line = e
+        .span()
+        .map(|span| text[..span.start.min(text.len())].matches('\n').count() + 1);
+    FactoryError::Parse {
+        line,
+        message: e.message().trim().replace('\n', " "),
+    }
+}
