@@ -12,8 +12,8 @@
 //! at the known initial pose), means over the seeds, with dead reckoning for scale.
 //! "Spurious" estimates matched no true landmark (persisting clutter or duplicates).
 
-use slam_fastslam::{Association, FastSlam, FastSlamConfig, Variant};
 use slam_eval::metrics::landmark_error;
+use slam_fastslam::{Association, FastSlam, FastSlamConfig, Variant};
 use slam_models::{LandmarkEstimate, LandmarkSlam, Pose2};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::{LandmarkSimRun, SimOutput};

@@ -15,9 +15,7 @@
 //! the anchored curves on log–log axes (improved in orange, odometry in blue).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
-use slam_eval::metrics as eval;
 use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
-use slam_models::ScanSlam;
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
 use std::path::PathBuf;
@@ -44,18 +42,13 @@ fn run(
         ..GridFastConfig::default()
     };
     let mut slam = GridFastSlam::new(config, seed)?;
-    for r in &sim.dataset.records {
-        slam.process(r)?;
-    }
-    let est = slam.trajectory();
-    let gt = sim
-        .dataset
-        .ground_truth
-        .as_ref()
-        .ok_or("office has ground truth")?;
-    let gt = eval::anchor_at_first_match(&est, gt);
-    let ate = eval::ate(&est, &gt)?;
-    Ok((ate.rmse, ate.rmse_aligned))
+    // ATE against the simulator's truth, anchored at the estimate's start (slam-eval).
+    let run = slam_eval::run_scans(&mut slam, &sim.dataset, &Default::default())?;
+    let m = &run.metrics;
+    Ok((
+        m.ate_rmse_m.ok_or("office has ground truth")?,
+        m.ate_rmse_aligned_m.ok_or("office has ground truth")?,
+    ))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -14,19 +14,11 @@ use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
 use std::collections::{HashMap, HashSet};
 
-/// Runs a filter over a dataset; returns the pose after every step.
+/// Runs a filter over a dataset (slam-eval's loop); returns the pose after every step.
 fn run(ekf: &mut EkfSlam, d: &LandmarkDataset) -> Vec<TimedPose> {
-    d.steps
-        .iter()
-        .map(|s| {
-            ekf.predict(&s.control).expect("predict");
-            ekf.update(&s.observations).expect("update");
-            TimedPose {
-                t: s.t,
-                pose: ekf.pose(),
-            }
-        })
-        .collect()
+    slam_eval::run_landmarks(ekf, d, &Default::default())
+        .expect("run")
+        .online
 }
 
 fn loop_run(seed: u64, opts: ScenarioOptions) -> slam_sim::LandmarkSimRun {

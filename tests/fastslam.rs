@@ -4,27 +4,20 @@
 
 mod common;
 
-use slam::fastslam::{Association, FastSlam, FastSlamConfig, Variant};
 use slam::eval::metrics::{ate, landmark_error};
+use slam::fastslam::{Association, FastSlam, FastSlamConfig, Variant};
 use slam::models::measurement::RangeBearingModel;
 use slam::models::motion::{MotionModels, OdometryModel, VelocityModel};
 use slam::models::{LandmarkDataset, LandmarkId, LandmarkSlam, Pose2, TimedPose};
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::{LandmarkSimRun, SimOutput};
 
-/// Runs a filter over a dataset; returns the best particle's pose after every step.
+/// Runs a filter over a dataset (slam-eval's loop); returns the best particle's pose after
+/// every step.
 fn run(f: &mut FastSlam, d: &LandmarkDataset) -> Vec<TimedPose> {
-    d.steps
-        .iter()
-        .map(|s| {
-            f.predict(&s.control).expect("finite control");
-            f.update(&s.observations).expect("finite observations");
-            TimedPose {
-                t: s.t,
-                pose: f.pose(),
-            }
-        })
-        .collect()
+    slam::eval::run_landmarks(f, d, &Default::default())
+        .expect("run")
+        .online
 }
 
 fn sim(name: &str, seed: u64, steps: Option<usize>) -> LandmarkSimRun {

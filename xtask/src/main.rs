@@ -125,6 +125,17 @@ fn test_all() -> Result<(), String> {
             "warnings",
         ]),
     )?;
+    // slam-io for its readers and writers alone: no PNG renderer, no bag reader.
+    run(
+        "slam-io without default features",
+        cargo().args([
+            "build",
+            "--release",
+            "-p",
+            "slam-io",
+            "--no-default-features",
+        ]),
+    )?;
     run(
         "doc",
         cargo()

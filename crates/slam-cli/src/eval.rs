@@ -3,8 +3,8 @@
 
 use crate::cli::EvalArgs;
 use crate::error::CliError;
-use slam_eval::metrics_json::finite;
 use serde::Serialize;
+use slam_eval::metrics_json::finite;
 use std::io::Write;
 
 /// The figures `slam eval` computed; `None` where no reference was given.

@@ -80,7 +80,10 @@ pub(crate) fn check_particles(info: &FilterInfo, given: bool) -> Result<(), CliE
 
 /// The configuration: `--config` over the defaults, `--particles` over that, and on
 /// simulated data the simulator's noise models where the file sets none.
-fn configure(info: &FilterInfo, setup: &Setup<'_>) -> Result<(ParsedConfig, Option<String>), CliError> {
+fn configure(
+    info: &FilterInfo,
+    setup: &Setup<'_>,
+) -> Result<(ParsedConfig, Option<String>), CliError> {
     check_particles(info, setup.particles.is_some())?;
     if let Some(reason) = info.unavailable {
         return Err(CliError::FilterUnavailable {

@@ -49,10 +49,10 @@ pub mod sim;
 
 pub use error::CliError;
 pub use eval::EvalReport;
-pub use slam_eval::Metrics;
 pub use optimize::OptimizeOutput;
 pub use run::RunReport;
 pub use sim::SimReport;
+pub use slam_eval::Metrics;
 
 use clap::error::ErrorKind;
 use clap::Parser;

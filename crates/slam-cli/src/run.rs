@@ -26,19 +26,19 @@
 use crate::cli::RunArgs;
 use crate::error::CliError;
 use crate::filters::{self, DataKind, FilterInfo, Setup};
-use slam_eval::run::{
-    run_landmarks_observed, run_scans_observed, Flow, LandmarkProgress, ObserverError,
-    RunError, RunOptions, ScanProgress,
-};
-use slam_eval::Metrics;
 use crate::mcap::McapRecorder;
 use crate::outdir::{OutDir, Owner};
 use crate::pictures;
 use crate::progress::Progress;
 use crate::sim::{generate_exact, replay_map, scenario_options};
+use slam_eval::run::{
+    run_landmarks_observed, run_scans_observed, Flow, LandmarkProgress, ObserverError, RunError,
+    RunOptions, ScanProgress,
+};
+use slam_eval::Metrics;
 use slam_io::Dataset;
-use slam_sim::NoiseModels;
 use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
+use slam_sim::NoiseModels;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -197,10 +197,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let threads = args.threads.map(|t| t as usize);
     let run = |input: &mut Input| -> Result<Finished, CliError> {
         match &mut input.data {
-            Data::Landmark {
-                dataset,
-                sim_noise,
-            } => run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_noise),
+            Data::Landmark { dataset, sim_noise } => {
+                run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_noise)
+            }
             Data::Laser(dataset) => run_scan(&ctx, &input.name, input.has_clock, dataset),
         }
     };

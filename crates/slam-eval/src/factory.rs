@@ -162,7 +162,10 @@ pub enum FactoryError {
         variant: Variant,
     },
     /// A particle count was given to a filter without particles.
-    #[error("a particle count applies to particle filters ({}); `{filter}` has none", particle_filter_names())]
+    #[error(
+        "a particle count applies to particle filters ({}); `{filter}` has none",
+        particle_filter_names()
+    )]
     NotAParticleFilter {
         /// The filter.
         filter: &'static str,
@@ -282,7 +285,10 @@ impl FilterConfig {
             None => {
                 return Err(FactoryError::Parse {
                     line: None,
-                    message: format!("no `filter` key naming the filter (one of {})", known_names()),
+                    message: format!(
+                        "no `filter` key naming the filter (one of {})",
+                        known_names()
+                    ),
                 })
             }
         };

@@ -28,8 +28,8 @@ pub use factory::{FactoryError, FilterConfig};
 pub use metrics_json::{peak_rss_mb, Metrics};
 pub use run::{
     run_landmarks, run_landmarks_observed, run_scans, run_scans_observed, Flow, LandmarkObserver,
-    LandmarkProgress, LandmarkRun, ObserverError, RunError, RunOptions, ScanObserver,
-    ScanProgress, ScanRun,
+    LandmarkProgress, LandmarkRun, ObserverError, RunError, RunOptions, ScanObserver, ScanProgress,
+    ScanRun,
 };
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user

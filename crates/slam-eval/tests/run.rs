@@ -5,8 +5,7 @@
 use slam_eval::factory::{filters, DataKind, FactoryError, FilterConfig};
 use slam_eval::metrics::{ate, rpe};
 use slam_eval::{
-    run_landmarks, run_landmarks_observed, run_scans, Flow, LandmarkProgress, RunError,
-    RunOptions,
+    run_landmarks, run_landmarks_observed, run_scans, Flow, LandmarkProgress, RunError, RunOptions,
 };
 use slam_models::{Pose2, TimedPose};
 use slam_sim::scenario::{generate, ScenarioOptions};
@@ -45,7 +44,10 @@ fn ekf_run_on_the_simulator_matches_its_truth() {
         .unwrap();
     let run = run_landmarks(filter.as_mut(), &sim.dataset, &RunOptions::default()).unwrap();
     let n = sim.dataset.steps.len();
-    assert_eq!((run.online.len(), run.estimates.len(), run.updates.len()), (n, n, n));
+    assert_eq!(
+        (run.online.len(), run.estimates.len(), run.updates.len()),
+        (n, n, n)
+    );
     assert!(run.full_path.is_none(), "the EKF keeps no path");
     // Every step's observations reached the filter's update.
     for (info, step) in run.updates.iter().zip(&sim.dataset.steps) {
@@ -118,7 +120,16 @@ fn the_observer_sees_every_step_and_can_stop_the_run() {
         &mut observer,
     )
     .unwrap_err();
-    assert!(matches!(err, RunError::Stopped { done: 10, steps: 30 }), "{err}");
+    assert!(
+        matches!(
+            err,
+            RunError::Stopped {
+                done: 10,
+                steps: 30
+            }
+        ),
+        "{err}"
+    );
     let expected: Vec<_> = (0..10).map(|k| (k, 30, k + 1)).collect();
     assert_eq!(seen, expected);
 

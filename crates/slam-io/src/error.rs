@@ -121,7 +121,7 @@ pub enum IoError {
         x: f64,
         /// The point's y, metres.
         y: f64,
-        /// The bound on |x| and |y|, metres ([`crate::picture::MAX_COORDINATE_M`]).
+        /// The bound on |x| and |y|, metres (`picture::MAX_COORDINATE_M`).
         bound: f64,
     },
 }

@@ -8,9 +8,10 @@
 //!   picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
-//!   [`carmen::write_carmen`], [`picture`] (PNG), [`g2o::write_g2o`], [`graph_picture`] (a
-//!   pose graph before and after optimisation), `mcap_out` (a run as an MCAP file of ROS 2
-//!   messages for Foxglove and `ros2 bag play`, feature `rosbag`).
+//!   [`carmen::write_carmen`], [`picture`] (PNG, feature `png`, on by default),
+//!   [`g2o::write_g2o`], [`graph_picture`] (a pose graph before and after optimisation),
+//!   `mcap_out` (a run as an MCAP file of ROS 2 messages for Foxglove and `ros2 bag play`,
+//!   feature `rosbag`).
 //!
 //! Metrics computed from these (ATE, RPE, the relations metric, NEES) live in `slam-eval`.
 //!
@@ -27,14 +28,17 @@ pub mod carmen;
 mod dataset;
 pub mod error;
 pub mod estimates_csv;
+#[cfg(feature = "png")]
 mod font;
 pub mod freiburg;
 pub mod g2o;
+#[cfg(feature = "png")]
 pub mod graph_picture;
 pub mod landmarks_csv;
 #[cfg(feature = "rosbag")]
 pub mod mcap_out;
 pub mod mrclam;
+#[cfg(feature = "png")]
 pub mod picture;
 pub mod relations;
 pub mod report;

@@ -371,7 +371,17 @@ fn read_map_image(path: &Path) -> Result<(usize, usize, Vec<Pixel>), IoError> {
     Ok((w, h, grey.into_iter().map(|v| (v as f64, 255)).collect()))
 }
 
+/// Without the `png` feature a PNG map image is an error saying so.
+#[cfg(not(feature = "png"))]
+fn read_png(path: &Path, _bytes: &[u8]) -> Result<(usize, usize, Vec<Pixel>), IoError> {
+    Err(IoError::invalid(
+        path,
+        "a PNG map image needs slam-io's `png` feature (PGM images are read without it)",
+    ))
+}
+
 /// A PNG image through the `image` crate, with its size limited to [`MAX_MAP_CELLS`].
+#[cfg(feature = "png")]
 fn read_png(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<Pixel>), IoError> {
     use image::{ColorType, ImageFormat, ImageReader, Limits};
     let mut reader = ImageReader::with_format(std::io::Cursor::new(bytes), ImageFormat::Png);
@@ -607,6 +617,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "png")]
     fn yaml_comments_list_styles_and_png_images() {
         let d = tmp("png");
         // Grey PNG, 3×2, top row first: black, mid-grey, white / white, 205-grey, black.

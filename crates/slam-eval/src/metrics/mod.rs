@@ -31,8 +31,7 @@ pub use align::align_se2;
 pub(crate) use align::errors_as_is_and_aligned;
 pub use associate::{
     associate, lookup, pose_at, same_stamps, sorted_by_time, stamp_order, stamp_order_warning,
-    stamp_order_warnings,
-    PoseLookup, StampOrder, DEFAULT_MAX_DT,
+    stamp_order_warnings, PoseLookup, StampOrder, DEFAULT_MAX_DT,
 };
 pub use consistency::{
     chi2_band, chi2_quantile, nees_pose, nees_summary, nis, regularized_gamma_p, NeesSummary,

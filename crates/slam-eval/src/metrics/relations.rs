@@ -4,8 +4,8 @@
 //! translational [m] and rotational [deg] errors, separately.
 
 use super::{mean_std, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
-use slam_io::relations::Relation;
 use serde::Serialize;
+use slam_io::relations::Relation;
 use slam_models::TimedPose;
 
 /// The relations metric. Standard deviations are population ones (÷ N). All statistics
