@@ -1,23 +1,26 @@
 //! `slam run`: one filter over one input (a simulated scenario or a dataset), then the
 //! outputs and the metrics.
 //!
-//! * Landmark filters: `predict` with each step's control, `update` with its observations;
-//!   the pose after the update is the online estimate at the step's time. `trajectory.tum`
-//!   is the filter's full-SLAM path where it has one ([`LandmarkSlam::full_path`]: FastSLAM's
-//!   best particle at the end, whose map is `landmarks.csv`), with the online estimates in
-//!   `trajectory-online.tum`; for the EKF, a filter, `trajectory.tum` is the online
+//! The filter is built by `slam_eval::factory` and run and scored by
+//! [`slam_eval::run_landmarks_observed`] / [`slam_eval::run_scans_observed`]; this module
+//! parses nothing and loops over nothing itself: it checks the options, loads the input,
+//! hands the run an observer (progress bar, `--frames`, Ctrl-C) and writes the outputs.
+//!
+//! * Landmark filters: `trajectory.tum` is the filter's full-SLAM path where it has one
+//!   (FastSLAM's best particle at the end, whose map is `landmarks.csv`), with the online
+//!   estimates in `trajectory-online.tum`; for the EKF, `trajectory.tum` is the online
 //!   estimates. `estimates.csv` holds the per-step Gaussian pose summary, covariance and
 //!   NEES ([`slam_io::estimates_csv`]). Outputs: `trajectory.tum`
 //!   [, `trajectory-online.tum`], `estimates.csv`, `landmarks.csv`, `map.png`,
 //!   `config.toml`, `metrics.json`.
-//! * Laser filters: `process` on every record in file order; the trajectory is the filter's
-//!   own, one pose per record. Outputs: `trajectory.tum`, `map.pgm` + `map.yaml`, `map.png`,
-//!   `config.toml`, `metrics.json`.
+//! * Laser filters: the trajectory is the filter's own, one pose per record. Outputs:
+//!   `trajectory.tum`, `map.pgm` + `map.yaml`, `map.png`, `config.toml`, `metrics.json`.
 //!
 //! Simulated runs also write the simulator's `ground_truth.tum`, so that both files can be
 //! handed to `evo` (docs/evaluation.md).
 //!
-//! Only the filter loop is timed (`wall_s`); reading the data and writing the outputs are not.
+//! Only the filter is timed (`wall_s`); reading the data, the observer and writing the
+//! outputs are not.
 //!
 //! Every option and the output folder are checked before the data is loaded; the outputs
 //! are staged and renamed into place with `metrics.json` last (see `outdir`), and Ctrl-C

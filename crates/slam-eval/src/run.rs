@@ -1,6 +1,6 @@
 //! Running a filter over a dataset and scoring it: the one loop every front end calls.
 //!
-//! * [`run_landmarks`]: for each [`LandmarkStep`](slam_models::LandmarkStep) in order,
+//! * [`run_landmarks`]: for each [`LandmarkStep`] in order,
 //!   `predict` with its control, then `update` with its observations; the pose after the
 //!   update is the online estimate at the step's time.
 //! * [`run_scans`]: `process` on every record in file order; the trajectory is the filter's
