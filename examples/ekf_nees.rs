@@ -14,9 +14,8 @@
 //! it over the first lap and the whole run.
 
 use slam_ekf::{EkfConfig, EkfSlam};
-use slam_eval::metrics::{chi2_band, nees_pose};
+use slam_eval::metrics::chi2_band;
 use slam_io::picture::{plot_series, Series, BLUE};
-use slam_models::LandmarkSlam;
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
 use std::path::PathBuf;
@@ -46,10 +45,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..EkfConfig::default()
         };
         let mut ekf = EkfSlam::new(config, r.dataset.initial_pose)?;
-        for (k, s) in r.dataset.steps.iter().enumerate() {
-            ekf.predict(&s.control)?;
-            ekf.update(&s.observations)?;
-            let e = nees_pose(&ekf.pose(), &ekf.pose_covariance(), &r.true_poses[k]);
+        // slam-eval's run gives each step's pose NEES against the simulator's true pose.
+        let run = slam_eval::run_landmarks(&mut ekf, &r.dataset, &Default::default())?;
+        for (k, row) in run.estimates.iter().enumerate() {
+            let e = row
+                .nees
+                .ok_or("the simulator has a true pose at every step")?;
             if avg.len() <= k {
                 avg.push(0.0);
             }

@@ -56,11 +56,9 @@ fn run_filter(
     seed: u64,
 ) -> (Pose2, Vec<LandmarkEstimate>) {
     let mut f = FastSlam::new(cfg, run.dataset.initial_pose, seed).expect("valid config");
-    for s in &run.dataset.steps {
-        f.predict(&s.control).expect("finite control");
-        f.update(&s.observations).expect("finite observations");
-    }
-    (f.pose(), f.landmarks())
+    let done = slam_eval::run_landmarks(&mut f, &run.dataset, &Default::default())
+        .expect("finite simulated data");
+    (f.pose(), done.landmarks)
 }
 
 fn main() {

@@ -9,7 +9,7 @@ use slam::grid::{
     InverseSensorModel, LikelihoodParams, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher,
     ScanMatchConfig, ScanMatchOdometry,
 };
-use slam::models::{normalize_angle, Pose2, ScanSlam, TimedPose};
+use slam::models::{normalize_angle, Pose2, TimedPose};
 use slam::sim::laser::LaserScanner;
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::SimOutput;
@@ -170,10 +170,9 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
         return;
     };
     let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).expect("config");
-    for rec in &data.records {
-        f.process(rec).expect("process");
-    }
-    let all = f.trajectory();
+    let all = slam::eval::run_scans(&mut f, &data, &Default::default())
+        .expect("run")
+        .trajectory;
     assert_eq!(all.len(), data.records.len());
     // The ground truth has one pose per scan; each scan shares its time with the ODOM record
     // before it, whose pose is the uncorrected prediction. Score the scan records.
