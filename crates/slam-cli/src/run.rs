@@ -728,22 +728,6 @@ fn run_scan(
     })
 }
 
-/// `x` with 3 decimals, or in scientific notation when huge (a diverged NEES).
-fn fmt_num(x: f64) -> String {
-    if x.abs() >= 1e5 {
-        format!("{x:.3e}")
-    } else {
-        format!("{x:.3}")
-    }
-}
-
-fn fmt_opt(v: Option<f64>, unit: &str) -> String {
-    match v {
-        Some(x) => format!("{}{unit}", fmt_num(x)),
-        None => "n/a".into(),
-    }
-}
-
 fn print_summary(
     out: &mut dyn Write,
     m: &Metrics,
@@ -751,60 +735,8 @@ fn print_summary(
     dir: &Path,
     files: &[PathBuf],
 ) {
-    let rtf = m
-        .real_time_factor
-        .map(|r| format!(", {r:.1}x real time"))
-        .unwrap_or_default();
-    let _ = writeln!(
-        out,
-        "{} on {}: {} steps in {} s ({:.0} steps/s{rtf}), peak memory {}",
-        m.filter,
-        m.dataset,
-        m.steps,
-        if m.wall_s < 1.0 {
-            format!("{:.3}", m.wall_s)
-        } else {
-            format!("{:.1}", m.wall_s)
-        },
-        m.steps_per_s.unwrap_or(0.0),
-        fmt_opt(m.peak_rss_mb, " MB"),
-    );
-    if m.ate_rmse_m.is_some() {
-        let _ = writeln!(
-            out,
-            "  ATE {} (aligned {}), RPE {} / {}",
-            fmt_opt(m.ate_rmse_m, " m"),
-            fmt_opt(m.ate_rmse_aligned_m, " m"),
-            fmt_opt(m.rpe_trans_mean_m, " m"),
-            fmt_opt(m.rpe_rot_mean_deg, " deg"),
-        );
-    }
-    if m.online_ate_rmse_m.is_some() && m.online_ate_rmse_m != m.ate_rmse_m {
-        let _ = writeln!(
-            out,
-            "  online estimates: ATE {} (aligned {}), RPE {} / {}",
-            fmt_opt(m.online_ate_rmse_m, " m"),
-            fmt_opt(m.online_ate_rmse_aligned_m, " m"),
-            fmt_opt(m.online_rpe_trans_mean_m, " m"),
-            fmt_opt(m.online_rpe_rot_mean_deg, " deg"),
-        );
-    }
-    if m.landmark_rmse_m.is_some() {
-        let _ = writeln!(
-            out,
-            "  landmarks RMSE {} (aligned {})",
-            fmt_opt(m.landmark_rmse_m, " m"),
-            fmt_opt(m.landmark_rmse_aligned_m, " m"),
-        );
-    }
-    if let Some(f) = m.nees_pose_in_band_fraction {
-        let _ = writeln!(
-            out,
-            "  pose NEES: {:.1} % of steps in the 95 % χ²(3) band, median {}, mean {} (consistent: 95 %, 2.366, 3)",
-            100.0 * f,
-            fmt_opt(m.nees_pose_median, ""),
-            fmt_opt(m.nees_pose_mean, ""),
-        );
+    for line in m.summary() {
+        let _ = writeln!(out, "{line}");
     }
     for note in notes {
         let _ = writeln!(out, "  {note}");

@@ -157,6 +157,64 @@ impl Metrics {
         serde_json::to_string_pretty(&m).unwrap_or_default()
     }
 
+    /// The figures for a person: one line of speed and memory, then one indented line each
+    /// for ATE/RPE, the online estimates (when they differ), the landmark map and pose NEES,
+    /// where computed (what `slam run` prints).
+    pub fn summary(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        let rtf = self
+            .real_time_factor
+            .map(|r| format!(", {r:.1}x real time"))
+            .unwrap_or_default();
+        lines.push(format!(
+            "{} on {}: {} steps in {} s ({:.0} steps/s{rtf}), peak memory {}",
+            self.filter,
+            self.dataset,
+            self.steps,
+            if self.wall_s < 1.0 {
+                format!("{:.3}", self.wall_s)
+            } else {
+                format!("{:.1}", self.wall_s)
+            },
+            self.steps_per_s.unwrap_or(0.0),
+            fmt_opt(self.peak_rss_mb, " MB"),
+        ));
+        if self.ate_rmse_m.is_some() {
+            lines.push(format!(
+                "  ATE {} (aligned {}), RPE {} / {}",
+                fmt_opt(self.ate_rmse_m, " m"),
+                fmt_opt(self.ate_rmse_aligned_m, " m"),
+                fmt_opt(self.rpe_trans_mean_m, " m"),
+                fmt_opt(self.rpe_rot_mean_deg, " deg"),
+            ));
+        }
+        if self.online_ate_rmse_m.is_some() && self.online_ate_rmse_m != self.ate_rmse_m {
+            lines.push(format!(
+                "  online estimates: ATE {} (aligned {}), RPE {} / {}",
+                fmt_opt(self.online_ate_rmse_m, " m"),
+                fmt_opt(self.online_ate_rmse_aligned_m, " m"),
+                fmt_opt(self.online_rpe_trans_mean_m, " m"),
+                fmt_opt(self.online_rpe_rot_mean_deg, " deg"),
+            ));
+        }
+        if self.landmark_rmse_m.is_some() {
+            lines.push(format!(
+                "  landmarks RMSE {} (aligned {})",
+                fmt_opt(self.landmark_rmse_m, " m"),
+                fmt_opt(self.landmark_rmse_aligned_m, " m"),
+            ));
+        }
+        if let Some(f) = self.nees_pose_in_band_fraction {
+            lines.push(format!(
+            "  pose NEES: {:.1} % of steps in the 95 % χ²(3) band, median {}, mean {} (consistent: 95 %, 2.366, 3)",
+            100.0 * f,
+            fmt_opt(self.nees_pose_median, ""),
+            fmt_opt(self.nees_pose_mean, ""),
+        ));
+        }
+        lines
+    }
+
     /// Writes the metrics as pretty JSON to `path`.
     pub fn write(&self, path: &Path) -> std::io::Result<()> {
         std::fs::write(path, self.to_json() + "\n")
@@ -179,6 +237,22 @@ fn parse_vm_hwm(status: &str) -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
+}
+
+/// `x` with 3 decimals, or in scientific notation when huge (a diverged NEES).
+fn fmt_num(x: f64) -> String {
+    if x.abs() >= 1e5 {
+        format!("{x:.3e}")
+    } else {
+        format!("{x:.3}")
+    }
+}
+
+fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+    match v {
+        Some(x) => format!("{}{unit}", fmt_num(x)),
+        None => "n/a".into(),
+    }
 }
 
 #[cfg(test)]
