@@ -5,7 +5,8 @@
 //! [`McapRecorder::landmark_step`] after each filter step and [`McapRecorder::finish`] with
 //! the run's result. Snapshots (`/trajectory`, `/map`, `/landmarks`) are taken every
 //! `--mcap-every` steps, by default about 100 per run; the time spent writing is output,
-//! not filtering, and is taken off the run's wall time ([`McapRecorder::elapsed`]).
+//! not filtering, and is taken off the run's wall time (the recorder runs in the run's
+//! observer, whose time slam-eval does not count).
 //!
 //! The file is refused, before any data is loaded ([`check_path`]), when it is one of the
 //! run's inputs or lies inside an input folder, lies inside the output folder (whose contents the run replaces), or exists
@@ -18,7 +19,6 @@ use slam_io::mcap_out::{McapRunOptions, McapRunWriter, RunEnd, RunStep};
 use slam_models::TimedPose;
 use slam_models::{GridMap, LandmarkEstimate, LandmarkSlam, Point2, Pose2, ScanRecord, ScanSlam};
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
 
 /// Snapshots per run when `--mcap-every` is not given.
 const DEFAULT_SNAPSHOTS: usize = 100;
@@ -95,8 +95,6 @@ pub(crate) fn check_path(
 pub(crate) struct McapRecorder {
     writer: McapRunWriter,
     path: PathBuf,
-    /// Time spent writing and taking snapshots.
-    spent: Duration,
 }
 
 impl McapRecorder {
@@ -120,13 +118,7 @@ impl McapRecorder {
         Ok(Some(McapRecorder {
             writer: McapRunWriter::create(path, options)?,
             path: path.clone(),
-            spent: Duration::ZERO,
         }))
-    }
-
-    /// Time spent writing so far (output, not filtering).
-    pub fn elapsed(&self) -> Duration {
-        self.spent
     }
 
     /// After a laser filter's `process(record)`: pose, odometry, scan, particles, and at
@@ -136,7 +128,6 @@ impl McapRecorder {
         record: &ScanRecord,
         filter: &dyn ScanSlam,
     ) -> Result<(), CliError> {
-        let t0 = Instant::now();
         let map = self.writer.snapshot_due().then(|| filter.map());
         let particles = filter.particles();
         self.writer.step(&RunStep {
@@ -148,7 +139,6 @@ impl McapRecorder {
             map: map.as_ref(),
             landmarks: None,
         })?;
-        self.spent += t0.elapsed();
         Ok(())
     }
 
@@ -160,7 +150,6 @@ impl McapRecorder {
         odometry: Option<Pose2>,
         filter: &dyn LandmarkSlam,
     ) -> Result<(), CliError> {
-        let t0 = Instant::now();
         let landmarks = self.writer.snapshot_due().then(|| filter.landmarks());
         let particles = filter.particles();
         self.writer.step(&RunStep {
@@ -172,7 +161,6 @@ impl McapRecorder {
             map: None,
             landmarks: landmarks.as_deref(),
         })?;
-        self.spent += t0.elapsed();
         Ok(())
     }
 

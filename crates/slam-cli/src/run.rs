@@ -555,7 +555,11 @@ fn run_landmark(
             files.push(p);
         }
     }
-    let mut notes: Vec<String> = built.noise_note.into_iter().chain(run.notes).collect();
+    let mut notes: Vec<String> = built
+        .noise_note
+        .into_iter()
+        .chain(run.notes.clone())
+        .collect();
     if let Some(r) = mcap {
         notes.push(r.finish(
             trajectory,
