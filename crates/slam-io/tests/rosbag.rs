@@ -484,7 +484,10 @@ fn sqlite_and_ros1_mistakes_are_errors_that_say_so() {
         ..Default::default()
     };
 
-    // sqlite3: no odometry, a message cut short, another encoding.
+    // sqlite3: not a bag, no odometry, a message cut short, another encoding.
+    let p = sql("bad-two-scans.db3", "other.db3", "DROP TABLE messages;");
+    let m = err_at(&p, &o);
+    assert!(m.contains("`topics` and `messages` tables"), "{m}");
     let p = sql(
         "bad-two-scans.db3",
         "no-odom.db3",

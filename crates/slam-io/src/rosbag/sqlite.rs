@@ -61,6 +61,19 @@ pub(crate) fn messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Re
     let db = Connection::open_with_flags(file, flags)
         .map_err(|e| IoError::invalid(file, e.to_string()))?;
     let sql_err = |topics: &Topics, e: rusqlite::Error| topics.damaged(file, BagFormat::Sqlite3, e);
+    let tables: i64 = db
+        .query_row(
+            "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name IN ('topics', 'messages')",
+            [],
+            |r| r.get(0),
+        )
+        .map_err(|e| sql_err(topics, e))?;
+    if tables != 2 {
+        return Err(IoError::invalid(
+            file,
+            "an SQLite database without rosbag2's `topics` and `messages` tables: not a ROS 2 bag",
+        ));
+    }
     // id → (name, type, serialization format)
     let mut by_id: BTreeMap<i64, (String, String, String)> = BTreeMap::new();
     {
