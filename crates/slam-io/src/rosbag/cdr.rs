@@ -15,7 +15,7 @@
 //! Every length is checked against the bytes that remain before anything is allocated, so
 //! a hostile count costs nothing.
 
-use super::wire::{nanos, DecodeError, Wire};
+use super::wire::{nanos, take, DecodeError, Wire};
 
 /// A cursor over one CDR-encoded message.
 pub(crate) struct Cdr<'a> {
@@ -72,15 +72,7 @@ impl<'a> Cdr<'a> {
     }
 
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
-        if n > self.remaining() {
-            return Err(self.err(format!(
-                "{what} ({n} byte(s)), only {} left (message truncated)",
-                self.remaining()
-            )));
-        }
-        let s = &self.body[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(s)
+        take(self.body, &mut self.pos, n, what).map_err(|w| self.err(w + " (message truncated)"))
     }
 
     fn bytes<const N: usize>(&mut self, what: &str) -> Result<[u8; N], DecodeError> {

@@ -63,7 +63,7 @@ pub(crate) fn sniff(path: &Path) -> Option<BagFormat> {
     let mut f = std::fs::File::open(path).ok()?;
     let n = std::io::Read::read(&mut f, &mut head).ok()?;
     let head = &head[..n];
-    if head.starts_with(&mcap::MAGIC[..]) {
+    if head.starts_with(mcap::MAGIC) {
         Some(BagFormat::Mcap)
     } else if head.starts_with(SQLITE_MAGIC) {
         Some(BagFormat::Sqlite3)

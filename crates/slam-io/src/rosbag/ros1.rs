@@ -38,10 +38,13 @@ const OP_CHUNK: u8 = 0x05;
 const OP_CHUNK_INFO: u8 = 0x06;
 const OP_CONNECTION: u8 = 0x07;
 
+/// A header field: its name and value.
+type Field<'a> = (&'a [u8], &'a [u8]);
+
 /// One record: where it starts, its header fields and its data.
 struct Record<'a> {
     at: usize,
-    fields: Vec<(&'a [u8], &'a [u8])>,
+    fields: Vec<Field<'a>>,
     data: &'a [u8],
 }
 
@@ -78,16 +81,10 @@ impl<'a> Record<'a> {
     }
 }
 
+/// `n` bytes of `buf` at `*pos`, or an error naming the byte.
 fn take<'a>(buf: &'a [u8], pos: &mut usize, n: usize, what: &str) -> Result<&'a [u8], String> {
-    let left = buf.len() - *pos;
-    if n > left {
-        return Err(format!(
-            "{what} at byte {pos} needs {n} byte(s), only {left} left"
-        ));
-    }
-    let s = &buf[*pos..*pos + n];
-    *pos += n;
-    Ok(s)
+    let at = *pos;
+    super::wire::take(buf, pos, n, what).map_err(|e| format!("at byte {at}: {e}"))
 }
 
 fn len(buf: &[u8], pos: &mut usize, what: &str) -> Result<usize, String> {
@@ -95,24 +92,12 @@ fn len(buf: &[u8], pos: &mut usize, what: &str) -> Result<usize, String> {
     Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
 }
 
-/// The record at `*pos` of `buf` (`base` is `buf`'s offset in the file, for messages).
-fn record<'a>(buf: &'a [u8], pos: &mut usize, base: usize) -> Result<Record<'a>, String> {
-    let at = base + *pos;
+/// The record at `*pos` of `buf` (the file, or a chunk's decompressed records).
+fn record<'a>(buf: &'a [u8], pos: &mut usize) -> Result<Record<'a>, String> {
+    let at = *pos;
     let n = len(buf, pos, "a record's header length")?;
-    let mut header = take(buf, pos, n, "a record header")?;
-    let mut fields = Vec::new();
-    while !header.is_empty() {
-        let mut hp = 0;
-        let n = len(header, &mut hp, "a header field's length")
-            .map_err(|e| format!("record at byte {at}: {e}"))?;
-        let f = take(header, &mut hp, n, "a header field")
-            .map_err(|e| format!("record at byte {at}: {e}"))?;
-        let Some(eq) = f.iter().position(|&b| b == b'=') else {
-            return Err(format!("record at byte {at}: a header field without `=`"));
-        };
-        fields.push((&f[..eq], &f[eq + 1..]));
-        header = &header[hp..];
-    }
+    let header = take(buf, pos, n, "a record header")?;
+    let fields = record_fields(header, &mut 0).map_err(|e| format!("record at byte {at}: {e}"))?;
     let n = len(buf, pos, "a record's data length")?;
     let data = take(buf, pos, n, "a record's data")?;
     Ok(Record { at, fields, data })
@@ -203,7 +188,7 @@ fn connection(r: &Record<'_>) -> Result<(u32, Connection), String> {
 }
 
 /// The `name=value` fields that fill `buf` (a connection record's data).
-fn record_fields<'a>(buf: &'a [u8], pos: &mut usize) -> Result<Vec<(&'a [u8], &'a [u8])>, String> {
+fn record_fields<'a>(buf: &'a [u8], pos: &mut usize) -> Result<Vec<Field<'a>>, String> {
     let mut out = Vec::new();
     while *pos < buf.len() {
         let n = len(buf, pos, "a field's length")?;
@@ -286,7 +271,7 @@ impl Reader<'_, '_> {
         let mut header: Option<(u64, u32, u32)> = None;
         let (mut chunks, mut chunk_infos) = (0u64, 0u64);
         while pos < buf.len() {
-            let r = record(buf, &mut pos, 0)?;
+            let r = record(buf, &mut pos)?;
             let op = r.op()?;
             if header.is_none() && op != OP_BAG_HEADER {
                 return Err(Stop::Damaged(format!(
@@ -308,7 +293,7 @@ impl Reader<'_, '_> {
                     let mut p = 0;
                     while p < data.len() {
                         let inside = |e: String| format!("inside the chunk at byte {}: {e}", r.at);
-                        let inner = record(&data, &mut p, 0).map_err(inside)?;
+                        let inner = record(&data, &mut p).map_err(inside)?;
                         self.record(topics, &inner).map_err(|e| match e {
                             Stop::Damaged(s) => Stop::Damaged(inside(s)),
                             other => other,

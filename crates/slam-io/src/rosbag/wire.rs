@@ -91,6 +91,23 @@ pub(crate) fn nanos<W: Wire + ?Sized>(w: &W, nsec: u32) -> Result<i64, DecodeErr
     Ok(i64::from(nsec))
 }
 
+/// The `n` bytes of `body` at `*pos` (then `*pos` moves past them), or, when fewer are
+/// left, what was expected.
+pub(crate) fn take<'a>(
+    body: &'a [u8],
+    pos: &mut usize,
+    n: usize,
+    what: &str,
+) -> Result<&'a [u8], String> {
+    let left = body.len() - *pos;
+    if n > left {
+        return Err(format!("{what} ({n} byte(s)), only {left} left"));
+    }
+    let s = &body[*pos..*pos + n];
+    *pos += n;
+    Ok(s)
+}
+
 /// A cursor over one ROS 1-serialised message.
 pub(crate) struct Ros1<'a> {
     body: &'a [u8],
@@ -104,15 +121,7 @@ impl<'a> Ros1<'a> {
     }
 
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
-        if n > self.remaining() {
-            return Err(self.err(format!(
-                "{what} ({n} byte(s)), only {} left (message truncated)",
-                self.remaining()
-            )));
-        }
-        let s = &self.body[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(s)
+        take(self.body, &mut self.pos, n, what).map_err(|w| self.err(w + " (message truncated)"))
     }
 
     fn bytes<const N: usize>(&mut self, what: &str) -> Result<[u8; N], DecodeError> {
