@@ -441,6 +441,22 @@ fn sqlite_and_ros1_tf_bags_give_the_same_records_and_the_static_mounting() {
             check_against_carmen(&r.dataset.records, c);
         }
     }
+    // ROS 1's older tf/tfMessage on /tf reads like tf2_msgs/TFMessage: its three scans are
+    // the records of the same stamps in the full bag.
+    let old = read("tf-old.bag", &d);
+    let tf = old.topics.iter().find(|t| t.topic == "/tf").unwrap();
+    assert_eq!(tf.msg_type, "tf/msg/tfMessage");
+    assert_eq!(old.laser_pose.1, "/tf_static");
+    let scans: Vec<&ScanRecord> = old
+        .dataset
+        .records
+        .iter()
+        .filter(|r| r.scan.is_some())
+        .collect();
+    assert_eq!(scans.len(), 3);
+    for r in scans {
+        assert!(mcap.dataset.records.contains(r), "{}", r.t);
+    }
 }
 
 /// A copy of a fixture in the scratch folder, changed by SQL (sqlite3 bags).
