@@ -225,7 +225,8 @@ pub(crate) struct Topics {
 }
 
 impl Topics {
-    fn new() -> Self {
+    /// No topic seen yet.
+    pub fn new() -> Self {
         Topics {
             map: BTreeMap::new(),
             read: 0,

@@ -355,3 +355,165 @@ pub(crate) fn messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Re
         Err(Stop::Damaged(why)) => Err(topics.damaged(file, BagFormat::Ros1, why)),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A record: header fields `name=value`, then the data, each with its length.
+    fn rec(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+        let mut h = Vec::new();
+        for (n, v) in fields {
+            h.extend((n.len() as u32 + 1 + v.len() as u32).to_le_bytes());
+            h.extend(n.as_bytes());
+            h.push(b'=');
+            h.extend(*v);
+        }
+        let mut r = (h.len() as u32).to_le_bytes().to_vec();
+        r.extend(h);
+        r.extend((data.len() as u32).to_le_bytes());
+        r.extend(data);
+        r
+    }
+
+    /// An unindexed bag holding `records` after its header.
+    fn bag(records: &[Vec<u8>]) -> Vec<u8> {
+        let mut b = MAGIC.to_vec();
+        b.extend(rec(
+            &[
+                ("op", &[OP_BAG_HEADER]),
+                ("index_pos", &0u64.to_le_bytes()),
+                ("conn_count", &0u32.to_le_bytes()),
+                ("chunk_count", &0u32.to_le_bytes()),
+            ],
+            &[],
+        ));
+        for r in records {
+            b.extend(r);
+        }
+        b
+    }
+
+    /// A message as read: topic, encoding, log time, data.
+    type Read = (String, String, u64, Vec<u8>);
+
+    /// The messages of `bytes`, or the error.
+    fn read(bytes: &[u8]) -> Result<Vec<Read>, String> {
+        let p = std::env::temp_dir().join(format!("slam-io-ros1-{}.bag", std::process::id()));
+        std::fs::write(&p, bytes).unwrap();
+        let mut out = Vec::new();
+        let mut topics = Topics::new();
+        let mut f = |m: RawMessage<'_>| {
+            out.push((
+                m.topic.to_string(),
+                m.encoding.to_string(),
+                m.log_time_ns,
+                m.data.to_vec(),
+            ));
+            Ok(())
+        };
+        let r = messages(&p, &mut topics, &mut f).map_err(|e| e.to_string());
+        let _ = std::fs::remove_file(&p);
+        r.map(|()| out)
+    }
+
+    fn conn(id: u32, topic: &str, ty: &str, md5: &str) -> Vec<u8> {
+        let data = rec(&[("type", ty.as_bytes()), ("md5sum", md5.as_bytes())], &[]);
+        // A connection's data is its fields alone (no data-length field of their own).
+        let fields = &data[4..data.len() - 4];
+        rec(
+            &[
+                ("op", &[OP_CONNECTION]),
+                ("conn", &id.to_le_bytes()),
+                ("topic", topic.as_bytes()),
+            ],
+            fields,
+        )
+    }
+
+    fn msg(id: u32, sec: u32, nsec: u32, data: &[u8]) -> Vec<u8> {
+        let mut t = sec.to_le_bytes().to_vec();
+        t.extend(nsec.to_le_bytes());
+        rec(
+            &[
+                ("op", &[OP_MSG_DATA]),
+                ("conn", &id.to_le_bytes()),
+                ("time", &t),
+            ],
+            data,
+        )
+    }
+
+    fn chunk(compression: &str, size: u32, data: &[u8]) -> Vec<u8> {
+        rec(
+            &[
+                ("op", &[OP_CHUNK]),
+                ("compression", compression.as_bytes()),
+                ("size", &size.to_le_bytes()),
+            ],
+            data,
+        )
+    }
+
+    #[test]
+    fn messages_in_and_out_of_chunks_with_their_connections() {
+        let md5 = "90c7ef2dc6895d81024acba2ac42f369";
+        let mut inner = conn(3, "/scan", "sensor_msgs/LaserScan", md5);
+        inner.extend(msg(3, 7, 5, b"abc"));
+        let b = bag(&[
+            chunk("none", inner.len() as u32, &inner),
+            conn(4, "/x", "sensor_msgs/LaserScan", "0123"),
+            msg(4, 1, 0, b"z"),
+        ]);
+        let m = read(&b).unwrap();
+        assert_eq!(
+            m,
+            vec![
+                (
+                    "/scan".into(),
+                    "ros1".into(),
+                    7_000_000_005,
+                    b"abc".to_vec()
+                ),
+                (
+                    "/x".into(),
+                    "ros1 md5sum 0123".into(),
+                    1_000_000_000,
+                    b"z".to_vec()
+                ),
+            ]
+        );
+        // A message before its connection.
+        let e = read(&bag(&[msg(9, 1, 0, b"z")])).unwrap_err();
+        assert!(
+            e.contains("connection 9, which no connection record"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn hostile_chunks_are_errors_before_any_allocation() {
+        let e = read(&bag(&[chunk("zip", 3, b"abc")])).unwrap_err();
+        assert!(
+            e.contains("compression \"zip\", expected none, bz2 or lz4"),
+            "{e}"
+        );
+        let e = read(&bag(&[chunk("bz2", u32::MAX, b"abc")])).unwrap_err();
+        assert!(
+            e.contains("4294967295 bytes uncompressed, more than the"),
+            "{e}"
+        );
+        let e = read(&bag(&[chunk("none", 4, b"abc")])).unwrap_err();
+        assert!(
+            e.contains("3 byte(s) after decompression, the header says 4"),
+            "{e}"
+        );
+        let e = read(&bag(&[chunk("lz4", 3, b"abc")])).unwrap_err();
+        assert!(
+            e.contains("truncated or corrupt ROS 1 bag (chunk at byte"),
+            "{e}"
+        );
+        let e = read(b"#ROSBAG V1.2\n").unwrap_err();
+        assert!(e.contains("only ROS 1 bag format 2.0"), "{e}");
+    }
+}
