@@ -551,11 +551,16 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
             (OdometrySource::Tf { parent, child }, poses)
         }
     };
-    let mut r = assemble(
-        path, topics, scan_topic, source, odom, scans, &statics, options,
-    )?;
-    r.format = bag.format;
-    Ok(r)
+    assemble(
+        path,
+        (bag.format, topics),
+        scan_topic,
+        source,
+        odom,
+        scans,
+        &statics,
+        options,
+    )
 }
 
 /// The `/tf` edge that is the odometry: `odom → X` when there is exactly one such edge,
@@ -613,7 +618,7 @@ fn static_chain(statics: &[StampedPose], base: &str, frame: &str) -> Option<Pose
 #[allow(clippy::too_many_arguments)]
 fn assemble(
     path: &Path,
-    topics: Vec<TopicInfo>,
+    (format, topics): (BagFormat, Vec<TopicInfo>),
     scan_topic: String,
     source: OdometrySource,
     mut odom: Vec<StampedPose>,
@@ -736,7 +741,7 @@ fn assemble(
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     Ok(RosBag {
-        format: BagFormat::Mcap,
+        format,
         dataset: ScanDataset {
             name,
             records: timed.into_iter().map(|(_, r)| r).collect(),
@@ -869,7 +874,7 @@ mod tests {
         let odom = vec![sp(0, 0.0, 0.0), sp(976_052_857_000_000_000, 1.0, 0.0)];
         let e = assemble(
             Path::new("x.mcap"),
-            vec![],
+            (BagFormat::Mcap, vec![]),
             "/scan".into(),
             OdometrySource::Topic("/odom".into()),
             odom,
