@@ -35,14 +35,14 @@ pub enum Command {
     Optimize(OptimizeArgs),
     /// List the filters and scenarios, and whether each is available in this build.
     List,
-    /// Say what a dataset holds (a ROS 2 bag's topics, counts, laser and odometry; a log's records).
+    /// Say what a dataset holds (a ROS bag's topics, counts, laser and odometry; a log's records).
     Info(InfoArgs),
 }
 
 /// `slam info`.
 #[derive(Debug, Clone, Args)]
 pub struct InfoArgs {
-    /// The dataset: an MCAP file, a rosbag2 folder, a CARMEN log, a Freiburg or MRCLAM folder.
+    /// The dataset: a ROS bag (.mcap, .db3, ROS 1 .bag, rosbag2 folder), a CARMEN log, a Freiburg or MRCLAM folder.
     #[arg(value_name = "PATH")]
     pub path: PathBuf,
 }
@@ -89,8 +89,8 @@ pub struct RunArgs {
     pub steps: Option<u64>,
 
     /// Dataset: a Freiburg folder (world.dat + sensor_data.dat), a CARMEN log (.log, .clf,
-    /// .gz), an MRCLAM folder (with --robot), or a ROS 2 bag (an .mcap file or a folder with
-    /// metadata.yaml).
+    /// .gz), an MRCLAM folder (with --robot), or a ROS bag (an .mcap or .db3 file, a folder
+    /// with metadata.yaml, or a ROS 1 .bag file).
     #[arg(long, value_name = "PATH")]
     pub dataset: Option<PathBuf>,
 
@@ -98,15 +98,15 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", requires = "dataset")]
     pub robot: Option<u32>,
 
-    /// ROS 2 bags: the sensor_msgs/msg/LaserScan topic (needed when there are several).
+    /// ROS bags: the sensor_msgs/msg/LaserScan topic (needed when there are several).
     #[arg(long, value_name = "TOPIC", requires = "dataset")]
     pub scan_topic: Option<String>,
 
-    /// ROS 2 bags: the nav_msgs/msg/Odometry topic, or /tf for the odom → base transform.
+    /// ROS bags: the nav_msgs/msg/Odometry topic, or /tf for the odom → base transform.
     #[arg(long, value_name = "TOPIC", requires = "dataset")]
     pub odom_topic: Option<String>,
 
-    /// ROS 2 bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
+    /// ROS bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
     /// radians); replaces /tf_static.
     #[arg(long, value_name = "X,Y,THETA", requires = "dataset", value_parser = laser_pose, allow_hyphen_values = true)]
     pub laser_pose: Option<slam_io::Pose2>,

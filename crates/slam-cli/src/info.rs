@@ -5,7 +5,7 @@ use crate::error::CliError;
 use std::io::Write;
 
 /// Writes slam-io's description of the dataset at `args.path` ([`slam_io::dataset_info`]):
-/// for a ROS 2 bag its topics, types, counts, rates, span, laser geometry and odometry
+/// for a ROS bag its topics, types, counts, rates, span, laser geometry and odometry
 /// sources; for the other formats their record counts and laser geometry.
 pub fn info(args: &InfoArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let text = slam_io::dataset_info(&args.path)?;

@@ -33,16 +33,20 @@ impl DatasetOptions {
     }
 }
 
-/// True when `path` is a ROS 2 bag: an MCAP file or a folder with `metadata.yaml`.
+/// True when `path` is a ROS bag: a folder with `metadata.yaml` (rosbag2), or a file that
+/// starts like an MCAP file, an SQLite database (rosbag2's `.db3`) or a ROS 1 bag.
 fn is_bag(path: &Path) -> bool {
     if path.is_dir() {
         return path.join("metadata.yaml").is_file();
     }
-    let mut magic = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-        .is_ok()
-        && magic == *b"\x89MCAP0\r\n"
+    let mut head = [0u8; 16];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+        .unwrap_or(0);
+    let head = &head[..n];
+    [&b"\x89MCAP0\r\n"[..], b"SQLite format 3\0", b"#ROSBAG V"]
+        .iter()
+        .any(|m| head.starts_with(m))
 }
 
 #[cfg(feature = "rosbag")]
@@ -61,7 +65,7 @@ fn open_bag(path: &Path, o: &DatasetOptions) -> Result<(Dataset, String), IoErro
 fn open_bag(path: &Path, _: &DatasetOptions) -> Result<(Dataset, String), IoError> {
     Err(IoError::invalid(
         path,
-        "a ROS 2 bag, but slam-io was built without its `rosbag` feature",
+        "a ROS bag, but slam-io was built without its `rosbag` feature",
     ))
 }
 
@@ -88,8 +92,9 @@ pub fn open_dataset(path: &Path, robot: Option<u32>) -> Result<(Dataset, String)
 
 /// Opens `path` and says in one line what was found.
 ///
-/// * an MCAP file (by its magic bytes) or a folder with `metadata.yaml` → a ROS 2 bag
-///   (`rosbag`, with the topic and mounting options);
+/// * an MCAP file, an SQLite file (`.db3`) or a ROS 1 bag (by their first bytes), or a
+///   folder with `metadata.yaml` → a ROS bag (`rosbag`, with the topic and mounting
+///   options);
 /// * a folder with `sensor_data.dat` → Freiburg course data ([`crate::freiburg`]);
 /// * a folder with `Barcodes.dat` → MRCLAM ([`crate::mrclam`]), robot `robot` (default 1);
 /// * a file → a CARMEN log, plain or gzip ([`crate::carmen`]).
@@ -120,7 +125,7 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
         if robot.is_some() {
             return Err(IoError::invalid(
                 path,
-                "--robot applies to MRCLAM folders; this is a ROS 2 bag",
+                "--robot applies to MRCLAM folders; this is a ROS bag",
             ));
         }
         return open_bag(path, o);
@@ -128,7 +133,10 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
     if let Some(flag) = o.bag_option() {
         return Err(IoError::invalid(
             path,
-            format!("{flag} applies to ROS 2 bags (MCAP files or folders with metadata.yaml)"),
+            format!(
+                "{flag} applies to ROS bags (MCAP, .db3 or ROS 1 .bag files, or folders with \
+                 metadata.yaml)"
+            ),
         ));
     }
     if path.is_dir() {
@@ -206,7 +214,7 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
     Ok((Dataset::Scan(log.dataset), msg))
 }
 
-/// A description of what the dataset at `path` holds, for `slam info`: for a ROS 2 bag its
+/// A description of what the dataset at `path` holds, for `slam info`: for a ROS bag its
 /// topics, types, counts, rates, span, laser geometry, odometry sources and static
 /// transforms; for a CARMEN log its record counts and laser geometry; for the landmark
 /// formats the line [`open_dataset`] prints.

@@ -3,8 +3,9 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories), [`g2o`] (2-D pose graphs, read and written), `rosbag` (ROS 2 bags:
-//!   MCAP files and rosbag2 folders, feature `rosbag`, on by default); [`open_dataset`]
+//!   trajectories), [`g2o`] (2-D pose graphs, read and written), `rosbag` (ROS bags:
+//!   ROS 2 MCAP and sqlite3 files and rosbag2 folders, ROS 1 bags; features `rosbag`,
+//!   `rosbag-sqlite`, `rosbag1`, on by default); [`open_dataset`]
 //!   picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],

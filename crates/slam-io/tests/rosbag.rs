@@ -1,10 +1,12 @@
-//! The ROS 2 bag reader against bags written by an independent writer (the Python `rosbags`
+//! The ROS bag reader against bags written by an independent writer (the Python `rosbags`
 //! package, `tests/fixtures/rosbag/make_fixtures.py`) from the start of the real Intel log:
-//! the truth is the CARMEN log itself, read by the CARMEN reader.
-#![cfg(feature = "rosbag")]
+//! the truth is the CARMEN log itself, read by the CARMEN reader. The same messages in every
+//! container (MCAP, sqlite3, ROS 1) must give the same records.
+// Every container's fixtures are read, so every bag feature is needed (all are default).
+#![cfg(all(feature = "rosbag", feature = "rosbag-sqlite", feature = "rosbag1"))]
 
 use slam_io::carmen::read_carmen;
-use slam_io::rosbag::{read_mcap, read_rosbag, BagOptions, OdometrySource};
+use slam_io::rosbag::{read_mcap, read_rosbag, BagFormat, BagOptions, OdometrySource, RosBag};
 use slam_io::{IoError, Pose2, ScanRecord};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -307,17 +309,23 @@ fn truncated_and_damaged_files_are_errors_not_panics() {
             assert!(e.contains(" message(s) read before the damage"), "{e}");
         }
     }
-    // Bytes changed anywhere in an uncompressed bag: an error or a reading, never a panic
-    // (a fixed pseudo-random sequence of positions, so the test is repeatable).
-    let clean = std::fs::read(fixture("bad-two-scans.mcap")).unwrap();
-    let mut state = 0x2545_f491_4f6c_dd1du64;
+    assert!(damaged("bad-two-scans.mcap", 300, 0x2545_f491_4f6c_dd1d) > 0);
+}
+
+/// Reads `runs` copies of the fixture `name`, each with 4 bytes changed anywhere (a fixed
+/// xorshift sequence from `seed`, so the test is repeatable): each read must return, an
+/// error or a dataset, never panic. Returns how many were errors.
+fn damaged(name: &str, runs: usize, seed: u64) -> usize {
+    let clean = std::fs::read(fixture(name)).unwrap();
+    let p = temp(&format!("damaged-{name}"));
     let o = BagOptions {
         scan_topic: Some("/scan".into()),
         laser_pose: Some(Pose2::IDENTITY),
         ..Default::default()
     };
+    let mut state = seed;
     let mut errors = 0;
-    for _ in 0..300 {
+    for _ in 0..runs {
         let mut b = clean.clone();
         for _ in 0..4 {
             state ^= state << 13;
@@ -331,22 +339,300 @@ fn truncated_and_damaged_files_are_errors_not_panics() {
             errors += 1;
         }
     }
-    assert!(errors > 0);
+    errors
 }
 
 #[test]
-fn sqlite_storage_and_foreign_folders_are_refused_by_name() {
-    let d = temp("sqlite-bag");
+fn foreign_storage_and_whole_file_compression_are_refused_by_name() {
+    let d = temp("foreign-bag");
     std::fs::create_dir_all(&d).unwrap();
-    std::fs::write(
-        d.join("metadata.yaml"),
-        "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n  relative_file_paths:\n  - x_0.db3\n",
-    )
-    .unwrap();
+    std::fs::copy(fixture("intel-tf.db3"), d.join("x_0.db3")).unwrap();
+    let meta = |storage: &str, mode: &str| {
+        std::fs::write(
+            d.join("metadata.yaml"),
+            format!(
+                "rosbag2_bagfile_information:\n  compression_format: zstd\n  compression_mode: \
+                 {mode}\n  storage_identifier: {storage}\n  relative_file_paths:\n  - x_0.db3\n"
+            ),
+        )
+        .unwrap()
+    };
+    meta("leveldb", "''");
     let e = read_mcap(&d).unwrap_err();
     assert!(matches!(e, IoError::Invalid { .. }));
     assert!(
-        e.to_string().contains("\"sqlite3\" is not supported"),
+        e.to_string().contains("\"leveldb\" is not supported"),
         "{e}"
     );
+    meta("sqlite3", "file");
+    let e = read_mcap(&d).unwrap_err().to_string();
+    assert!(e.contains("compression_mode file"), "{e}");
+    // The same folder without compression reads like the bare file.
+    meta("sqlite3", "''");
+    let a = read_rosbag(&d, &BagOptions::default()).unwrap();
+    let b = read_rosbag(&fixture("intel-tf.db3"), &BagOptions::default()).unwrap();
+    assert_eq!(a.dataset.records, b.dataset.records);
+}
+
+/// Every container of the same messages: (fixture, its container, its odometry source).
+const ODOM_BAGS: [(&str, BagFormat); 3] = [
+    ("intel-odom.mcap", BagFormat::Mcap),
+    ("intel-odom-db3", BagFormat::Sqlite3),
+    ("intel-odom.bag", BagFormat::Ros1),
+];
+const TF_BAGS: [(&str, BagFormat); 3] = [
+    ("intel-tf", BagFormat::Mcap),
+    ("intel-tf.db3", BagFormat::Sqlite3),
+    ("intel-tf.bag", BagFormat::Ros1),
+];
+
+fn read(name: &str, o: &BagOptions) -> RosBag {
+    read_rosbag(&fixture(name), o).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+#[test]
+fn sqlite_and_ros1_odometry_bags_give_the_carmen_records() {
+    let opts = BagOptions {
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+    let carmen = source();
+    let mcap = read("intel-odom.mcap", &opts);
+    for (name, format) in ODOM_BAGS {
+        let r = read(name, &opts);
+        assert_eq!(r.format, format, "{name}");
+        assert_eq!(r.scan_topic, "/scan");
+        assert_eq!(r.odometry, OdometrySource::Topic("/odom".into()));
+        assert_eq!(r.no_return_readings, mcap.no_return_readings);
+        assert_eq!(r.invalid_readings, 0);
+        // The same float32 readings and float64 poses in every container: equal records.
+        assert_eq!(r.dataset.records, mcap.dataset.records, "{name}");
+        let line = r.summary(&fixture(name));
+        assert!(
+            line.starts_with(format.ros()) && line.contains("40 scans"),
+            "{line}"
+        );
+        if let Some(c) = &carmen {
+            check_against_carmen(&r.dataset.records, c);
+        }
+    }
+}
+
+#[test]
+fn sqlite_and_ros1_tf_bags_give_the_same_records_and_the_static_mounting() {
+    let d = BagOptions::default();
+    let mcap = read("intel-tf", &d);
+    let mount = Pose2::new(MOUNT.0, MOUNT.1, MOUNT.2);
+    let carmen = source();
+    for (name, format) in TF_BAGS {
+        let r = read(name, &d);
+        assert_eq!(r.format, format, "{name}");
+        assert_eq!(
+            r.odometry,
+            OdometrySource::Tf {
+                parent: "odom".into(),
+                child: "base_link".into()
+            }
+        );
+        assert_eq!(r.laser_pose.1, "/tf_static");
+        assert_pose(&r.laser_pose.0, &mount, 1e-12, name);
+        assert_eq!(r.dataset.records, mcap.dataset.records, "{name}");
+        if let Some(c) = &carmen {
+            check_against_carmen(&r.dataset.records, c);
+        }
+    }
+    // ROS 1's older tf/tfMessage on /tf reads like tf2_msgs/TFMessage: its three scans are
+    // the records of the same stamps in the full bag.
+    let old = read("tf-old.bag", &d);
+    let tf = old.topics.iter().find(|t| t.topic == "/tf").unwrap();
+    assert_eq!(tf.msg_type, "tf/msg/tfMessage");
+    assert_eq!(old.laser_pose.1, "/tf_static");
+    let scans: Vec<&ScanRecord> = old
+        .dataset
+        .records
+        .iter()
+        .filter(|r| r.scan.is_some())
+        .collect();
+    assert_eq!(scans.len(), 3);
+    for r in scans {
+        assert!(mcap.dataset.records.contains(r), "{}", r.t);
+    }
+}
+
+/// A copy of a fixture in the scratch folder, changed by SQL (sqlite3 bags).
+fn sql(name: &str, new: &str, statement: &str) -> PathBuf {
+    let p = temp(new);
+    std::fs::copy(fixture(name), &p).unwrap();
+    let db = rusqlite::Connection::open(&p).unwrap();
+    db.execute_batch(statement).unwrap();
+    drop(db);
+    p
+}
+
+fn err_at(p: &Path, o: &BagOptions) -> String {
+    match read_rosbag(p, o) {
+        Ok(_) => panic!("{} read without error", p.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn sqlite_and_ros1_mistakes_are_errors_that_say_so() {
+    let d = BagOptions::default();
+    for name in ["bad-two-scans.db3", "bad-two-scans.bag"] {
+        let m = err(name, &d);
+        assert!(
+            m.contains("/scan, /scan_rear") && m.contains("--scan-topic"),
+            "{m}"
+        );
+        let o = BagOptions {
+            scan_topic: Some("/scan_rear".into()),
+            laser_pose: Some(Pose2::IDENTITY),
+            ..Default::default()
+        };
+        let r = read_rosbag(&fixture(name), &o).unwrap();
+        assert_eq!(r.scan_topic, "/scan_rear");
+        assert_eq!(
+            r.dataset
+                .records
+                .iter()
+                .filter(|r| r.scan.is_some())
+                .count(),
+            3
+        );
+    }
+    let o = BagOptions {
+        scan_topic: Some("/scan".into()),
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+
+    // sqlite3: not a bag, no odometry, a message cut short, another encoding.
+    let p = sql("bad-two-scans.db3", "other.db3", "DROP TABLE messages;");
+    let m = err_at(&p, &o);
+    assert!(m.contains("`topics` and `messages` tables"), "{m}");
+    let p = sql(
+        "bad-two-scans.db3",
+        "no-odom.db3",
+        "DELETE FROM messages WHERE topic_id = (SELECT id FROM topics WHERE name = '/odom');
+         DELETE FROM topics WHERE name = '/odom';",
+    );
+    let m = err_at(&p, &o);
+    assert!(m.contains("no odometry") && m.contains("/tf"), "{m}");
+    let p = sql(
+        "bad-two-scans.db3",
+        "cut.db3",
+        "UPDATE messages SET data = substr(data, 1, 40) WHERE id = (SELECT id FROM messages
+         WHERE topic_id = (SELECT id FROM topics WHERE name = '/scan') ORDER BY id LIMIT 1 OFFSET 1);",
+    );
+    let m = err_at(&p, &o);
+    assert!(
+        m.contains("topic /scan: message 2")
+            && m.contains("does not decode as sensor_msgs/msg/LaserScan")
+            && m.contains("of the CDR body"),
+        "{m}"
+    );
+    let p = sql(
+        "bad-two-scans.db3",
+        "json.db3",
+        "UPDATE topics SET serialization_format = 'json' WHERE name = '/scan';",
+    );
+    let m = err_at(&p, &o);
+    assert!(
+        m.contains("topic /scan") && m.contains("\"json\"") && m.contains("expected cdr"),
+        "{m}"
+    );
+
+    // ROS 1: no odometry, a message cut short, another LaserScan definition (md5sum).
+    let m = err("bad-no-odom.bag", &d);
+    assert!(m.contains("no odometry") && m.contains("/tf"), "{m}");
+    let m = err("bad-corrupt.bag", &o);
+    assert!(
+        m.contains("topic /scan: message 2")
+            && m.contains("does not decode as sensor_msgs/msg/LaserScan")
+            && m.contains("of the ROS 1 body"),
+        "{m}"
+    );
+    let md5 = b"90c7ef2dc6895d81024acba2ac42f369";
+    let mut bytes = std::fs::read(fixture("bad-two-scans.bag")).unwrap();
+    let mut patched = 0;
+    for k in 0..bytes.len() - md5.len() {
+        if &bytes[k..k + md5.len()] == md5 {
+            bytes[k..k + md5.len()].copy_from_slice(b"00000000000000000000000000000000");
+            patched += 1;
+        }
+    }
+    assert!(patched >= 2, "the LaserScan md5sum of both scan topics");
+    let p = temp("md5.bag");
+    std::fs::write(&p, &bytes).unwrap();
+    let m = err_at(&p, &o);
+    assert!(
+        m.contains("topic /scan")
+            && m.contains("md5sum 00000000000000000000000000000000")
+            && m.contains("expected 90c7ef2dc6895d81024acba2ac42f369"),
+        "{m}"
+    );
+}
+
+#[test]
+fn truncated_sqlite_and_ros1_bags_are_errors_that_say_how_far_reading_got() {
+    for (name, what) in [
+        ("intel-tf.db3", "truncated or corrupt sqlite3"),
+        ("intel-odom.bag", "truncated or corrupt ROS 1 bag"),
+        ("intel-tf.bag", "truncated or corrupt ROS 1 bag"),
+    ] {
+        let bytes = std::fs::read(fixture(name)).unwrap();
+        let p = temp(&format!("cut-{name}"));
+        let mut got_far = false;
+        for k in 1..40 {
+            let len = bytes.len() * k / 40;
+            std::fs::write(&p, &bytes[..len]).unwrap();
+            let e = err_at(&p, &BagOptions::default());
+            assert!(
+                e.contains(what) || e.contains("not a bag"),
+                "{name} cut at {len}: {e}"
+            );
+            got_far |= e.contains("message(s) read before the damage")
+                && !e.contains(" 0 message(s)")
+                && e.contains("the last logged at");
+        }
+        // The ROS 1 reader reads up to the damage; SQLite's pages are checked first.
+        if name.ends_with(".bag") {
+            assert!(got_far, "{name}: no cut reported messages read");
+        }
+    }
+    // The index of a ROS 1 bag cut away whole, at its `index_pos` (a cut between records,
+    // every message still there): still an error.
+    let bytes = std::fs::read(fixture("bad-two-scans.bag")).unwrap();
+    let key = b"index_pos=";
+    let k = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len();
+    let index_pos = u64::from_le_bytes(bytes[k..k + 8].try_into().unwrap()) as usize;
+    assert!(index_pos > 4096 && index_pos < bytes.len());
+    let p = temp("no-index.bag");
+    std::fs::write(&p, &bytes[..index_pos]).unwrap();
+    let e = err_at(&p, &BagOptions::default());
+    assert!(
+        e.contains("truncated or corrupt ROS 1 bag") && e.contains("0 chunk-info record(s)"),
+        "{e}"
+    );
+    // The same bytes as an unindexed bag (`index_pos` 0, as rosbag leaves a recording that
+    // was cut short): every message is read.
+    let mut unindexed = bytes[..index_pos].to_vec();
+    unindexed[k..k + 8].copy_from_slice(&0u64.to_le_bytes());
+    std::fs::write(&p, &unindexed).unwrap();
+    let o = BagOptions {
+        scan_topic: Some("/scan".into()),
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+    let a = read_rosbag(&p, &o).unwrap();
+    let b = read_rosbag(&fixture("bad-two-scans.bag"), &o).unwrap();
+    assert_eq!(a.dataset.records, b.dataset.records);
+    assert_eq!(a.topics, b.topics);
+}
+
+#[test]
+fn damaged_sqlite_and_ros1_bags_never_panic() {
+    assert!(damaged("bad-two-scans.bag", 300, 0x9e37_79b9_7f4a_7c15) > 0);
+    assert!(damaged("bad-two-scans.db3", 100, 0x6a09_e667_f3bc_c908) > 0);
 }

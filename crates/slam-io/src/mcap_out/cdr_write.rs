@@ -92,6 +92,7 @@ impl CdrWriter {
 mod tests {
     use super::*;
     use crate::rosbag::cdr::Cdr;
+    use crate::rosbag::wire::Wire;
 
     /// The decoder of the bag reader reads back what the encoder wrote, alignment included.
     #[test]

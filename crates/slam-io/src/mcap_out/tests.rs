@@ -4,7 +4,8 @@
 //! fixtures of the bag reader).
 
 use super::*;
-use crate::rosbag::cdr::{Cdr, CdrError};
+use crate::rosbag::cdr::Cdr;
+use crate::rosbag::wire::{DecodeError, Wire};
 use slam_models::{LandmarkId, Matrix2};
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -17,19 +18,19 @@ fn scratch(name: &str) -> PathBuf {
 
 // ---- decoders of the messages the writer emits (test only) ----
 
-fn d_stamp(c: &mut Cdr<'_>) -> Result<Stamp, CdrError> {
+fn d_stamp(c: &mut Cdr<'_>) -> Result<Stamp, DecodeError> {
     let sec = c.i32("sec")?;
     let nanosec = c.u32("nanosec")?;
     assert!(nanosec < 1_000_000_000);
     Ok(Stamp { sec, nanosec })
 }
 
-fn d_header(c: &mut Cdr<'_>) -> Result<(Stamp, String), CdrError> {
+fn d_header(c: &mut Cdr<'_>) -> Result<(Stamp, String), DecodeError> {
     Ok((d_stamp(c)?, c.string("frame_id")?))
 }
 
 /// A pose that must lie in the plane: z = 0 and a rotation about z only.
-fn d_pose(c: &mut Cdr<'_>) -> Result<Pose2, CdrError> {
+fn d_pose(c: &mut Cdr<'_>) -> Result<Pose2, DecodeError> {
     let (x, y, z) = (c.f64("x")?, c.f64("y")?, c.f64("z")?);
     let (qx, qy, qz, qw) = (c.f64("qx")?, c.f64("qy")?, c.f64("qz")?, c.f64("qw")?);
     assert_eq!((z, qx, qy), (0.0, 0.0, 0.0));
@@ -357,7 +358,7 @@ fn every_message_reads_back_with_its_values() {
         assert_eq!((s, frame.as_str()), (stamp(k), MAP_FRAME));
         assert!((p.x - pose_of(k).x).abs() < 1e-12 && (p.y - pose_of(k).y).abs() < 1e-12);
         assert!(normalize(p.theta - pose_of(k).theta).abs() < 1e-12);
-        let tf = crate::rosbag::msgs::tf_message(tf).unwrap();
+        let tf = crate::rosbag::msgs::tf_message("cdr", tf).unwrap();
         assert_eq!(tf.len(), 2);
         assert_eq!(
             (tf[0].parent.as_str(), tf[0].child.as_str()),
@@ -372,7 +373,7 @@ fn every_message_reads_back_with_its_values() {
         assert!(normalize(base.theta - pose_of(k).theta).abs() < 1e-9);
         assert!((tf[1].pose.x - odom_of(k).x).abs() < 1e-12);
     }
-    let mount = crate::rosbag::msgs::tf_message(&seen["/tf_static"][0].1).unwrap();
+    let mount = crate::rosbag::msgs::tf_message("cdr", &seen["/tf_static"][0].1).unwrap();
     assert_eq!(
         (mount[0].parent.as_str(), mount[0].child.as_str()),
         ("base_link", "laser")
@@ -383,7 +384,7 @@ fn every_message_reads_back_with_its_values() {
     let scan_steps: Vec<usize> = (0..STEPS).filter(|k| k % 5 != 4).collect();
     for (&k, (t, b)) in scan_steps.iter().zip(&seen["/scan"]) {
         assert_eq!(*t, stamp(k).ns());
-        let m = crate::rosbag::msgs::laser_scan(b).unwrap();
+        let m = crate::rosbag::msgs::laser_scan("cdr", b).unwrap();
         let s = scan(k);
         assert_eq!(m.header.frame_id, LASER_FRAME);
         assert_eq!(m.header.stamp_ns as u64, stamp(k).ns());
@@ -626,7 +627,7 @@ fn encoder_matches_the_rosbags_writer() {
         let m = m.unwrap();
         let raw = &m.data[..];
         if m.channel.topic == "/scan" {
-            let d = crate::rosbag::msgs::laser_scan(raw).unwrap();
+            let d = crate::rosbag::msgs::laser_scan("cdr", raw).unwrap();
             let s = LaserScan {
                 angle_min: d.angle_min,
                 angle_increment: d.angle_increment,
@@ -649,7 +650,7 @@ fn encoder_matches_the_rosbags_writer() {
             assert_eq!(mine[at + 4..], raw[at + 4..]);
             scans += 1;
         } else {
-            let d = crate::rosbag::msgs::tf_message(raw).unwrap();
+            let d = crate::rosbag::msgs::tf_message("cdr", raw).unwrap();
             let ts: Vec<Transform<'_>> = d
                 .iter()
                 .map(|p| Transform {

@@ -15,23 +15,7 @@
 //! Every length is checked against the bytes that remain before anything is allocated, so
 //! a hostile count costs nothing.
 
-use std::fmt;
-
-/// Why a message did not decode: the body offset (after the 4-byte header) and what was
-/// expected there.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct CdrError {
-    /// Byte offset in the CDR body where decoding stopped.
-    pub offset: usize,
-    /// What was expected, in words.
-    pub what: String,
-}
-
-impl fmt::Display for CdrError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "at byte {} of the CDR body: {}", self.offset, self.what)
-    }
-}
+use super::wire::{nanos, take, DecodeError, Wire};
 
 /// A cursor over one CDR-encoded message.
 pub(crate) struct Cdr<'a> {
@@ -42,10 +26,11 @@ pub(crate) struct Cdr<'a> {
 
 impl<'a> Cdr<'a> {
     /// Reads the encapsulation header of `data` and positions the cursor at the body.
-    pub fn new(data: &'a [u8]) -> Result<Self, CdrError> {
+    pub fn new(data: &'a [u8]) -> Result<Self, DecodeError> {
         if data.len() < 4 {
-            return Err(CdrError {
+            return Err(DecodeError {
                 offset: 0,
+                wire: "CDR",
                 what: format!(
                     "a 4-byte CDR encapsulation header, found a message of {} byte(s)",
                     data.len()
@@ -56,8 +41,9 @@ impl<'a> Cdr<'a> {
             (0, 0) => false,
             (0, 1) => true,
             (a, b) => {
-                return Err(CdrError {
+                return Err(DecodeError {
                     offset: 0,
+                    wire: "CDR",
                     what: format!(
                         "encapsulation CDR_BE (00 00) or CDR_LE (00 01), found {a:02x} {b:02x} \
                          (parameter-list and XCDR2 encodings are not supported)"
@@ -72,21 +58,8 @@ impl<'a> Cdr<'a> {
         })
     }
 
-    /// An error at the cursor.
-    pub fn err(&self, what: impl Into<String>) -> CdrError {
-        CdrError {
-            offset: self.pos,
-            what: what.into(),
-        }
-    }
-
-    /// Bytes left after the cursor.
-    pub fn remaining(&self) -> usize {
-        self.body.len() - self.pos
-    }
-
     /// Skips the padding before a primitive of size `n`.
-    fn align(&mut self, n: usize) -> Result<(), CdrError> {
+    fn align(&mut self, n: usize) -> Result<(), DecodeError> {
         let pad = (n - self.pos % n) % n;
         if pad > self.remaining() {
             return Err(self.err(format!(
@@ -98,19 +71,11 @@ impl<'a> Cdr<'a> {
         Ok(())
     }
 
-    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], CdrError> {
-        if n > self.remaining() {
-            return Err(self.err(format!(
-                "{what} ({n} byte(s)), only {} left (message truncated)",
-                self.remaining()
-            )));
-        }
-        let s = &self.body[self.pos..self.pos + n];
-        self.pos += n;
-        Ok(s)
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
+        take(self.body, &mut self.pos, n, what).map_err(|w| self.err(w + " (message truncated)"))
     }
 
-    fn bytes<const N: usize>(&mut self, what: &str) -> Result<[u8; N], CdrError> {
+    fn bytes<const N: usize>(&mut self, what: &str) -> Result<[u8; N], DecodeError> {
         self.align(N)?;
         let s = self.take(N, what)?;
         let mut b = [0u8; N];
@@ -122,28 +87,48 @@ impl<'a> Cdr<'a> {
         Ok(b)
     }
 
+    /// A `uint8` (`int8` and `bool` are read as their byte); used by the run writer's tests.
+    #[cfg(test)]
+    pub fn u8(&mut self, what: &str) -> Result<u8, DecodeError> {
+        Ok(self.take(1, what)?[0])
+    }
+}
+
+impl Wire for Cdr<'_> {
+    fn err(&self, what: String) -> DecodeError {
+        DecodeError {
+            offset: self.pos,
+            what,
+            wire: "CDR",
+        }
+    }
+
+    fn remaining(&self) -> usize {
+        self.body.len() - self.pos
+    }
+
     /// A `uint32`.
-    pub fn u32(&mut self, what: &str) -> Result<u32, CdrError> {
+    fn u32(&mut self, what: &str) -> Result<u32, DecodeError> {
         Ok(u32::from_be_bytes(self.bytes::<4>(what)?))
     }
 
     /// An `int32`.
-    pub fn i32(&mut self, what: &str) -> Result<i32, CdrError> {
+    fn i32(&mut self, what: &str) -> Result<i32, DecodeError> {
         Ok(i32::from_be_bytes(self.bytes::<4>(what)?))
     }
 
     /// A `float32`, widened to `f64` (exactly).
-    pub fn f32(&mut self, what: &str) -> Result<f64, CdrError> {
+    fn f32(&mut self, what: &str) -> Result<f64, DecodeError> {
         Ok(f64::from(f32::from_be_bytes(self.bytes::<4>(what)?)))
     }
 
     /// A `float64`.
-    pub fn f64(&mut self, what: &str) -> Result<f64, CdrError> {
+    fn f64(&mut self, what: &str) -> Result<f64, DecodeError> {
         Ok(f64::from_be_bytes(self.bytes::<8>(what)?))
     }
 
     /// A `string` (UTF-8; the length counts the terminating NUL).
-    pub fn string(&mut self, what: &str) -> Result<String, CdrError> {
+    fn string(&mut self, what: &str) -> Result<String, DecodeError> {
         let n = self.u32(&format!("the length of {what}"))? as usize;
         if n == 0 {
             // Not valid CDR (the NUL is counted), but some writers emit it for "".
@@ -152,51 +137,29 @@ impl<'a> Cdr<'a> {
         let start = self.pos;
         let s = self.take(n, what)?;
         if s[n - 1] != 0 {
-            return Err(CdrError {
+            return Err(DecodeError {
                 offset: start + n - 1,
                 what: format!("the NUL that ends {what}"),
+                wire: "CDR",
             });
         }
-        String::from_utf8(s[..n - 1].to_vec()).map_err(|_| CdrError {
+        String::from_utf8(s[..n - 1].to_vec()).map_err(|_| DecodeError {
             offset: start,
             what: format!("{what} in UTF-8"),
+            wire: "CDR",
         })
     }
 
-    /// A sequence count whose elements take at least `min_size` bytes each: a count that
-    /// cannot fit in the bytes left is an error before anything is allocated.
-    pub fn count(&mut self, what: &str, min_size: usize) -> Result<usize, CdrError> {
-        let n = self.u32(&format!("the element count of {what}"))? as usize;
-        let need = n.saturating_mul(min_size.max(1));
-        if need > self.remaining() {
-            return Err(self.err(format!(
-                "{what}: {n} element(s) of at least {min_size} byte(s), only {} byte(s) left",
-                self.remaining()
-            )));
-        }
-        Ok(n)
-    }
-
-    /// A `float32[]` sequence, widened to `f64`.
-    pub fn seq_f32(&mut self, what: &str) -> Result<Vec<f64>, CdrError> {
-        let n = self.count(what, 4)?;
-        let mut v = Vec::with_capacity(n);
-        for _ in 0..n {
-            v.push(self.f32(what)?);
-        }
-        Ok(v)
-    }
-
-    /// A `uint8` (`int8` and `bool` are read as their byte); used by the run writer's tests.
-    #[cfg(test)]
-    pub fn u8(&mut self, what: &str) -> Result<u8, CdrError> {
-        Ok(self.take(1, what)?[0])
-    }
-
     /// Skips a fixed-size `float64[n]` array.
-    pub fn skip_f64s(&mut self, n: usize, what: &str) -> Result<(), CdrError> {
+    fn skip_f64s(&mut self, n: usize, what: &str) -> Result<(), DecodeError> {
         self.align(8)?;
         self.take(8 * n, what).map(|_| ())
+    }
+
+    fn header_stamp(&mut self) -> Result<i64, DecodeError> {
+        let sec = self.i32("header.stamp.sec")?;
+        let nsec = self.u32("header.stamp.nanosec")?;
+        Ok(i64::from(sec) * 1_000_000_000 + nanos(self, nsec)?)
     }
 }
 

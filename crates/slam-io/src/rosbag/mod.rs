@@ -1,11 +1,17 @@
-//! ROS 2 bags: MCAP files and rosbag2 folders (`metadata.yaml` + MCAP storage) → the same
-//! [`ScanDataset`] as a CARMEN log gives.
+//! ROS bags → the same [`ScanDataset`] as a CARMEN log gives, whatever the container: ROS 2
+//! MCAP files, ROS 2 sqlite3 files (`.db3`), rosbag2 folders (`metadata.yaml` + MCAP or
+//! sqlite3 storage) and ROS 1 bags (`.bag`, format 2.0).
 //!
-//! **Container.** MCAP, read with Foxglove's `mcap` crate (chunks uncompressed, zstd or
-//! lz4). A rosbag2 folder is read through its `metadata.yaml` (`storage_identifier: mcap`,
-//! the files of `relative_file_paths` in order); sqlite3 storage is refused with an error
-//! that names it. Messages must be CDR-encoded ROS 2 messages (little or big endian), read
-//! by a small decoder of this module (`cdr.rs`).
+//! **Containers** (`container.rs`), each reduced to a stream of (topic, type, encoding, log
+//! time, bytes) so that everything below is shared: MCAP through Foxglove's `mcap` crate
+//! (chunks uncompressed, zstd or lz4; feature `rosbag`); sqlite3 through SQLite (rusqlite,
+//! `sqlite.rs`; feature `rosbag-sqlite`); ROS 1 bags by a reader of this module (`ros1.rs`;
+//! chunks uncompressed, bz2 or lz4; feature `rosbag1`). A rosbag2 folder is read through its
+//! `metadata.yaml` (`storage_identifier`, the files of `relative_file_paths` in order, and
+//! `compression_mode: message` with zstd, which compresses each message). A file's
+//! container is found from its first bytes, not its name. Messages must be CDR-encoded ROS 2
+//! messages (little or big endian, `cdr.rs`) or ROS 1-serialised messages (`wire.rs`), one
+//! decoder per message type for both (`msgs.rs`).
 //!
 //! **Topics.** The scans are the one `sensor_msgs/msg/LaserScan` topic (or `scan_topic`).
 //! Odometry is the one `nav_msgs/msg/Odometry` topic (or `odom_topic`); when the bag has
@@ -47,11 +53,16 @@
 pub(crate) mod cdr;
 mod container;
 pub(crate) mod msgs;
+#[cfg(feature = "rosbag1")]
+mod ros1;
+#[cfg(feature = "rosbag-sqlite")]
+mod sqlite;
+pub(crate) mod wire;
 
-pub use container::TopicInfo;
+pub use container::{BagFormat, TopicInfo};
 
 use crate::error::IoError;
-use msgs::{ScanMsg, StampedPose, LASER_SCAN, ODOMETRY, TF_MESSAGE};
+use msgs::{ScanMsg, StampedPose, LASER_SCAN, ODOMETRY};
 use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -96,9 +107,11 @@ pub enum OdometrySource {
     },
 }
 
-/// A ROS 2 bag as read: the dataset and what the reader chose and left out.
+/// A ROS bag as read: the dataset and what the reader chose and left out.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RosBag {
+    /// The container the bag was read from.
+    pub format: BagFormat,
     /// One record per odometry message and per scan, in time order.
     pub dataset: ScanDataset,
     /// Every topic of the bag.
@@ -150,9 +163,11 @@ impl RosBag {
             _ => 0.0,
         };
         let mut s = format!(
-            "ROS 2 bag {}: scans {} ({} scans, {geometry}), {odom} ({poses} poses), over {span:.1} s; \
+            "{} {} ({}): scans {} ({} scans, {geometry}), {odom} ({poses} poses), over {span:.1} s; \
              laser frame {} at ({:.4} m, {:.4} m, {:.4} rad) in {} ({from})",
+            self.format.ros(),
             path.display(),
+            self.format.storage(),
             self.scan_topic,
             scans.len(),
             self.laser_frame,
@@ -177,17 +192,18 @@ impl RosBag {
     }
 }
 
-/// Reads an MCAP file (or a rosbag2 folder) with the topics found automatically and the
-/// laser mounting from `/tf_static`: the dataset only. See [`read_rosbag`].
+/// Reads a ROS bag of any container (the name is historical: MCAP, sqlite3, ROS 1, a
+/// rosbag2 folder) with the topics found automatically and the laser mounting from
+/// `/tf_static`: the dataset only. See [`read_rosbag`].
 pub fn read_mcap(path: &Path) -> Result<ScanDataset, IoError> {
     Ok(read_rosbag(path, &BagOptions::default())?.dataset)
 }
 
-/// The topics of a bag (an MCAP file or a rosbag2 folder) with their types, encodings,
+/// The topics of a bag (any container) with their types, encodings,
 /// counts and recording times, without decoding any message. A truncated or corrupt file
 /// is an error.
 pub fn bag_topics(path: &Path) -> Result<Vec<TopicInfo>, IoError> {
-    container::for_each_message(path, |_, _| Ok(()))
+    container::for_each_message(path, |_, _| Ok(())).map(|(_, t)| t)
 }
 
 /// What `slam info` prints for a bag: every topic with its type, encoding, message count
@@ -199,11 +215,11 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     let mut first_scan: BTreeMap<String, ScanMsg> = BTreeMap::new();
     let mut odom_frames: BTreeMap<String, (String, String)> = BTreeMap::new();
     let mut edges: BTreeMap<(bool, String, String), (usize, Pose2)> = BTreeMap::new();
-    let topics = container::for_each_message(path, |file, m| {
-        if m.encoding != "cdr" {
+    let (bag, topics) = container::for_each_message(path, |file, m| {
+        if !msgs::ENCODINGS.contains(&m.encoding) {
             return Ok(());
         }
-        let fail = |e: cdr::CdrError| {
+        let fail = |e: wire::DecodeError| {
             bad(
                 file,
                 m.topic,
@@ -213,14 +229,17 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
         };
         match m.msg_type {
             LASER_SCAN if !first_scan.contains_key(m.topic) => {
-                first_scan.insert(m.topic.to_string(), msgs::laser_scan(m.data).map_err(fail)?);
+                first_scan.insert(
+                    m.topic.to_string(),
+                    msgs::laser_scan(m.encoding, m.data).map_err(fail)?,
+                );
             }
             ODOMETRY if !odom_frames.contains_key(m.topic) => {
-                let p = msgs::odometry(m.data).map_err(fail)?;
+                let p = msgs::odometry(m.encoding, m.data).map_err(fail)?;
                 odom_frames.insert(m.topic.to_string(), (p.parent, p.child));
             }
-            TF_MESSAGE if m.topic == TF || m.topic == TF_STATIC => {
-                for p in msgs::tf_message(m.data).map_err(fail)? {
+            t if msgs::is_tf_message(t) && (m.topic == TF || m.topic == TF_STATIC) => {
+                for p in msgs::tf_message(m.encoding, m.data).map_err(fail)? {
                     let e = edges
                         .entry((m.topic == TF_STATIC, p.parent, p.child))
                         .or_insert((0, p.pose));
@@ -236,11 +255,13 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     let t1 = topics.iter().map(|t| t.log_time_ns.1).max().unwrap_or(0);
     let span = (t1 - t0) as f64 * 1e-9;
     let count: usize = topics.iter().map(|t| t.count).sum();
-    let files = container::bag_files(path)?.len();
+    let files = bag.files.len();
     let mut s = format!(
-        "ROS 2 bag {} ({files} MCAP file(s)): {} topic(s), {count} message(s) over {span:.1} s \
+        "{} {} ({files} {} file(s)): {} topic(s), {count} message(s) over {span:.1} s \
          (recorded from {:.3} s)\n",
+        bag.format.ros(),
         path.display(),
+        bag.format.storage(),
         topics.len(),
         t0 as f64 * 1e-9
     );
@@ -381,18 +402,29 @@ fn names(t: &[&TopicInfo]) -> String {
         .join(", ")
 }
 
-fn check_cdr(path: &Path, t: &TopicInfo) -> Result<(), IoError> {
-    if t.encoding != "cdr" {
-        return Err(IoError::Bag {
-            path: path.to_path_buf(),
-            topic: t.topic.clone(),
-            what: format!(
-                "message encoding {:?} is not supported (expected cdr, the ROS 2 encoding)",
-                t.encoding
-            ),
-        });
+/// The topic's encoding must be one we decode; a ROS 1 connection whose message definition
+/// is not the one we decode (its md5sum differs) is refused here too.
+fn check_encoding(path: &Path, t: &TopicInfo) -> Result<(), IoError> {
+    if msgs::ENCODINGS.contains(&t.encoding.as_str()) {
+        return Ok(());
     }
-    Ok(())
+    let what = match t.encoding.strip_prefix("ros1 md5sum ") {
+        Some(md5) => format!(
+            "the ROS 1 connection's message definition has md5sum {md5}, expected {} (the \
+             standard {})",
+            msgs::ros1_md5(&t.msg_type).unwrap_or("?"),
+            t.msg_type
+        ),
+        None => format!(
+            "message encoding {:?} is not supported (expected cdr, the ROS 2 encoding, or ros1)",
+            t.encoding
+        ),
+    };
+    Err(IoError::Bag {
+        path: path.to_path_buf(),
+        topic: t.topic.clone(),
+        what,
+    })
 }
 
 fn bad(path: &Path, topic: &str, index: usize, what: impl std::fmt::Display) -> IoError {
@@ -423,15 +455,15 @@ fn check_pose(path: &Path, topic: &str, index: usize, p: &StampedPose) -> Result
     Ok(())
 }
 
-/// Reads a ROS 2 bag (an MCAP file or a rosbag2 folder) into a [`ScanDataset`] by the
-/// rules of this module's documentation.
+/// Reads a ROS bag (an MCAP, sqlite3 or ROS 1 bag file, or a rosbag2 folder) into a
+/// [`ScanDataset`] by the rules of this module's documentation.
 ///
 /// Errors name the file, the topic and what was expected: two candidate topics without a
 /// choice, no odometry, an unknown message encoding, a message that does not decode (its
 /// number on the topic and the byte where decoding stopped), a value out of bounds, a
 /// truncated file (messages read before the damage), no scan within the odometry's time.
 pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError> {
-    let topics = bag_topics(path)?;
+    let (bag, topics) = container::for_each_message(path, |_, _| Ok(()))?;
     let scan_topic = pick(
         path,
         &topics,
@@ -450,7 +482,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     })?;
     let tf_topic = topics
         .iter()
-        .find(|t| t.topic == TF && t.msg_type == TF_MESSAGE);
+        .find(|t| t.topic == TF && msgs::is_tf_message(&t.msg_type));
     let odom_topic = match options.odom_topic.as_deref() {
         Some(TF) => None,
         chosen => pick(path, &topics, ODOMETRY, chosen, "--odom-topic")?,
@@ -465,9 +497,9 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         let used = t.topic == scan_topic
             || Some(&t.topic) == odom_topic.as_ref()
             || (odom_topic.is_none() && t.topic == TF)
-            || (t.topic == TF_STATIC && t.msg_type == TF_MESSAGE);
+            || (t.topic == TF_STATIC && msgs::is_tf_message(&t.msg_type));
         if used {
-            check_cdr(path, t)?;
+            check_encoding(path, t)?;
         }
     }
 
@@ -476,7 +508,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     let mut tf: Vec<StampedPose> = Vec::new();
     let mut statics: Vec<StampedPose> = Vec::new();
     container::for_each_message(path, |file, m| {
-        let fail = |e: cdr::CdrError| {
+        let fail = |e: wire::DecodeError| {
             bad(
                 file,
                 m.topic,
@@ -489,18 +521,18 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
             )
         };
         if m.topic == scan_topic {
-            scans.push(msgs::laser_scan(m.data).map_err(fail)?);
+            scans.push(msgs::laser_scan(m.encoding, m.data).map_err(fail)?);
         } else if Some(m.topic) == odom_topic.as_deref() {
-            let p = msgs::odometry(m.data).map_err(fail)?;
+            let p = msgs::odometry(m.encoding, m.data).map_err(fail)?;
             check_pose(file, m.topic, m.index, &p)?;
             odom.push(p);
-        } else if m.topic == TF && m.msg_type == TF_MESSAGE && odom_topic.is_none() {
-            for p in msgs::tf_message(m.data).map_err(fail)? {
+        } else if m.topic == TF && msgs::is_tf_message(m.msg_type) && odom_topic.is_none() {
+            for p in msgs::tf_message(m.encoding, m.data).map_err(fail)? {
                 check_pose(file, m.topic, m.index, &p)?;
                 tf.push(p);
             }
-        } else if m.topic == TF_STATIC && m.msg_type == TF_MESSAGE {
-            for p in msgs::tf_message(m.data).map_err(fail)? {
+        } else if m.topic == TF_STATIC && msgs::is_tf_message(m.msg_type) {
+            for p in msgs::tf_message(m.encoding, m.data).map_err(fail)? {
                 check_pose(file, m.topic, m.index, &p)?;
                 statics.push(p);
             }
@@ -520,7 +552,14 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         }
     };
     assemble(
-        path, topics, scan_topic, source, odom, scans, &statics, options,
+        path,
+        (bag.format, topics),
+        scan_topic,
+        source,
+        odom,
+        scans,
+        &statics,
+        options,
     )
 }
 
@@ -579,7 +618,7 @@ fn static_chain(statics: &[StampedPose], base: &str, frame: &str) -> Option<Pose
 #[allow(clippy::too_many_arguments)]
 fn assemble(
     path: &Path,
-    topics: Vec<TopicInfo>,
+    (format, topics): (BagFormat, Vec<TopicInfo>),
     scan_topic: String,
     source: OdometrySource,
     mut odom: Vec<StampedPose>,
@@ -702,6 +741,7 @@ fn assemble(
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     Ok(RosBag {
+        format,
         dataset: ScanDataset {
             name,
             records: timed.into_iter().map(|(_, r)| r).collect(),
@@ -834,7 +874,7 @@ mod tests {
         let odom = vec![sp(0, 0.0, 0.0), sp(976_052_857_000_000_000, 1.0, 0.0)];
         let e = assemble(
             Path::new("x.mcap"),
-            vec![],
+            (BagFormat::Mcap, vec![]),
             "/scan".into(),
             OdometrySource::Topic("/odom".into()),
             odom,

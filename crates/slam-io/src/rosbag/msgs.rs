@@ -1,8 +1,12 @@
-//! The ROS 2 messages the bag reader decodes, field by field as their `.msg` files define
-//! them (`sensor_msgs/msg/LaserScan`, `nav_msgs/msg/Odometry`, `tf2_msgs/msg/TFMessage`).
-//! Only the fields the reader uses are kept; the others are read past.
+//! The ROS messages the bag reader decodes, field by field as their `.msg` files define
+//! them (`sensor_msgs/msg/LaserScan`, `nav_msgs/msg/Odometry`, `tf2_msgs/msg/TFMessage`),
+//! in either serialisation: `cdr` (ROS 2) or `ros1` (the message encodings' names in
+//! MCAP). The fields are the same in ROS 1 and ROS 2 but for the header's `seq` and the
+//! stamp's signedness, which [`Wire::header_stamp`] handles. Only the fields the reader uses
+//! are kept; the others are read past.
 
-use super::cdr::{Cdr, CdrError};
+use super::cdr::Cdr;
+use super::wire::{DecodeError, Ros1, Wire};
 use slam_models::Pose2;
 
 /// `sensor_msgs/msg/LaserScan`.
@@ -11,6 +15,45 @@ pub(crate) const LASER_SCAN: &str = "sensor_msgs/msg/LaserScan";
 pub(crate) const ODOMETRY: &str = "nav_msgs/msg/Odometry";
 /// `tf2_msgs/msg/TFMessage`.
 pub(crate) const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
+/// ROS 1's older `tf/tfMessage`, the same fields as `tf2_msgs/TFMessage` (many ROS 1 bags
+/// record `/tf` with it).
+const TF_MESSAGE_ROS1: &str = "tf/msg/tfMessage";
+
+/// The message encodings decoded: CDR (ROS 2) and ROS 1 serialisation.
+pub(crate) const ENCODINGS: [&str; 2] = ["cdr", "ros1"];
+
+/// True for the transform message types (`tf2_msgs/msg/TFMessage`, ROS 1's `tf/tfMessage`).
+pub(crate) fn is_tf_message(msg_type: &str) -> bool {
+    msg_type == TF_MESSAGE || msg_type == TF_MESSAGE_ROS1
+}
+
+/// The MD5 sum ROS 1 gives each message definition (`gendeps --md5`, recorded in every
+/// ROS 1 connection): a bag whose sum differs holds another definition under the same name.
+pub(crate) fn ros1_md5(msg_type: &str) -> Option<&'static str> {
+    match msg_type {
+        LASER_SCAN => Some("90c7ef2dc6895d81024acba2ac42f369"),
+        ODOMETRY => Some("cd5e73d190d741a2f92e81eda573aca7"),
+        TF_MESSAGE | TF_MESSAGE_ROS1 => Some("94810edda583a504dfda3829e70d7eec"),
+        _ => None,
+    }
+}
+
+/// Runs `decode` on `data` in the serialisation `encoding` names (one of [`ENCODINGS`]).
+fn decode<T>(
+    encoding: &str,
+    data: &[u8],
+    decode: impl FnOnce(&mut dyn Wire) -> Result<T, DecodeError>,
+) -> Result<T, DecodeError> {
+    match encoding {
+        "cdr" => decode(&mut Cdr::new(data)?),
+        "ros1" => decode(&mut Ros1::new(data)),
+        other => Err(DecodeError {
+            offset: 0,
+            what: format!("a message encoding of {ENCODINGS:?}, found {other:?}"),
+            wire: "message",
+        }),
+    }
+}
 
 /// `std_msgs/msg/Header`: the stamp in nanoseconds since the epoch and the frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -19,18 +62,8 @@ pub(crate) struct Header {
     pub frame_id: String,
 }
 
-/// `builtin_interfaces/msg/Time` (int32 sec, uint32 nanosec) as nanoseconds.
-fn time(c: &mut Cdr<'_>) -> Result<i64, CdrError> {
-    let sec = c.i32("header.stamp.sec")?;
-    let nsec = c.u32("header.stamp.nanosec")?;
-    if nsec >= 1_000_000_000 {
-        return Err(c.err(format!("header.stamp.nanosec < 10^9, found {nsec}")));
-    }
-    Ok(i64::from(sec) * 1_000_000_000 + i64::from(nsec))
-}
-
-fn header(c: &mut Cdr<'_>) -> Result<Header, CdrError> {
-    let stamp_ns = time(c)?;
+fn header(c: &mut dyn Wire) -> Result<Header, DecodeError> {
+    let stamp_ns = c.header_stamp()?;
     let frame_id = c.string("header.frame_id")?;
     Ok(Header { stamp_ns, frame_id })
 }
@@ -47,10 +80,13 @@ pub(crate) struct ScanMsg {
     pub ranges: Vec<f64>,
 }
 
-/// Decodes a `sensor_msgs/msg/LaserScan`.
-pub(crate) fn laser_scan(data: &[u8]) -> Result<ScanMsg, CdrError> {
-    let mut c = Cdr::new(data)?;
-    let header = header(&mut c)?;
+/// Decodes a `sensor_msgs/msg/LaserScan` serialised as `encoding` says.
+pub(crate) fn laser_scan(encoding: &str, data: &[u8]) -> Result<ScanMsg, DecodeError> {
+    decode(encoding, data, laser_scan_fields)
+}
+
+fn laser_scan_fields(c: &mut dyn Wire) -> Result<ScanMsg, DecodeError> {
+    let header = header(c)?;
     let angle_min = c.f32("angle_min")?;
     let angle_max = c.f32("angle_max")?;
     let angle_increment = c.f32("angle_increment")?;
@@ -88,7 +124,7 @@ pub(crate) struct StampedPose {
 /// ψ = atan2(2(wz + xy), w² + x² − y² − z²) (the Z-Y-X Euler yaw, which for a unit
 /// quaternion is the usual atan2(2(wz + xy), 1 − 2(y² + z²)); unchanged by the quaternion's
 /// scale). A quaternion of zero length, or a non-finite one, is an error.
-fn planar(c: &mut Cdr<'_>, what: &str) -> Result<Pose2, CdrError> {
+fn planar(c: &mut dyn Wire, what: &str) -> Result<Pose2, DecodeError> {
     let x = c.f64(&format!("{what} x"))?;
     let y = c.f64(&format!("{what} y"))?;
     c.f64(&format!("{what} z"))?;
@@ -109,11 +145,14 @@ fn planar(c: &mut Cdr<'_>, what: &str) -> Result<Pose2, CdrError> {
 }
 
 /// Decodes a `nav_msgs/msg/Odometry` (the pose; the twist and covariances are read past).
-pub(crate) fn odometry(data: &[u8]) -> Result<StampedPose, CdrError> {
-    let mut c = Cdr::new(data)?;
-    let h = header(&mut c)?;
+pub(crate) fn odometry(encoding: &str, data: &[u8]) -> Result<StampedPose, DecodeError> {
+    decode(encoding, data, odometry_fields)
+}
+
+fn odometry_fields(c: &mut dyn Wire) -> Result<StampedPose, DecodeError> {
+    let h = header(c)?;
     let child = c.string("child_frame_id")?;
-    let pose = planar(&mut c, "pose.pose.position")?;
+    let pose = planar(c, "pose.pose.position")?;
     c.skip_f64s(36, "pose.covariance")?;
     c.skip_f64s(6, "twist.twist")?;
     c.skip_f64s(36, "twist.covariance")?;
@@ -126,15 +165,18 @@ pub(crate) fn odometry(data: &[u8]) -> Result<StampedPose, CdrError> {
 }
 
 /// Decodes a `tf2_msgs/msg/TFMessage` into its transforms (parent = header.frame_id).
-pub(crate) fn tf_message(data: &[u8]) -> Result<Vec<StampedPose>, CdrError> {
-    let mut c = Cdr::new(data)?;
+pub(crate) fn tf_message(encoding: &str, data: &[u8]) -> Result<Vec<StampedPose>, DecodeError> {
+    decode(encoding, data, tf_fields)
+}
+
+fn tf_fields(c: &mut dyn Wire) -> Result<Vec<StampedPose>, DecodeError> {
     // A TransformStamped takes at least 8 (stamp) + 2·4 (strings) + 7·8 bytes.
     let n = c.count("transforms", 72)?;
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
-        let h = header(&mut c)?;
+        let h = header(c)?;
         let child = c.string("child_frame_id")?;
-        let pose = planar(&mut c, "transform.translation")?;
+        let pose = planar(c, "transform.translation")?;
         out.push(StampedPose {
             stamp_ns: h.stamp_ns,
             parent: h.frame_id,
