@@ -45,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sensor: r.sensor,
             ..EkfConfig::default()
         };
-        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose)?;
+        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0)?;
         for (k, s) in r.dataset.steps.iter().enumerate() {
             ekf.predict(&s.control)?;
             ekf.update(&s.observations)?;

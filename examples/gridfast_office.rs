@@ -17,7 +17,7 @@
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
 use slam_io::eval;
 use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
-use slam_models::ScanSlam;
+use slam_models::{Pose2, ScanSlam};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
 use std::path::PathBuf;
@@ -43,7 +43,7 @@ fn run(
         particles,
         ..GridFastConfig::default()
     };
-    let mut slam = GridFastSlam::new(config, seed)?;
+    let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed)?;
     for r in &sim.dataset.records {
         slam.process(r)?;
     }

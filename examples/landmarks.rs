@@ -17,7 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = run.dataset.initial_pose;
     let mut filter: Box<dyn LandmarkSlam> = match std::env::args().nth(1).as_deref() {
         Some("fastslam2") => Box::new(FastSlam::new(fast, start, 0)?),
-        _ => Box::new(EkfSlam::new(ekf, start)?),
+        _ => Box::new(EkfSlam::new(ekf, start, 0)?),
     };
     let mut squared = 0.0;
     for (step, truth) in run.dataset.steps.iter().zip(&run.true_poses) {

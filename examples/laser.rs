@@ -1,5 +1,5 @@
 //! A CARMEN log → grid FastSLAM behind `Box<dyn ScanSlam>` → a ROS map_server map.
-use slam::gridfast::{GridFastConfig, GridFastSlam};
+use slam::gridfast::{GridFastConfig, GridFastSlam, Pose2};
 use slam::io::{carmen::read_carmen, ros_map::write_ros_map};
 use slam::prelude::*;
 use std::path::PathBuf;
@@ -17,7 +17,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         particles: 30,
         ..GridFastConfig::default()
     };
-    let mut filter: Box<dyn ScanSlam> = Box::new(GridFastSlam::new(config, 0)?);
+    let mut filter: Box<dyn ScanSlam> = Box::new(GridFastSlam::new(config, Pose2::IDENTITY, 0)?);
     for record in &data.records {
         filter.process(record)?;
     }

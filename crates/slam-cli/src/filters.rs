@@ -206,7 +206,7 @@ pub(crate) fn build_landmark(
             let c = &mut loaded.config;
             apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
             let config_toml = config::to_toml(&loaded.config);
-            let f = EkfSlam::new(loaded.config, setup.initial_pose).map_err(|e| invalid(&e))?;
+            let f = EkfSlam::new(loaded.config, setup.initial_pose, 0).map_err(|e| invalid(&e))?;
             Ok(Built {
                 filter: Box::new(f),
                 config_toml,
@@ -256,7 +256,8 @@ pub(crate) fn build_scan(
             use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
             let loaded = config::load::<ScanMatchConfig>(setup.config_path)?;
             let config_toml = config::to_toml(&loaded.config);
-            let f = ScanMatchOdometry::new(loaded.config).map_err(|e| invalid(&e))?;
+            let f = ScanMatchOdometry::new(loaded.config, Pose2::IDENTITY, 0)
+                .map_err(|e| invalid(&e))?;
             Ok(Built {
                 filter: Box::new(f),
                 config_toml,
@@ -269,7 +270,8 @@ pub(crate) fn build_scan(
                 loaded.config.particles = n;
             }
             let config_toml = config::to_toml(&loaded.config);
-            let f = GridFastSlam::new(loaded.config, setup.seed).map_err(|e| invalid(&e))?;
+            let f = GridFastSlam::new(loaded.config, Pose2::IDENTITY, setup.seed)
+                .map_err(|e| invalid(&e))?;
             Ok(Built {
                 filter: Box::new(f),
                 config_toml,

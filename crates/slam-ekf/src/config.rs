@@ -111,15 +111,9 @@ fn check(
     ok: bool,
     expected: &'static str,
 ) -> Result<(), EkfError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(EkfError::InvalidConfig {
-            field,
-            value,
-            expected,
-        })
-    }
+    Ok(slam_models::error::ensure_config(
+        ok, "EKF", field, value, expected,
+    )?)
 }
 
 fn probability(field: &'static str, p: f64) -> Result<(), EkfError> {
@@ -205,6 +199,7 @@ impl EkfConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slam_models::ConfigError;
 
     #[test]
     fn default_is_valid_and_round_trips() {
@@ -224,10 +219,10 @@ mod tests {
         };
         assert!(matches!(
             c.validate(),
-            Err(EkfError::InvalidConfig {
+            Err(EkfError::InvalidConfig(ConfigError {
                 field: "gate_probability",
                 ..
-            })
+            }))
         ));
         let mut c = EkfConfig::default();
         c.sensor.sigma_range = f64::NAN;

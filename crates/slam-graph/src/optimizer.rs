@@ -99,12 +99,13 @@ impl OptimizerConfig {
 
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), GraphError> {
-        let bad = |field, value, expected| {
-            Err(GraphError::InvalidConfig {
+        let bad = |field, value: f64, expected| {
+            Err(GraphError::InvalidConfig(slam_models::ConfigError::new(
+                "optimiser",
                 field,
                 value,
                 expected,
-            })
+            )))
         };
         if self.max_iterations == 0 {
             return bad("max_iterations", 0.0, "≥ 1");
