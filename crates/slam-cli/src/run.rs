@@ -738,7 +738,7 @@ fn run_scan(
     let mut mcap = McapRecorder::create(ctx.args, records.len(), None)?;
     let mut progress = Progress::new(records.len(), ctx.args.quiet);
     let start = Instant::now();
-    // Odometry jumps the filter skipped (only with `odometry_jump.on_jump = "skip"`):
+    // Odometry jumps the filter skipped (only with `odometry-jump.on-jump = "skip"`):
     // how many, and the first record's index and time.
     let (mut jumps, mut first_jump) = (0usize, None);
     for (k, record) in records.iter().enumerate() {
@@ -767,7 +767,7 @@ fn run_scan(
     }
     if let Some((k, t)) = first_jump {
         eprintln!(
-            "slam: warning: skipped {jumps} odometry jump(s) beyond odometry_jump.max_jump, taken as no motion (first at record {k}, t = {t} s)"
+            "slam: warning: skipped {jumps} odometry jump(s) beyond odometry-jump.max-jump, taken as no motion (first at record {k}, t = {t} s)"
         );
     }
     let trajectory = filter.trajectory();

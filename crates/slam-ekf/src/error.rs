@@ -14,7 +14,7 @@ pub enum EkfError {
     InvalidInput(String),
     /// An observation carried no landmark id although the association mode is
     /// [`crate::AssociationMode::KnownIds`].
-    #[error("observation {index} has no landmark id, but association mode is KnownIds")]
+    #[error("observation {index} has no landmark id, but the association mode is \"known-ids\"")]
     MissingId {
         /// Index of the observation in the batch.
         index: usize,
@@ -36,7 +36,7 @@ pub enum EkfError {
     },
     /// A new landmark would exceed [`crate::EkfConfig::max_landmarks`].
     #[error(
-        "the map already holds max_landmarks = {max} landmarks; raise max_landmarks (at most 20000; \
+        "the map already holds max-landmarks = {max} landmarks; raise max-landmarks (at most 20000; \
          the covariance takes (3 + 2n)² × 8 bytes)"
     )]
     TooManyLandmarks {

@@ -467,7 +467,7 @@ mod tests {
             .update_observations(&[z(4.0, -0.5, Some(7))])
             .unwrap_err();
         assert_eq!(e, EkfError::TooManyLandmarks { max: 3 });
-        assert!(e.to_string().contains("max_landmarks = 3"), "{e}");
+        assert!(e.to_string().contains("max-landmarks = 3"), "{e}");
         // Known landmarks are still updated.
         ekf.update_observations(&obs).unwrap();
     }

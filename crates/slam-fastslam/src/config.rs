@@ -47,7 +47,7 @@ pub const MAX_LANDMARKS: usize = 10_000_000;
 
 /// FastSLAM settings. Every field has a documented default ([`FastSlamConfig::default`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct FastSlamConfig {
     /// FastSLAM 1.0 or 2.0. Default 2.0.
     pub variant: Variant,

@@ -23,7 +23,7 @@ pub enum FastSlamError {
     /// An update could take a particle's map past [`crate::FastSlamConfig::max_landmarks`].
     #[error(
         "a particle's map holds {landmarks} landmarks and this update brings {observations} \
-         observations: more than max_landmarks = {max} could be mapped"
+         observations: more than max-landmarks = {max} could be mapped"
     )]
     TooManyLandmarks {
         /// The largest map among the particles.

@@ -606,7 +606,7 @@ mod tests {
                 Err(e) => {
                     let largest = before.iter().map(Vec::len).max().unwrap();
                     assert!(largest + z.len() > max, "refused below the cap: {e}");
-                    assert!(e.to_string().contains("max_landmarks = 6"), "{e}");
+                    assert!(e.to_string().contains("max-landmarks = 6"), "{e}");
                     assert_eq!(snapshot(&f), before);
                     assert_eq!((f.updates, f.pose()), (updates, pose));
                     refused = true;

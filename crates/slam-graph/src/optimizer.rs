@@ -39,7 +39,7 @@ pub enum Method {
 
 /// Optimiser settings; the defaults are GTSAM's `LevenbergMarquardtParams` defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(rename_all = "kebab-case", default, deny_unknown_fields)]
 pub struct OptimizerConfig {
     /// Gauss-Newton or Levenberg-Marquardt (default).
     pub method: Method,

@@ -12,7 +12,7 @@ use slam_models::{OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPos
 
 /// Configuration of [`ScanMatchOdometry`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct ScanMatchConfig {
     /// Map cell size, metres. Default 0.05 m.
     pub resolution: f64,
@@ -336,7 +336,7 @@ mod tests {
         }
         let err = f.process(&records[20]).unwrap_err().to_string();
         assert!(
-            err.contains("odometry jumped 10000") && err.contains("max_jump = 5 m"),
+            err.contains("odometry jumped 10000") && err.contains("max-jump = 5 m"),
             "{err}"
         );
 

@@ -943,7 +943,7 @@ mod tests {
             matches!(e, GridFastError::InvalidRecord { index: 8, .. }),
             "{e}"
         );
-        assert!(e.to_string().contains("max_jump = 5 m"), "{e}");
+        assert!(e.to_string().contains("max-jump = 5 m"), "{e}");
 
         let mut f = GridFastSlam::new(
             GridFastConfig {

@@ -59,8 +59,8 @@ pub enum ModelError {
     /// The odometry of two consecutive records differs by more than the configured limit
     /// (see [`crate::odometry_jump`]).
     #[error(
-        "odometry jumped {jump} m between two consecutive records, beyond odometry_jump.max_jump = {max_jump} m \
-         (a glitched record; set odometry_jump.on_jump = \"skip\" in the filter config to skip such jumps)"
+        "odometry jumped {jump} m between two consecutive records, beyond odometry-jump.max-jump = {max_jump} m \
+         (a glitched record; set odometry-jump.on-jump = \"skip\" in the filter config to skip such jumps)"
     )]
     OdometryJump {
         /// Distance between the two odometry positions, metres.

@@ -28,7 +28,7 @@ const MAX_ROTATIONS: i32 = 100_000;
 /// in angular steps) of Σ s(cell of pᵢ), the same answer as brute force. Follow it with
 /// [`super::GaussNewtonMatcher`] for sub-cell accuracy ([`super::RefinedCorrelativeMatcher`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct CorrelativeMatcher {
     /// Half-width of the translation window in x and y, metres. Default 0.4 m.
     pub linear_window: f64,
