@@ -4,8 +4,9 @@
 use crate::config::{FastSlamConfig, Variant};
 use crate::error::FastSlamError;
 use crate::map::LandmarkMap;
+#[allow(unused_imports)]
+use crate::par::*;
 use crate::particle::{estimates, stream, Obs, Particle, ParticleStats, StepContext};
-use rayon::prelude::*;
 use slam_models::particle::{
     effective_sample_size_log, normalize_log_weights, ParticlePaths, PathNode,
 };
@@ -631,6 +632,7 @@ mod tests {
 
     /// Bit-identical results on a rayon pool of 1 thread and one of 2 threads, for both
     /// variants, under hidden ids, clutter, negative evidence and resampling.
+    #[cfg(feature = "parallel")]
     #[test]
     fn identical_output_for_one_and_two_threads() {
         let (data, _) = world(4, 120, true);

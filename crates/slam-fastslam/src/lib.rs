@@ -28,6 +28,7 @@ pub mod error;
 pub mod filter;
 pub mod landmark;
 pub mod map;
+mod par;
 pub mod particle;
 pub mod tree;
 

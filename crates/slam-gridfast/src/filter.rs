@@ -5,10 +5,11 @@ use crate::error::GridFastError;
 use crate::matcher::{
     field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
 };
+#[allow(unused_imports)]
+use crate::par::*;
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
-use rayon::prelude::*;
 use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};

@@ -37,6 +37,7 @@ mod config;
 mod error;
 mod filter;
 mod matcher;
+mod par;
 mod proposal;
 
 pub use config::{GridFastConfig, Proposal, MAX_PARTICLES};
