@@ -25,7 +25,7 @@ fn build(n: usize) -> (EkfSlam, Vec<RangeBearing>) {
         initial_pose_variance: [1e-4, 1e-4, 1e-5],
         ..EkfConfig::default()
     };
-    let mut ekf = EkfSlam::new(config, Pose2::IDENTITY).expect("valid config");
+    let mut ekf = EkfSlam::new(config, Pose2::IDENTITY, 0).expect("valid config");
     let step = Control::Odometry(OdometryControl {
         rot1: 0.01,
         trans: 0.05,

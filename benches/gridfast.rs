@@ -49,7 +49,8 @@ fn bench(c: &mut Criterion) {
                             proposal,
                             ..Default::default()
                         };
-                        let mut slam = GridFastSlam::new(config, 1).unwrap();
+                        let mut slam =
+                            GridFastSlam::new(config, slam::models::Pose2::IDENTITY, 1).unwrap();
                         for r in &records {
                             slam.process(r).unwrap();
                         }

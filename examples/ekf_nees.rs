@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sensor: r.sensor,
             ..EkfConfig::default()
         };
-        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose)?;
+        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0)?;
         // slam-eval's run gives each step's pose NEES against the simulator's true pose.
         let run = slam_eval::run_landmarks(&mut ekf, &r.dataset, &Default::default())?;
         for (k, row) in run.estimates.iter().enumerate() {

@@ -11,7 +11,7 @@
 //! The relations error uses the datasets README's rule (slam-io `relations_error`).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
-use slam_models::ScanSlam;
+use slam_models::{Pose2, ScanSlam};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -71,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .build()?;
     let threads = pool.current_num_threads();
     let (proposal, particles) = (config.proposal, config.particles);
-    let mut slam = GridFastSlam::new(config, seed)?;
+    let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed)?;
     let start = Instant::now();
     let cpu0 = cpu_seconds().unwrap_or(f64::NAN);
     let (mut failures, mut resamples, mut processed) = (0usize, 0usize, 0usize);

@@ -14,7 +14,7 @@
 //! measures the map's consistency. Prints a Markdown table of the means over seeds and draws
 //! the anchored curves on log–log axes (improved in orange, odometry in blue).
 
-use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
+use slam_gridfast::{GridFastConfig, GridFastSlam, Pose2, Proposal};
 use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
@@ -41,7 +41,7 @@ fn run(
         particles,
         ..GridFastConfig::default()
     };
-    let mut slam = GridFastSlam::new(config, seed)?;
+    let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed)?;
     // ATE against the simulator's truth, anchored at the estimate's start (slam-eval).
     let run = slam_eval::run_scans(&mut slam, &sim.dataset, &Default::default())?;
     let m = &run.metrics;

@@ -62,7 +62,7 @@ fn freiburg_landmark_rmse() {
         sensor: RangeBearingModel::new(0.1, 0.05),
         ..EkfConfig::default()
     };
-    let mut ekf = EkfSlam::new(config, d.initial_pose).unwrap();
+    let mut ekf = EkfSlam::new(config, d.initial_pose, 0).unwrap();
     run(&mut ekf, &d);
     let e = landmark_error(&ekf.landmarks(), &truth, true);
     println!(
@@ -98,7 +98,7 @@ fn mrclam_robot1_ate_beats_dead_reckoning() {
         known_id_gate_probability: Some(0.9999),
         ..EkfConfig::default()
     };
-    let mut ekf = EkfSlam::new(config, d.initial_pose).unwrap();
+    let mut ekf = EkfSlam::new(config, d.initial_pose, 0).unwrap();
     let est = run(&mut ekf, &d);
     let dr = slam_io::dead_reckoning(&d);
     let a = ate(&est, &gt).expect("ATE of the EKF");
@@ -134,7 +134,8 @@ fn loop_mean_nees(runs: u64, first_seed: u64, opts: &ScenarioOptions) -> Vec<f64
     let mut sum: Vec<f64> = Vec::new();
     for seed in first_seed..first_seed + runs {
         let r = loop_run(seed, opts.clone());
-        let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose).unwrap();
+        let mut ekf =
+            EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose, 0).unwrap();
         for (k, s) in r.dataset.steps.iter().enumerate() {
             ekf.predict(&s.control).unwrap();
             ekf.update(&s.observations).unwrap();
@@ -186,7 +187,7 @@ fn covariance_stays_symmetric_positive_definite() {
         ..ScenarioOptions::default()
     };
     let r = loop_run(7, opts);
-    let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose).unwrap();
+    let mut ekf = EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose, 0).unwrap();
     let mut min_eig = f64::INFINITY;
     for (k, s) in r.dataset.steps.iter().enumerate() {
         ekf.predict(&s.control).unwrap();
@@ -237,7 +238,7 @@ fn clutter_with_jcbb_finds_landmarks_without_false_merges() {
             association: AssociationMode::Jcbb,
             ..sim_config(r.motion, r.sensor)
         };
-        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose).unwrap();
+        let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0).unwrap();
         // Map landmark → true ids of the observations it took (None = clutter).
         let mut took: HashMap<LandmarkId, HashSet<Option<LandmarkId>>> = HashMap::new();
         let mut sightings: HashMap<LandmarkId, usize> = HashMap::new();
@@ -325,7 +326,7 @@ fn nearest_neighbour_on_hidden_ids_maps_each_landmark_once() {
         association: AssociationMode::NearestNeighbour,
         ..sim_config(r.motion, r.sensor)
     };
-    let mut ekf = EkfSlam::new(config, r.dataset.initial_pose).unwrap();
+    let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0).unwrap();
     let mut took: HashMap<LandmarkId, HashSet<LandmarkId>> = HashMap::new();
     for s in &r.dataset.steps {
         ekf.predict(&s.control).unwrap();

@@ -169,7 +169,8 @@ fn scanmatch_beats_odometry_on_perturbed_intel() {
     let Some((data, gt)) = perturbed("intel", 7) else {
         return;
     };
-    let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).expect("config");
+    let mut f =
+        ScanMatchOdometry::new(ScanMatchConfig::default(), Pose2::IDENTITY, 0).expect("config");
     let all = slam::eval::run_scans(&mut f, &data, &Default::default())
         .expect("run")
         .trajectory;

@@ -15,7 +15,7 @@ const LOOP_CLOSED_RMSE: f64 = 0.2;
 mod common;
 
 use slam::gridfast::{GridFastConfig, GridFastSlam, Proposal};
-use slam::models::{ScanRecord, ScanSlam, TimedPose};
+use slam::models::{Pose2, ScanRecord, ScanSlam, TimedPose};
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::SimOutput;
 
@@ -74,7 +74,7 @@ fn run_seeded(
         .num_threads(threads)
         .build()
         .unwrap();
-    let mut slam = GridFastSlam::new(config, seed).unwrap();
+    let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed).unwrap();
     let mut processed = 0;
     pool.install(|| {
         for r in records {
@@ -189,7 +189,7 @@ fn intel_prefix_relations_error() {
         particles: 10,
         ..Default::default()
     };
-    let mut slam = GridFastSlam::new(config, 42).unwrap();
+    let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, 42).unwrap();
     for r in records {
         slam.process(r).unwrap();
     }
@@ -224,7 +224,7 @@ fn intel_whole_log_beats_gmapping() {
     };
     let records = slam::io::carmen::read_carmen(&log).unwrap().dataset.records;
     let relations = slam::io::relations::read_relations(&rel).unwrap();
-    let mut slam = GridFastSlam::new(GridFastConfig::default(), 0).unwrap();
+    let mut slam = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 0).unwrap();
     for r in &records {
         slam.process(r).unwrap();
     }

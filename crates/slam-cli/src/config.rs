@@ -1,9 +1,11 @@
 //! Configuration files (`slam optimize`'s; filters' are read by `slam_eval::factory`): TOML
 //! deserialised straight into a config struct.
 //!
-//! Every config struct of slam-rs is `#[serde(deny_unknown_fields, default)]`, so a file may
-//! set any subset of the keys (the rest keep their documented defaults) and a misspelt key
-//! is an error naming it, with the line it is on.
+//! Every config struct of slam-rs is `#[serde(rename_all = "kebab-case",
+//! deny_unknown_fields, default)]`, so a file may set any subset of the keys (the rest keep
+//! their documented defaults) and a misspelt key is an error naming it, with the line it is
+//! on. Keys are kebab-case (`gate-probability`); a key in the snake_case of earlier
+//! versions (`gate_probability`) is refused with a hint naming its kebab-case spelling.
 
 use crate::error::CliError;
 use serde::de::DeserializeOwned;
@@ -52,7 +54,26 @@ fn config_error(text: &str, path: &Path, e: &toml::de::Error) -> CliError {
     CliError::Config {
         path: path.to_path_buf(),
         line,
-        message: e.message().trim().replace('\n', " "),
+        message: format!(
+            "{}{}",
+            e.message().trim().replace('\n', " "),
+            snake_case_hint(e.message())
+        ),
+    }
+}
+
+/// For serde's "unknown field `a_b`" about a key with an underscore: the hint that keys are
+/// kebab-case now, naming the spelling to use.
+fn snake_case_hint(message: &str) -> String {
+    let key = message
+        .strip_prefix("unknown field `")
+        .and_then(|rest| rest.split('`').next());
+    match key {
+        Some(k) if k.contains('_') => format!(
+            " (config keys are kebab-case: write `{}`)",
+            k.replace('_', "-")
+        ),
+        _ => String::new(),
     }
 }
 
@@ -62,10 +83,28 @@ mod tests {
     use serde::Deserialize;
 
     #[derive(Debug, Default, Deserialize, PartialEq)]
-    #[serde(deny_unknown_fields, default)]
+    #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
     struct Demo {
         particles: usize,
         sigma: f64,
+        gate_probability: f64,
+    }
+
+    /// An old snake_case key is an error (never silently ignored) that names the
+    /// kebab-case key to write instead; the kebab-case key parses.
+    #[test]
+    fn an_old_snake_case_key_is_refused_with_its_kebab_case_spelling() {
+        let err = parse::<Demo>("gate_probability = 0.9\n", Path::new("x.toml"))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("unknown field `gate_probability`")
+                && err.contains("write `gate-probability`"),
+            "{err}"
+        );
+        let ok: Loaded<Demo> = parse("gate-probability = 0.9\n", Path::new("x.toml")).unwrap();
+        assert_eq!(ok.config.gate_probability, 0.9);
     }
 
     #[test]
@@ -75,7 +114,7 @@ mod tests {
             l.config,
             Demo {
                 particles: 7,
-                sigma: 0.0
+                ..Demo::default()
             }
         );
     }

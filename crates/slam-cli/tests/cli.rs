@@ -471,8 +471,8 @@ fn sim_then_run_dataset_round_trip() {
     let cfg = dir.join("noise.toml");
     std::fs::write(
         &cfg,
-        "[motion.odometry]\nalpha = [0.005, 0.0002, 0.005, 0.0002]\nmin_translation = 0.001\n\
-         [sensor]\nsigma_range = 0.1\nsigma_bearing = 0.0262\n",
+        "[motion.odometry]\nalpha = [0.005, 0.0002, 0.005, 0.0002]\nmin-translation = 0.001\n\
+         [sensor]\nsigma-range = 0.1\nsigma-bearing = 0.0262\n",
     )
     .unwrap();
     let run = |extra: &[&str], out: &Path| {

@@ -93,9 +93,9 @@ fn a_10_km_odometry_glitch_in_intel_stays_under_100_mb_or_is_a_clear_error() {
     )
     .unwrap();
     let skip = dir.join("skip.toml");
-    std::fs::write(&skip, "[odometry_jump]\non_jump = \"skip\"\n").unwrap();
+    std::fs::write(&skip, "[odometry-jump]\non-jump = \"skip\"\n").unwrap();
     let unchecked = dir.join("unchecked.toml");
-    std::fs::write(&unchecked, "[odometry_jump]\nmax_jump = 1e12\n").unwrap();
+    std::fs::write(&unchecked, "[odometry-jump]\nmax-jump = 1e12\n").unwrap();
     let log = log.to_str().unwrap();
     // (config, what a failing run must say)
     let cases: [(Option<&Path>, &str); 3] = [

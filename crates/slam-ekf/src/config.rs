@@ -7,6 +7,7 @@ use slam_models::motion::MotionModels;
 
 /// How observations are matched to landmarks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum AssociationMode {
     /// Use an observation's id when it has one; match id-less observations with JCBB.
     #[default]
@@ -23,11 +24,11 @@ pub enum AssociationMode {
 /// Parameters of [`crate::EkfSlam`].
 ///
 /// ```
-/// let c: slam_ekf::EkfConfig = toml::from_str("min_sightings = 2").unwrap();
+/// let c: slam_ekf::EkfConfig = toml::from_str("min-sightings = 2").unwrap();
 /// assert_eq!(c.min_sightings, 2);
 /// ```
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct EkfConfig {
     /// Motion models (velocity and odometry, PR tables 5.3/5.6) with their noise
     /// parameters; the one used is chosen by the kind of each control.
@@ -111,15 +112,9 @@ fn check(
     ok: bool,
     expected: &'static str,
 ) -> Result<(), EkfError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(EkfError::InvalidConfig {
-            field,
-            value,
-            expected,
-        })
-    }
+    Ok(slam_models::error::ensure_config(
+        ok, "EKF", field, value, expected,
+    )?)
 }
 
 fn probability(field: &'static str, p: f64) -> Result<(), EkfError> {
@@ -205,6 +200,7 @@ impl EkfConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use slam_models::ConfigError;
 
     #[test]
     fn default_is_valid_and_round_trips() {
@@ -224,10 +220,10 @@ mod tests {
         };
         assert!(matches!(
             c.validate(),
-            Err(EkfError::InvalidConfig {
+            Err(EkfError::InvalidConfig(ConfigError {
                 field: "gate_probability",
                 ..
-            })
+            }))
         ));
         let mut c = EkfConfig::default();
         c.sensor.sigma_range = f64::NAN;

@@ -1,27 +1,20 @@
 //! The error type of slam-ekf.
 
-use slam_models::{FilterError, ModelError};
+use slam_models::{ConfigError, FilterError, ModelError};
 use thiserror::Error;
 
 /// What went wrong in EKF-SLAM. Each variant says what was expected.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum EkfError {
-    /// A configuration value was outside its documented range.
-    #[error("invalid EKF configuration: {field} = {value} (expected {expected})")]
-    InvalidConfig {
-        /// The offending field of [`crate::EkfConfig`].
-        field: &'static str,
-        /// Its value.
-        value: f64,
-        /// What was expected, in words.
-        expected: &'static str,
-    },
+    /// A field of [`crate::EkfConfig`] was outside its documented range.
+    #[error(transparent)]
+    InvalidConfig(#[from] ConfigError),
     /// An input (control, observation, initial pose) was non-finite or otherwise invalid.
     #[error("invalid input: {0}")]
     InvalidInput(String),
     /// An observation carried no landmark id although the association mode is
     /// [`crate::AssociationMode::KnownIds`].
-    #[error("observation {index} has no landmark id, but association mode is KnownIds")]
+    #[error("observation {index} has no landmark id, but the association mode is \"known-ids\"")]
     MissingId {
         /// Index of the observation in the batch.
         index: usize,
@@ -43,7 +36,7 @@ pub enum EkfError {
     },
     /// A new landmark would exceed [`crate::EkfConfig::max_landmarks`].
     #[error(
-        "the map already holds max_landmarks = {max} landmarks; raise max_landmarks (at most 20000; \
+        "the map already holds max-landmarks = {max} landmarks; raise max-landmarks (at most 20000; \
          the covariance takes (3 + 2n)² × 8 bytes)"
     )]
     TooManyLandmarks {
@@ -63,15 +56,17 @@ pub enum EkfError {
     Model(#[from] ModelError),
 }
 
+/// Sorts the error into a [`FilterError`] category and keeps it, typed, as the source
+/// (`FilterError::downcast_ref::<EkfError>()` gives it back).
 impl From<EkfError> for FilterError {
     fn from(e: EkfError) -> Self {
         match e {
-            EkfError::Model(m) => FilterError::Model(m),
-            EkfError::InvalidInput(s) => FilterError::InvalidInput(s),
-            e @ EkfError::MissingId { .. } => FilterError::InvalidInput(e.to_string()),
-            e @ (EkfError::InnovationNotPositiveDefinite { .. }
-            | EkfError::CovarianceNotPositive { .. }) => FilterError::Numerical(e.to_string()),
-            e => FilterError::Other(Box::new(e)),
+            EkfError::InvalidInput(_) | EkfError::MissingId { .. } | EkfError::Model(_) => {
+                FilterError::invalid_input(e)
+            }
+            EkfError::InnovationNotPositiveDefinite { .. }
+            | EkfError::CovarianceNotPositive { .. } => FilterError::numerical(e),
+            _ => FilterError::other(e),
         }
     }
 }

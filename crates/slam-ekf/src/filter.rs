@@ -9,8 +9,8 @@ use crate::provisional::ProvisionalList;
 use crate::state::{Linearised, State};
 use slam_models::gaussian::mahalanobis_squared;
 use slam_models::{
-    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3, Pose2,
-    RangeBearing, UpdateInfo, Vector3,
+    Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3,
+    Pose2, RangeBearing, UpdateInfo, Vector3,
 };
 use std::collections::HashMap;
 
@@ -56,7 +56,7 @@ pub struct EkfUpdateInfo {
 /// ```
 /// use slam_ekf::{EkfConfig, EkfSlam};
 /// use slam_models::{Control, LandmarkId, LandmarkSlam, OdometryControl, Pose2, RangeBearing};
-/// let mut ekf = EkfSlam::new(EkfConfig::default(), Pose2::IDENTITY).unwrap();
+/// let mut ekf = EkfSlam::new(EkfConfig::default(), Pose2::IDENTITY, 0).unwrap();
 /// ekf.predict(&Control::Odometry(OdometryControl { rot1: 0.0, trans: 1.0, rot2: 0.0 })).unwrap();
 /// let z = RangeBearing::new(2.0, 0.5, Some(LandmarkId(7))).unwrap();
 /// let info = ekf.update(&[z]).unwrap();
@@ -83,8 +83,11 @@ pub struct EkfSlam {
 
 impl EkfSlam {
     /// A filter at `initial_pose` with covariance `config.initial_pose_variance` and an
-    /// empty map. Rejects invalid configurations and non-finite poses.
-    pub fn new(config: EkfConfig, initial_pose: Pose2) -> Result<Self, EkfError> {
+    /// empty map. Rejects invalid configurations and non-finite poses. The EKF draws
+    /// nothing at random: `seed` is taken for the one constructor shape of every filter
+    /// ([`slam_models::FromConfig`]) and ignored.
+    pub fn new(config: EkfConfig, initial_pose: Pose2, seed: u64) -> Result<Self, EkfError> {
+        let _ = seed;
         config.validate()?;
         if !initial_pose.is_finite() {
             return Err(EkfError::InvalidInput(format!(
@@ -368,6 +371,15 @@ impl EkfSlam {
     }
 }
 
+impl FromConfig for EkfSlam {
+    type Config = EkfConfig;
+    type Error = EkfError;
+
+    fn from_config(config: EkfConfig, initial_pose: Pose2, seed: u64) -> Result<Self, EkfError> {
+        Self::new(config, initial_pose, seed)
+    }
+}
+
 impl LandmarkSlam for EkfSlam {
     fn name(&self) -> &str {
         "ekf"
@@ -427,15 +439,16 @@ mod tests {
                 ..EkfConfig::default()
             },
             Pose2::IDENTITY,
+            0,
         )
         .unwrap_err();
         assert!(
             matches!(
                 e,
-                EkfError::InvalidConfig {
+                EkfError::InvalidConfig(slam_models::ConfigError {
                     field: "max_landmarks",
                     ..
-                }
+                })
             ),
             "{e}"
         );
@@ -445,7 +458,7 @@ mod tests {
             max_landmarks: 3,
             ..EkfConfig::default()
         };
-        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY, 0).unwrap();
         let obs: Vec<_> = (0..3)
             .map(|k| z(2.0 + k as f64, 0.3 * k as f64, Some(k)))
             .collect();
@@ -454,9 +467,36 @@ mod tests {
             .update_observations(&[z(4.0, -0.5, Some(7))])
             .unwrap_err();
         assert_eq!(e, EkfError::TooManyLandmarks { max: 3 });
-        assert!(e.to_string().contains("max_landmarks = 3"), "{e}");
+        assert!(e.to_string().contains("max-landmarks = 3"), "{e}");
         // Known landmarks are still updated.
         ekf.update_observations(&obs).unwrap();
+    }
+
+    /// Through the object-safe trait the EKF's error keeps its type: a missing id is
+    /// `InvalidInput` and downcasts back to `EkfError::MissingId`, as the source too.
+    #[test]
+    fn trait_errors_keep_the_typed_source() {
+        let cfg = EkfConfig {
+            association: AssociationMode::KnownIds,
+            ..EkfConfig::default()
+        };
+        let mut ekf: Box<dyn LandmarkSlam> =
+            Box::new(<EkfSlam as FromConfig>::from_config(cfg, Pose2::IDENTITY, 0).unwrap());
+        let e = ekf.update(&[z(1.0, 0.0, None)]).unwrap_err();
+        assert!(matches!(e, FilterError::InvalidInput { .. }), "{e:?}");
+        assert_eq!(
+            e.downcast_ref::<EkfError>(),
+            Some(&EkfError::MissingId { index: 0 })
+        );
+        let source = std::error::Error::source(&e).expect("a source");
+        assert_eq!(
+            source.downcast_ref::<EkfError>(),
+            Some(&EkfError::MissingId { index: 0 })
+        );
+        assert!(
+            e.to_string().contains("observation 0 has no landmark id"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -465,7 +505,7 @@ mod tests {
             association: AssociationMode::KnownIds,
             ..EkfConfig::default()
         };
-        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY, 0).unwrap();
         assert!(matches!(
             ekf.update_observations(&[z(1.0, 0.0, None)]),
             Err(EkfError::MissingId { index: 0 })
@@ -488,7 +528,7 @@ mod tests {
             ekf.last_associations(),
             &[Association::Rejected, Association::New(LandmarkId(2))]
         );
-        assert!(EkfSlam::new(EkfConfig::default(), Pose2::new(f64::NAN, 0.0, 0.0)).is_err());
+        assert!(EkfSlam::new(EkfConfig::default(), Pose2::new(f64::NAN, 0.0, 0.0), 0).is_err());
     }
 
     /// Id-less observations of one landmark: provisional for k − 1 sightings, then mapped,
@@ -500,7 +540,7 @@ mod tests {
             min_sightings: 3,
             ..EkfConfig::default()
         };
-        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY).unwrap();
+        let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY, 0).unwrap();
         let still = Control::Odometry(OdometryControl {
             rot1: 0.0,
             trans: 0.0,

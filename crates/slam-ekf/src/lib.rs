@@ -41,8 +41,8 @@ pub use filter::{Association, EkfSlam, EkfUpdateInfo, AUTO_ID_BASE};
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// EKF-SLAM compiles with this crate alone (sophus-rs style).
 pub use slam_models::{
-    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, OdometryControl, Pose2,
-    RangeBearing, UpdateInfo, VelocityControl,
+    ConfigError, Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam,
+    OdometryControl, Pose2, RangeBearing, UpdateInfo, VelocityControl,
 };
 
 /// Traits only, for glob import: `use slam_ekf::prelude::*;` (re-exports

@@ -407,7 +407,7 @@ impl FilterConfig {
         };
         Ok(match self {
             FilterConfig::Ekf(c) => {
-                Box::new(EkfSlam::new(c.clone(), initial_pose).map_err(|e| invalid(&e))?)
+                Box::new(EkfSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
             }
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
@@ -421,7 +421,8 @@ impl FilterConfig {
         })
     }
 
-    /// Builds a scan filter (scan filters start at the identity pose), its random numbers
+    /// Builds a scan filter starting at the identity pose (its map in the odometry frame, as
+    /// GMapping's), its random numbers
     /// from `seed` (particle filters).
     pub fn build_scan(&self, seed: u64) -> Result<Box<dyn ScanSlam>, FactoryError> {
         let invalid = |e: &dyn std::fmt::Display| FactoryError::Invalid {
@@ -429,12 +430,13 @@ impl FilterConfig {
             message: e.to_string(),
         };
         Ok(match self {
-            FilterConfig::Scanmatch(c) => {
-                Box::new(ScanMatchOdometry::new(c.clone()).map_err(|e| invalid(&e))?)
-            }
-            FilterConfig::Gridfast(c) => {
-                Box::new(GridFastSlam::new(c.clone(), seed).map_err(|e| invalid(&e))?)
-            }
+            FilterConfig::Scanmatch(c) => Box::new(
+                ScanMatchOdometry::new(c.clone(), Pose2::IDENTITY, seed)
+                    .map_err(|e| invalid(&e))?,
+            ),
+            FilterConfig::Gridfast(c) => Box::new(
+                GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
+            ),
             FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),

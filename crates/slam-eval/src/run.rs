@@ -388,7 +388,7 @@ pub fn run_scans_observed(
     let mut updates = Vec::with_capacity(records.len());
     let mut warnings = Vec::new();
     let mut notes = Vec::new();
-    // Odometry jumps the filter skipped (only with `odometry_jump.on_jump = "skip"`): how
+    // Odometry jumps the filter skipped (only with `odometry-jump.on-jump = "skip"`): how
     // many, and the first record's index and time.
     let (mut jumps, mut first_jump) = (0usize, None);
     let mut observed = Duration::ZERO;
@@ -426,7 +426,7 @@ pub fn run_scans_observed(
     }
     if let Some((k, t)) = first_jump {
         warnings.push(format!(
-            "skipped {jumps} odometry jump(s) beyond odometry_jump.max_jump, taken as no motion (first at record {k}, t = {t} s)"
+            "skipped {jumps} odometry jump(s) beyond odometry-jump.max-jump, taken as no motion (first at record {k}, t = {t} s)"
         ));
     }
     let trajectory = filter.trajectory();

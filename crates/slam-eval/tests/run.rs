@@ -299,7 +299,7 @@ fn bad_configs_are_clear_errors() {
 fn a_config_file_keeps_its_own_noise_models() {
     let sim = loop_run(5);
     let mut parsed =
-        FilterConfig::from_toml("filter = \"ekf\"\n[sensor]\nsigma_range = 0.5\n").unwrap();
+        FilterConfig::from_toml("filter = \"ekf\"\n[sensor]\nsigma-range = 0.5\n").unwrap();
     let applied = parsed.apply_sim_noise(&sim.noise_models());
     assert!(applied.motion && !applied.sensor);
 }

@@ -47,7 +47,7 @@ pub const MAX_LANDMARKS: usize = 10_000_000;
 
 /// FastSLAM settings. Every field has a documented default ([`FastSlamConfig::default`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct FastSlamConfig {
     /// FastSLAM 1.0 or 2.0. Default 2.0.
     pub variant: Variant,
@@ -138,11 +138,12 @@ impl FastSlamConfig {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), FastSlamError> {
         fn bad(field: &'static str, value: impl ToString, expected: &'static str) -> FastSlamError {
-            FastSlamError::InvalidConfig {
+            FastSlamError::InvalidConfig(slam_models::ConfigError::new(
+                "FastSLAM",
                 field,
-                value: value.to_string(),
+                value.to_string(),
                 expected,
-            }
+            ))
         }
         if !(1..=MAX_PARTICLES).contains(&self.particles) {
             return Err(bad(
@@ -264,9 +265,14 @@ mod tests {
             particles: 1_000_000_000,
             ..Default::default()
         };
-        let e = c.validate().unwrap_err().to_string();
+        let e = c.validate().unwrap_err();
+        let FastSlamError::InvalidConfig(ref ce) = e else {
+            panic!("{e:?}")
+        };
+        assert_eq!((ce.field, ce.value.as_str()), ("particles", "1000000000"));
+        let e = e.to_string();
         assert!(
-            e.contains("particles = 1000000000") && e.contains("100000"),
+            e.contains("FastSLAM") && e.contains("particles = 1000000000") && e.contains("100000"),
             "{e}"
         );
         let c = FastSlamConfig {
@@ -300,10 +306,7 @@ mod tests {
                 ..Default::default()
             },
         ] {
-            assert!(matches!(
-                c.validate(),
-                Err(FastSlamError::InvalidConfig { .. })
-            ));
+            assert!(matches!(c.validate(), Err(FastSlamError::InvalidConfig(_))));
         }
     }
 }

@@ -1,21 +1,14 @@
 //! Errors of the FastSLAM filters.
 
-use slam_models::{FilterError, ModelError};
+use slam_models::{ConfigError, FilterError, ModelError};
 use thiserror::Error;
 
 /// What went wrong in FastSLAM.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FastSlamError {
-    /// A configuration value was outside its documented range.
-    #[error("invalid FastSLAM configuration: {field} = {value}, expected {expected}")]
-    InvalidConfig {
-        /// The field of [`crate::FastSlamConfig`].
-        field: &'static str,
-        /// The value given (as text).
-        value: String,
-        /// What was expected, in words.
-        expected: &'static str,
-    },
+    /// A field of [`crate::FastSlamConfig`] was outside its documented range.
+    #[error(transparent)]
+    InvalidConfig(#[from] ConfigError),
     /// An input (initial pose, control, observation) was not finite.
     #[error("invalid input: {what} is not finite ({value})")]
     NonFiniteInput {
@@ -30,7 +23,7 @@ pub enum FastSlamError {
     /// An update could take a particle's map past [`crate::FastSlamConfig::max_landmarks`].
     #[error(
         "a particle's map holds {landmarks} landmarks and this update brings {observations} \
-         observations: more than max_landmarks = {max} could be mapped"
+         observations: more than max-landmarks = {max} could be mapped"
     )]
     TooManyLandmarks {
         /// The largest map among the particles.
@@ -45,13 +38,16 @@ pub enum FastSlamError {
     Degenerate(String),
 }
 
+/// Sorts the error into a [`FilterError`] category and keeps it, typed, as the source
+/// (`FilterError::downcast_ref::<FastSlamError>()` gives it back).
 impl From<FastSlamError> for FilterError {
     fn from(e: FastSlamError) -> Self {
         match e {
-            FastSlamError::Model(m) => FilterError::Model(m),
-            FastSlamError::NonFiniteInput { .. } => FilterError::InvalidInput(e.to_string()),
-            FastSlamError::Degenerate(_) => FilterError::Numerical(e.to_string()),
-            other => FilterError::Other(Box::new(other)),
+            FastSlamError::NonFiniteInput { .. } | FastSlamError::Model(_) => {
+                FilterError::invalid_input(e)
+            }
+            FastSlamError::Degenerate(_) => FilterError::numerical(e),
+            _ => FilterError::other(e),
         }
     }
 }

@@ -4,14 +4,15 @@
 use crate::config::{FastSlamConfig, Variant};
 use crate::error::FastSlamError;
 use crate::map::LandmarkMap;
+#[allow(unused_imports)]
+use crate::par::*;
 use crate::particle::{estimates, stream, Obs, Particle, ParticleStats, StepContext};
-use rayon::prelude::*;
 use slam_models::particle::{
     effective_sample_size_log, normalize_log_weights, ParticlePaths, PathNode,
 };
 use slam_models::{
-    normalize_angle, Control, FilterError, LandmarkEstimate, LandmarkSlam, Matrix3, Pose2,
-    RangeBearing, UpdateInfo, Vector3, WeightedPose,
+    normalize_angle, Control, FilterError, FromConfig, LandmarkEstimate, LandmarkSlam, Matrix3,
+    Pose2, RangeBearing, UpdateInfo, Vector3, WeightedPose,
 };
 
 /// Stream index reserved for the resampler's random draws (particles use 0..M).
@@ -214,6 +215,19 @@ impl FastSlam {
 
     fn validate_control(u: &Control) -> Result<(), FastSlamError> {
         u.validate().map_err(FastSlamError::from)
+    }
+}
+
+impl FromConfig for FastSlam {
+    type Config = FastSlamConfig;
+    type Error = FastSlamError;
+
+    fn from_config(
+        config: FastSlamConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, FastSlamError> {
+        Self::new(config, initial_pose, seed)
     }
 }
 
@@ -490,6 +504,37 @@ mod tests {
     /// After resampling the particles share map nodes; writing to one particle's landmark
     /// (directly, and through a full filter update of only that particle) never changes
     /// any other particle's landmarks.
+    /// Through the object-safe trait FastSLAM's error keeps its type: a NaN range is
+    /// `InvalidInput` and downcasts back to `FastSlamError::NonFiniteInput`.
+    #[test]
+    fn trait_errors_keep_the_typed_source() {
+        let mut f: Box<dyn LandmarkSlam> = Box::new(
+            <FastSlam as FromConfig>::from_config(FastSlamConfig::default(), Pose2::IDENTITY, 3)
+                .unwrap(),
+        );
+        let z = RangeBearing {
+            range: f64::NAN,
+            bearing: 0.0,
+            id: None,
+        };
+        let e = f.update(&[z]).unwrap_err();
+        assert!(matches!(e, FilterError::InvalidInput { .. }), "{e:?}");
+        let typed = std::error::Error::source(&e)
+            .and_then(|s| s.downcast_ref::<FastSlamError>())
+            .expect("the typed source");
+        assert!(
+            matches!(
+                typed,
+                FastSlamError::NonFiniteInput {
+                    what: "observation range",
+                    ..
+                }
+            ),
+            "{typed:?}"
+        );
+        assert!(e.downcast_ref::<FastSlamError>().is_some());
+    }
+
     #[test]
     fn particles_never_alias_after_resampling() {
         let (data, _) = world(1, 40, false);
@@ -562,7 +607,7 @@ mod tests {
                 Err(e) => {
                     let largest = before.iter().map(Vec::len).max().unwrap();
                     assert!(largest + z.len() > max, "refused below the cap: {e}");
-                    assert!(e.to_string().contains("max_landmarks = 6"), "{e}");
+                    assert!(e.to_string().contains("max-landmarks = 6"), "{e}");
                     assert_eq!(snapshot(&f), before);
                     assert_eq!((f.updates, f.pose()), (updates, pose));
                     refused = true;
@@ -582,11 +627,12 @@ mod tests {
             .validate()
             .unwrap_err()
             .to_string()
-            .contains("max_landmarks"));
+            .contains("max-landmarks"));
     }
 
     /// Bit-identical results on a rayon pool of 1 thread and one of 2 threads, for both
     /// variants, under hidden ids, clutter, negative evidence and resampling.
+    #[cfg(feature = "parallel")]
     #[test]
     fn identical_output_for_one_and_two_threads() {
         let (data, _) = world(4, 120, true);

@@ -28,6 +28,7 @@ pub mod error;
 pub mod filter;
 pub mod landmark;
 pub mod map;
+mod par;
 pub mod particle;
 pub mod tree;
 
@@ -39,8 +40,8 @@ pub use particle::Particle;
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// FastSLAM compiles with this crate alone (sophus-rs style).
 pub use slam_models::{
-    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, OdometryControl, Pose2,
-    RangeBearing, UpdateInfo, VelocityControl, WeightedPose,
+    ConfigError, Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam,
+    OdometryControl, Pose2, RangeBearing, UpdateInfo, VelocityControl, WeightedPose,
 };
 
 /// Traits only, for glob import: `use slam_fastslam::prelude::*;` (re-exports

@@ -45,16 +45,9 @@ pub enum GraphError {
         /// Id of the second node.
         to: u64,
     },
-    /// A configuration value was outside its documented range.
-    #[error("invalid optimiser configuration: {field} = {value}, expected {expected}")]
-    InvalidConfig {
-        /// The field of [`crate::OptimizerConfig`].
-        field: &'static str,
-        /// The value given.
-        value: f64,
-        /// What was expected, in words.
-        expected: &'static str,
-    },
+    /// A field of [`crate::OptimizerConfig`] was outside its documented range.
+    #[error(transparent)]
+    InvalidConfig(#[from] slam_models::ConfigError),
     /// The graph has no free variable to optimise (no nodes, or all fixed).
     #[error("nothing to optimise: {0}")]
     Empty(&'static str),

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 /// edge). Every kernel has ρ(s) = s and ρ′(s) = 1 for small s, so inliers are treated as
 /// plain least squares.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum RobustKernel {
     /// Plain least squares: ρ(s) = s.
     #[default]

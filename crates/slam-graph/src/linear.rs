@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 
 /// The fill-reducing ordering of the sparse Cholesky factorisation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Ordering {
     /// Approximate minimum degree (Amestoy, Davis and Duff 1996), faer's implementation.
     #[default]
@@ -32,7 +32,7 @@ pub enum Ordering {
 
 /// Which numeric Cholesky kernel factorises H.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Factorization {
     /// faer's choice from the symbolic analysis' flop count (supernodal when dense enough).
     #[default]

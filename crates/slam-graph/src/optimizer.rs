@@ -39,7 +39,7 @@ pub enum Method {
 
 /// Optimiser settings; the defaults are GTSAM's `LevenbergMarquardtParams` defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(rename_all = "kebab-case", default, deny_unknown_fields)]
 pub struct OptimizerConfig {
     /// Gauss-Newton or Levenberg-Marquardt (default).
     pub method: Method,
@@ -99,12 +99,13 @@ impl OptimizerConfig {
 
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), GraphError> {
-        let bad = |field, value, expected| {
-            Err(GraphError::InvalidConfig {
+        let bad = |field, value: f64, expected| {
+            Err(GraphError::InvalidConfig(slam_models::ConfigError::new(
+                "optimiser",
                 field,
                 value,
                 expected,
-            })
+            )))
         };
         if self.max_iterations == 0 {
             return bad("max_iterations", 0.0, "≥ 1");

@@ -1,6 +1,6 @@
 //! Errors of slam-grid.
 
-use slam_models::ModelError;
+use slam_models::{ConfigError, FilterError, ModelError};
 use thiserror::Error;
 
 /// What went wrong in a grid, field or matcher operation.
@@ -15,15 +15,8 @@ pub enum GridError {
         value: f64,
     },
     /// A configuration parameter was outside its documented range.
-    #[error("parameter {name} = {value} is out of range: expected {expected}")]
-    InvalidConfig {
-        /// The parameter's name.
-        name: &'static str,
-        /// The value given.
-        value: f64,
-        /// What was expected, in words.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    InvalidConfig(#[from] ConfigError),
     /// A scan had too few usable end points to be matched.
     #[error("scan has {found} usable end points; at least {needed} are needed for matching")]
     TooFewPoints {
@@ -73,6 +66,18 @@ pub enum GridError {
     Model(#[from] ModelError),
 }
 
+/// Sorts the error into a [`FilterError`] category (non-finite input and model-layer
+/// checks as `InvalidInput`, everything else as `Other`) and keeps it, typed, as the source
+/// (`FilterError::downcast_ref::<GridError>()` gives it back).
+impl From<GridError> for FilterError {
+    fn from(e: GridError) -> Self {
+        match e {
+            GridError::NonFinite { .. } | GridError::Model(_) => FilterError::invalid_input(e),
+            _ => FilterError::other(e),
+        }
+    }
+}
+
 /// `Err(GridError::NonFinite)` unless `value` is finite.
 #[inline]
 pub(crate) fn ensure_finite(what: &'static str, value: f64) -> Result<f64, GridError> {
@@ -91,13 +96,7 @@ pub(crate) fn ensure_config(
     value: f64,
     expected: &'static str,
 ) -> Result<(), GridError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(GridError::InvalidConfig {
-            name,
-            value,
-            expected,
-        })
-    }
+    Ok(slam_models::error::ensure_config(
+        ok, "grid", name, value, expected,
+    )?)
 }

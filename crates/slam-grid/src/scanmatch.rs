@@ -7,12 +7,12 @@ use crate::matcher::RefinedCorrelativeMatcher;
 use crate::scan::PreparedScan;
 use crate::InverseSensorModel;
 use serde::{Deserialize, Serialize};
-use slam_models::{normalize_angle, FilterError, GridMap, Pose2, ScanRecord, ScanSlam};
+use slam_models::{normalize_angle, FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam};
 use slam_models::{OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
 
 /// Configuration of [`ScanMatchOdometry`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct ScanMatchConfig {
     /// Map cell size, metres. Default 0.05 m.
     pub resolution: f64,
@@ -67,6 +67,8 @@ impl Default for ScanMatchConfig {
 pub struct ScanMatchOdometry {
     config: ScanMatchConfig,
     grid: OccupancyGrid,
+    /// World pose of the first record.
+    initial_pose: Pose2,
     /// Pose at the last processed scan and the odometry reading there.
     anchor: Option<(Pose2, Pose2)>,
     current: Pose2,
@@ -77,8 +79,21 @@ pub struct ScanMatchOdometry {
 }
 
 impl ScanMatchOdometry {
-    /// A filter with an empty map; rejects invalid configuration.
-    pub fn new(config: ScanMatchConfig) -> Result<Self, GridError> {
+    /// A filter with an empty map whose first record is at `initial_pose` (world frame);
+    /// rejects invalid configuration and a non-finite pose. Scan matching draws nothing at
+    /// random: `seed` is taken for the one constructor shape of every filter
+    /// ([`slam_models::FromConfig`]) and ignored.
+    pub fn new(config: ScanMatchConfig, initial_pose: Pose2, seed: u64) -> Result<Self, GridError> {
+        let _ = seed;
+        if !initial_pose.is_finite() {
+            return Err(GridError::NonFinite {
+                what: "initial pose",
+                value: [initial_pose.x, initial_pose.y, initial_pose.theta]
+                    .into_iter()
+                    .find(|v| !v.is_finite())
+                    .unwrap_or(f64::NAN),
+            });
+        }
         ensure_config(
             config.match_max_range > 0.0,
             "match_max_range",
@@ -111,8 +126,9 @@ impl ScanMatchOdometry {
         Ok(Self {
             config,
             grid,
+            initial_pose,
             anchor: None,
-            current: Pose2::IDENTITY,
+            current: initial_pose,
             trajectory: Vec::new(),
             map_has_scan: false,
             failures: 0,
@@ -138,7 +154,7 @@ impl ScanMatchOdometry {
             });
         }
         let (odometry, skipped) = self.guard.check(&record.odometry)?;
-        let (anchor_pose, anchor_odom) = *self.anchor.get_or_insert((Pose2::IDENTITY, odometry));
+        let (anchor_pose, anchor_odom) = *self.anchor.get_or_insert((self.initial_pose, odometry));
         let predicted = anchor_pose.compose(&anchor_odom.between(&odometry));
         let mut info = ScanUpdateInfo {
             odometry_jumps_skipped: skipped as usize,
@@ -184,14 +200,27 @@ impl ScanMatchOdometry {
     }
 }
 
+impl FromConfig for ScanMatchOdometry {
+    type Config = ScanMatchConfig;
+    type Error = GridError;
+
+    fn from_config(
+        config: ScanMatchConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, GridError> {
+        Self::new(config, initial_pose, seed)
+    }
+}
+
 impl ScanSlam for ScanMatchOdometry {
     fn name(&self) -> &str {
         "scanmatch"
     }
 
+    /// Errors keep their type: `FilterError::downcast_ref::<GridError>()` gives them back.
     fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
-        self.step(record)
-            .map_err(|e| FilterError::Other(Box::new(e)))
+        self.step(record).map_err(FilterError::from)
     }
 
     fn pose(&self) -> Pose2 {
@@ -217,8 +246,17 @@ mod tests {
     /// odometry alone does not.
     #[test]
     fn corrects_biased_odometry_and_keeps_one_pose_per_record() {
+        // Once in the frame of the first record, once with the first record placed at its
+        // true world pose (the constructor's `initial_pose`).
+        for initial in [Pose2::IDENTITY, Pose2::new(1.5, 3.0, 0.0)] {
+            corrects_biased_odometry_from(initial);
+        }
+    }
+
+    fn corrects_biased_odometry_from(initial: Pose2) {
         let world = SegmentWorld::office();
-        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).unwrap();
+        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default(), initial, 0).unwrap();
+        assert_eq!(f.pose(), initial);
         let mut odo = Pose2::IDENTITY;
         let mut prev_true = Pose2::new(1.5, 3.0, 0.0);
         let start = prev_true;
@@ -242,7 +280,8 @@ mod tests {
                 scan,
             };
             f.process(&rec).unwrap();
-            let est = start.compose(&f.pose());
+            // The estimate in the world frame: the first record is at `start` in truth.
+            let est = start.compose(&initial.between(&f.pose()));
             worst = worst.max(est.distance(&truth));
             odo_err = odo_err.max(start.compose(&odo).distance(&truth));
         }
@@ -255,7 +294,15 @@ mod tests {
             odometry: Pose2::new(f64::NAN, 0.0, 0.0),
             scan: None,
         };
-        assert!(f.process(&bad).is_err());
+        let e = f.process(&bad).unwrap_err();
+        assert!(matches!(e, FilterError::InvalidInput { .. }), "{e:?}");
+        assert!(
+            matches!(
+                e.downcast_ref::<GridError>(),
+                Some(GridError::NonFinite { .. })
+            ),
+            "{e:?}"
+        );
     }
 
     /// Records along the office with true odometry, one of them moved by 10 km (a glitch).
@@ -283,13 +330,13 @@ mod tests {
     #[test]
     fn an_odometry_jump_is_an_error_or_skipped_on_request() {
         let records = glitched_records();
-        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default()).unwrap();
+        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default(), Pose2::IDENTITY, 0).unwrap();
         for r in &records[..20] {
             f.process(r).unwrap();
         }
         let err = f.process(&records[20]).unwrap_err().to_string();
         assert!(
-            err.contains("odometry jumped 10000") && err.contains("max_jump = 5 m"),
+            err.contains("odometry jumped 10000") && err.contains("max-jump = 5 m"),
             "{err}"
         );
 
@@ -300,7 +347,7 @@ mod tests {
             },
             ..ScanMatchConfig::default()
         };
-        let mut f = ScanMatchOdometry::new(config).unwrap();
+        let mut f = ScanMatchOdometry::new(config, Pose2::IDENTITY, 0).unwrap();
         let mut skipped = Vec::new();
         for r in &records {
             skipped.push(f.process(r).unwrap().odometry_jumps_skipped);
@@ -319,13 +366,17 @@ mod tests {
             "{} cells wide",
             map.width
         );
-        assert!(ScanMatchOdometry::new(ScanMatchConfig {
-            odometry_jump: slam_models::OdometryJumpLimit {
-                max_jump: f64::NAN,
-                ..Default::default()
+        assert!(ScanMatchOdometry::new(
+            ScanMatchConfig {
+                odometry_jump: slam_models::OdometryJumpLimit {
+                    max_jump: f64::NAN,
+                    ..Default::default()
+                },
+                ..ScanMatchConfig::default()
             },
-            ..ScanMatchConfig::default()
-        })
+            Pose2::IDENTITY,
+            0
+        )
         .is_err());
     }
 }

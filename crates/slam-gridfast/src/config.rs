@@ -197,15 +197,13 @@ fn check(
     value: f64,
     expected: &'static str,
 ) -> Result<(), GridFastError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(GridFastError::InvalidConfig {
-            field,
-            value,
-            expected,
-        })
-    }
+    Ok(slam_models::error::ensure_config(
+        ok,
+        "grid FastSLAM",
+        field,
+        value,
+        expected,
+    )?)
 }
 
 impl GridFastConfig {
@@ -433,7 +431,7 @@ mod tests {
             e.contains("particles = 1000000000") && e.contains("10000"),
             "{e}"
         );
-        assert!(crate::GridFastSlam::new(c, 0).is_err());
+        assert!(crate::GridFastSlam::new(c, slam_models::Pose2::IDENTITY, 0).is_err());
         let c = GridFastConfig {
             particles: MAX_PARTICLES,
             ..Default::default()
@@ -452,20 +450,20 @@ mod tests {
         c.field_radius = 1.0; // 20 cells
         assert!(matches!(
             c.validate(),
-            Err(GridFastError::InvalidConfig {
+            Err(GridFastError::InvalidConfig(slam_models::ConfigError {
                 field: "field_radius",
                 ..
-            })
+            }))
         ));
         c.field_radius = 0.2;
         for r in [0.0, 0.25, f64::NAN] {
             c.likelihood_radius = r;
             assert!(matches!(
                 c.validate(),
-                Err(GridFastError::InvalidConfig {
+                Err(GridFastError::InvalidConfig(slam_models::ConfigError {
                     field: "likelihood_radius",
                     ..
-                })
+                }))
             ));
         }
         c.likelihood_radius = 0.2;

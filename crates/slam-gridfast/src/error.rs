@@ -1,20 +1,14 @@
 //! Errors of grid-based FastSLAM.
 
+use slam_models::{ConfigError, FilterError};
 use thiserror::Error;
 
 /// What went wrong in [`crate::GridFastSlam`]. Each variant says what was expected.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum GridFastError {
-    /// A configuration value was outside its documented range.
-    #[error("invalid configuration: {field} = {value}, expected {expected}")]
-    InvalidConfig {
-        /// The field of [`crate::GridFastConfig`].
-        field: &'static str,
-        /// The value given.
-        value: f64,
-        /// What was expected, in words.
-        expected: &'static str,
-    },
+    /// A field of [`crate::GridFastConfig`] was outside its documented range.
+    #[error(transparent)]
+    InvalidConfig(#[from] ConfigError),
     /// An input record was rejected (non-finite odometry or an invalid scan).
     #[error("record {index} (t = {t}) rejected: {reason}")]
     InvalidRecord {
@@ -37,4 +31,17 @@ pub enum GridFastError {
         /// What failed.
         reason: String,
     },
+}
+
+/// Sorts the error into a [`FilterError`] category (a rejected record as `InvalidInput`,
+/// invalid weights as `Numerical`, everything else as `Other`) and keeps it, typed, as the
+/// source (`FilterError::downcast_ref::<GridFastError>()` gives it back).
+impl From<GridFastError> for FilterError {
+    fn from(e: GridFastError) -> Self {
+        match e {
+            GridFastError::InvalidRecord { .. } => FilterError::invalid_input(e),
+            GridFastError::Numerical { .. } => FilterError::numerical(e),
+            _ => FilterError::other(e),
+        }
+    }
 }

@@ -5,10 +5,11 @@ use crate::error::GridFastError;
 use crate::matcher::{
     field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
 };
+#[allow(unused_imports)]
+use crate::par::*;
 use crate::proposal::{improved, motion_and_likelihood, sample_offsets, Drawn, StepContext};
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
-use rayon::prelude::*;
 use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
@@ -16,8 +17,8 @@ use slam_models::particle::PathNode;
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights};
 use slam_models::OdometryJumpGuard;
 use slam_models::{
-    normalize_angle, FilterError, GridMap, LaserScan, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo,
-    TimedPose, Vector3, WeightedPose,
+    normalize_angle, ConfigError, FilterError, FromConfig, GridMap, LaserScan, Pose2, ScanRecord,
+    ScanSlam, ScanUpdateInfo, TimedPose, Vector3, WeightedPose,
 };
 use std::sync::Arc;
 
@@ -89,14 +90,16 @@ pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFast
 /// next processed scan is that scan's instant and takes its corrected pose (GMapping's
 /// convention, [`slam_models::keyframes`]).
 ///
-/// The world frame is the odometry frame of the first record. Particles run in parallel
+/// The world frame is the odometry frame placed at the constructor's `initial_pose`
+/// (`Pose2::IDENTITY`: the odometry frame itself, GMapping's convention). Particles run in parallel
 /// (rayon); each particle draws from its own random stream derived from `(seed, processed
 /// scan index, particle index)`, so the output is identical for any number of threads.
 ///
 /// ```
 /// use slam_gridfast::{GridFastConfig, GridFastSlam};
 /// use slam_models::{LaserScan, Pose2, ScanRecord, ScanSlam};
-/// let mut slam = GridFastSlam::new(GridFastConfig { particles: 5, ..Default::default() }, 7).unwrap();
+/// let config = GridFastConfig { particles: 5, ..Default::default() };
+/// let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, 7).unwrap();
 /// let scan = LaserScan { angle_min: -1.5, angle_increment: 0.1, ranges: vec![2.0; 31],
 ///                        max_range: 30.0, sensor_pose: Pose2::IDENTITY };
 /// slam.process(&ScanRecord { t: 0.0, odometry: Pose2::IDENTITY, scan: Some(scan) }).unwrap();
@@ -106,6 +109,8 @@ pub(crate) fn new_map(config: &GridFastConfig) -> Result<OccupancyGrid, GridFast
 pub struct GridFastSlam {
     config: GridFastConfig,
     seed: u64,
+    /// World pose of the odometry frame.
+    initial_pose: Pose2,
     /// An empty map (the template of every particle's map).
     empty: OccupancyGrid,
     /// The endpoint model truncated at `likelihood_radius` and at the field's reach.
@@ -155,10 +160,24 @@ fn stream(seed: u64, step: usize, i: u64) -> Pcg64Mcg {
 }
 
 impl GridFastSlam {
-    /// A filter with `config.particles` particles at the origin of the odometry frame, all
-    /// with empty maps. `seed` fixes every random draw.
-    pub fn new(config: GridFastConfig, seed: u64) -> Result<Self, GridFastError> {
+    /// A filter with `config.particles` particles, all with empty maps, whose world frame
+    /// is the odometry frame placed at `initial_pose`: a record's uncorrected pose is
+    /// `initial_pose ⊕ odometry` (`Pose2::IDENTITY` draws the map in the odometry frame).
+    /// `seed` fixes every random draw. Errors on an invalid configuration or a non-finite
+    /// pose.
+    pub fn new(
+        config: GridFastConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, GridFastError> {
         config.validate()?;
+        if !initial_pose.is_finite() {
+            return Err(GridFastError::InvalidRecord {
+                index: 0,
+                t: f64::NAN,
+                reason: format!("initial pose {initial_pose:?} is not finite"),
+            });
+        }
         let config_jump = config.odometry_jump;
         let radius = (config.field_radius / config.resolution).round() as i32;
         let empty = new_map(&config)?;
@@ -193,6 +212,7 @@ impl GridFastSlam {
         Ok(Self {
             config,
             seed,
+            initial_pose,
             empty,
             lk,
             capture,
@@ -211,11 +231,12 @@ impl GridFastSlam {
             motion_reference: None,
             failed: None,
             guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
-                GridFastError::InvalidConfig {
-                    field: "odometry_jump.max_jump",
-                    value: config_jump.max_jump,
-                    expected: "> 0 m and finite",
-                }
+                ConfigError::new(
+                    "grid FastSLAM",
+                    "odometry_jump.max_jump",
+                    config_jump.max_jump,
+                    "> 0 m and finite",
+                )
             })?,
         })
     }
@@ -280,6 +301,14 @@ impl GridFastSlam {
             k => (keyframe(k as usize), k as usize + 1),
         };
         let next = keyframe(next);
+        // Before the first processed scan a record's pose is its odometry placed in the
+        // world (skipped at the identity, where it is the odometry itself, bit for bit).
+        let previous = previous.or_else(|| {
+            (self.initial_pose != Pose2::IDENTITY).then(|| Keyframe {
+                record: i,
+                pose: self.initial_pose.compose(&self.odometry[i]),
+            })
+        });
         keyframes::pose_at_record(&self.times, &self.odometry, i, previous, next)
             .expect("record and scan indices are the filter's own and always in range")
     }
@@ -422,13 +451,19 @@ impl GridFastSlam {
         scan: &LaserScan,
         odometry: Pose2,
     ) -> Result<ScanUpdateInfo, GridFastError> {
-        let node = PathNode::child(None, odometry, 0);
+        // The first scan's pose in the world frame (the odometry itself at the identity).
+        let pose = if self.initial_pose == Pose2::IDENTITY {
+            odometry
+        } else {
+            self.initial_pose.compose(&odometry)
+        };
+        let node = PathNode::child(None, pose, 0);
         let mut map = self.particles[0].map.clone();
         let prepared = self.prepare(0, scan)?;
-        map.try_integrate_prepared(&odometry, &prepared.grid)
+        map.try_integrate_prepared(&pose, &prepared.grid)
             .map_err(|e| numerical(0, e))?;
         for p in &mut self.particles {
-            p.pose = odometry;
+            p.pose = pose;
             p.node = Some(Arc::clone(&node));
             p.map = map.clone();
         }
@@ -652,6 +687,19 @@ impl GridFastSlam {
     }
 }
 
+impl FromConfig for GridFastSlam {
+    type Config = GridFastConfig;
+    type Error = GridFastError;
+
+    fn from_config(
+        config: GridFastConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, GridFastError> {
+        Self::new(config, initial_pose, seed)
+    }
+}
+
 impl ScanSlam for GridFastSlam {
     fn name(&self) -> &str {
         "gridfast"
@@ -661,16 +709,12 @@ impl ScanSlam for GridFastSlam {
     /// size of the weights after the update and before any resampling (the value the
     /// resampling decision used).
     fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
-        self.step(record).map_err(|e| match e {
-            GridFastError::InvalidRecord { .. } => FilterError::InvalidInput(e.to_string()),
-            GridFastError::Numerical { .. } => FilterError::Numerical(e.to_string()),
-            other => FilterError::Other(Box::new(other)),
-        })
+        self.step(record).map_err(FilterError::from)
     }
 
     fn pose(&self) -> Pose2 {
         match self.times.len() {
-            0 => Pose2::IDENTITY,
+            0 => self.initial_pose,
             n => {
                 let path = self.best_path();
                 self.pose_at_record(n - 1, &path)
@@ -759,6 +803,35 @@ mod tests {
         }
     }
 
+    /// `initial_pose` places the odometry frame in the world: before any record the pose
+    /// is `initial_pose`, before the first processed scan a record sits at
+    /// `initial_pose ⊕ odometry`, and the first scan's pose is the same composition.
+    #[test]
+    fn initial_pose_places_the_odometry_frame() {
+        let start = Pose2::new(2.0, -1.0, 0.7);
+        let config = GridFastConfig {
+            particles: 3,
+            ..Default::default()
+        };
+        let mut f = GridFastSlam::new(config.clone(), start, 1).unwrap();
+        assert_eq!(ScanSlam::pose(&f), start);
+        let odo = [Pose2::new(0.2, 0.1, 0.05), Pose2::new(0.3, 0.1, 0.1)];
+        f.process(&rec(0.0, odo[0], false)).unwrap();
+        f.process(&rec(0.1, odo[1], true)).unwrap();
+        let traj = f.trajectory();
+        for (k, o) in odo.iter().enumerate() {
+            let want = start.compose(o);
+            assert!(
+                traj[k].pose.distance(&want) < 1e-12,
+                "{k}: {:?}",
+                traj[k].pose
+            );
+            assert!(normalize_angle(traj[k].pose.theta - want.theta).abs() < 1e-12);
+        }
+        let bad = Pose2::new(f64::NAN, 0.0, 0.0);
+        assert!(GridFastSlam::new(config, bad, 1).is_err());
+    }
+
     #[test]
     fn one_pose_per_record_and_same_instant_records_share_the_correction() {
         let mut f = GridFastSlam::new(
@@ -767,6 +840,7 @@ mod tests {
                 linear_update: 0.5,
                 ..Default::default()
             },
+            Pose2::IDENTITY,
             1,
         )
         .unwrap();
@@ -824,7 +898,7 @@ mod tests {
             max_range: 2.0,
             ..Default::default()
         };
-        let mut f = GridFastSlam::new(config, 1).unwrap();
+        let mut f = GridFastSlam::new(config, Pose2::IDENTITY, 1).unwrap();
         // The room's walls are 3 m away straight ahead: beyond max_range.
         let pose = Pose2::new(0.0, 0.0, 0.0);
         f.process(&rec(0.0, pose, true)).unwrap();
@@ -858,7 +932,7 @@ mod tests {
         let poses: Vec<Pose2> = (0..8)
             .map(|k| Pose2::new(0.2 * k as f64, 0.0, 0.0))
             .collect();
-        let mut f = GridFastSlam::new(config.clone(), 1).unwrap();
+        let mut f = GridFastSlam::new(config.clone(), Pose2::IDENTITY, 1).unwrap();
         for (k, p) in poses.iter().enumerate() {
             f.step(&rec(k as f64, *p, true)).unwrap();
         }
@@ -870,7 +944,7 @@ mod tests {
             matches!(e, GridFastError::InvalidRecord { index: 8, .. }),
             "{e}"
         );
-        assert!(e.to_string().contains("max_jump = 5 m"), "{e}");
+        assert!(e.to_string().contains("max-jump = 5 m"), "{e}");
 
         let mut f = GridFastSlam::new(
             GridFastConfig {
@@ -880,6 +954,7 @@ mod tests {
                 },
                 ..config
             },
+            Pose2::IDENTITY,
             1,
         )
         .unwrap();
@@ -908,7 +983,7 @@ mod tests {
 
     #[test]
     fn invalid_records_are_rejected_with_their_index() {
-        let mut f = GridFastSlam::new(GridFastConfig::default(), 1).unwrap();
+        let mut f = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 1).unwrap();
         f.process(&rec(0.0, Pose2::IDENTITY, true)).unwrap();
         let bad = ScanRecord {
             t: 1.0,
@@ -928,12 +1003,22 @@ mod tests {
         if let Some(scan) = s.scan.as_mut() {
             scan.ranges[3] = -1.0;
         }
-        assert!(matches!(f.process(&s), Err(FilterError::InvalidInput(_))));
+        // Through the trait the typed error is kept as the source.
+        let e = f.process(&s).unwrap_err();
+        assert!(matches!(e, FilterError::InvalidInput { .. }), "{e:?}");
+        let typed = std::error::Error::source(&e)
+            .and_then(|s| s.downcast_ref::<GridFastError>())
+            .expect("the typed source");
+        assert!(
+            matches!(typed, GridFastError::InvalidRecord { index: 1, .. }),
+            "{typed:?}"
+        );
         assert!(GridFastSlam::new(
             GridFastConfig {
                 particles: 0,
                 ..Default::default()
             },
+            Pose2::IDENTITY,
             1
         )
         .is_err());
@@ -946,6 +1031,7 @@ mod tests {
                 particles: 3,
                 ..Default::default()
             },
+            Pose2::IDENTITY,
             1,
         )
         .unwrap();

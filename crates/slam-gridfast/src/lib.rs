@@ -37,6 +37,7 @@ mod config;
 mod error;
 mod filter;
 mod matcher;
+mod par;
 mod proposal;
 
 pub use config::{GridFastConfig, Proposal, MAX_PARTICLES};
@@ -46,8 +47,8 @@ pub use filter::GridFastSlam;
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// grid FastSLAM compiles with this crate alone (sophus-rs style).
 pub use slam_models::{
-    FilterError, GridMap, LaserScan, Pose2, ScanDataset, ScanRecord, ScanSlam, ScanUpdateInfo,
-    TimedPose, WeightedPose,
+    ConfigError, FilterError, FromConfig, GridMap, LaserScan, Pose2, ScanDataset, ScanRecord,
+    ScanSlam, ScanUpdateInfo, TimedPose, WeightedPose,
 };
 
 /// Traits only, for glob import: `use slam_gridfast::prelude::*;` (re-exports

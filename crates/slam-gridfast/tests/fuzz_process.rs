@@ -118,17 +118,14 @@ proptest! {
         let mut sm = ScanMatchOdometry::new(ScanMatchConfig {
             odometry_jump: limit(skip, unchecked),
             ..ScanMatchConfig::default()
-        })
+        }, Pose2::IDENTITY, 0)
         .unwrap();
         run(&mut sm, &records);
-        let mut gf = GridFastSlam::new(
-            GridFastConfig {
+        let mut gf = GridFastSlam::new(GridFastConfig {
                 particles: 2,
                 odometry_jump: limit(skip, unchecked),
                 ..GridFastConfig::default()
-            },
-            3,
-        )
+            }, Pose2::IDENTITY, 3)
         .unwrap();
         run(&mut gf, &records);
     }

@@ -59,8 +59,8 @@ pub enum ModelError {
     /// The odometry of two consecutive records differs by more than the configured limit
     /// (see [`crate::odometry_jump`]).
     #[error(
-        "odometry jumped {jump} m between two consecutive records, beyond odometry_jump.max_jump = {max_jump} m \
-         (a glitched record; set odometry_jump.on_jump = \"skip\" in the filter config to skip such jumps)"
+        "odometry jumped {jump} m between two consecutive records, beyond odometry-jump.max-jump = {max_jump} m \
+         (a glitched record; set odometry-jump.on-jump = \"skip\" in the filter config to skip such jumps)"
     )]
     OdometryJump {
         /// Distance between the two odometry positions, metres.
@@ -85,5 +85,75 @@ pub fn ensure_finite(what: &'static str, value: f64) -> Result<f64, ModelError> 
         Ok(value)
     } else {
         Err(ModelError::NonFinite { what, value })
+    }
+}
+
+/// A configuration value outside its documented range: the one config-error type of every
+/// filter crate (each crate's error enum wraps it as `InvalidConfig`), so a caller handles
+/// a bad EKF, FastSLAM, grid, grid FastSLAM or optimiser setting the same way.
+///
+/// The message names the component, the field as it is written in a TOML config file
+/// (kebab-case, dotted for nested tables), the value given and the bound it broke:
+///
+/// ```
+/// use slam_models::ConfigError;
+/// let e = ConfigError::new("EKF", "gate_probability", 1.0, "a probability in (0, 1)");
+/// assert_eq!(
+///     e.to_string(),
+///     "invalid EKF configuration: gate-probability = 1, expected a probability in (0, 1)"
+/// );
+/// assert_eq!(e.key(), "gate-probability");
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("invalid {component} configuration: {} = {value}, expected {expected}", self.key())]
+pub struct ConfigError {
+    /// Which configuration: `"EKF"`, `"FastSLAM"`, `"grid"`, `"grid FastSLAM"`, ….
+    pub component: &'static str,
+    /// The field's Rust path, e.g. `"sensor.sigma_range"`; [`ConfigError::key`] gives
+    /// the config-file spelling.
+    pub field: &'static str,
+    /// The value given, as text (numbers, lists and names alike).
+    pub value: String,
+    /// The bound it broke: what was expected, in words (`"> 0 m"`, `"in (0, 1]"`).
+    pub expected: &'static str,
+}
+
+impl ConfigError {
+    /// A config error for `field` of `component` holding `value`, which should have been
+    /// `expected`.
+    pub fn new(
+        component: &'static str,
+        field: &'static str,
+        value: impl std::fmt::Display,
+        expected: &'static str,
+    ) -> Self {
+        Self {
+            component,
+            field,
+            value: value.to_string(),
+            expected,
+        }
+    }
+
+    /// The field as written in a config file: the Rust path with `_` spelled `-`
+    /// (every config is `#[serde(rename_all = "kebab-case")]`).
+    pub fn key(&self) -> String {
+        self.field.replace('_', "-")
+    }
+}
+
+/// `Err(ConfigError)` unless `ok` holds and `value` is finite: the shared range check of
+/// the config validators.
+pub fn ensure_config(
+    ok: bool,
+    component: &'static str,
+    field: &'static str,
+    value: f64,
+    expected: &'static str,
+) -> Result<(), ConfigError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(ConfigError::new(component, field, value, expected))
     }
 }

@@ -21,23 +21,91 @@ use crate::{Matrix2, Matrix3, Point2, Pose2};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Why a filter step failed. Filters keep their own detailed error enums and convert into
-/// this one at the trait boundary.
+/// A filter's own error, boxed so that it crosses the object-safe trait boundary with its
+/// type intact (`std::io::Error::other` style): recover it with
+/// [`FilterError::downcast_ref`] or `source()?.downcast_ref::<E>()`.
+pub type BoxedError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
+/// Why a filter step failed.
+///
+/// Filters keep their own detailed error enums (`EkfError`, `FastSlamError`, `GridError`,
+/// `GridFastError`) and convert into this one at the trait boundary. The conversion sorts
+/// the error into a category a generic caller can act on (bad input, numerical failure,
+/// anything else) and keeps the filter's typed error as the [`source`](std::error::Error::source),
+/// so a caller that knows the filter can still match on its variants:
+///
+/// ```
+/// use slam_models::{FilterError, ModelError};
+/// let typed = ModelError::EmptyWeights;
+/// let e = FilterError::numerical(typed.clone());
+/// assert_eq!(e.downcast_ref::<ModelError>(), Some(&typed));
+/// let source = std::error::Error::source(&e).unwrap();
+/// assert_eq!(source.downcast_ref::<ModelError>(), Some(&typed));
+/// ```
 #[derive(Debug, Error)]
 pub enum FilterError {
-    /// A model computation failed (bad input, degenerate geometry, …).
+    /// A model computation of this crate failed (bad input, degenerate geometry, …).
     #[error(transparent)]
     Model(#[from] ModelError),
-    /// The input was rejected (non-finite value, wrong kind of control, …).
-    #[error("invalid input: {0}")]
-    InvalidInput(String),
+    /// The input was rejected (non-finite value, wrong kind of control, missing landmark
+    /// id, …); the source is the filter's own error.
+    #[error("invalid input: {source}")]
+    InvalidInput {
+        /// The filter's typed error.
+        #[source]
+        source: BoxedError,
+    },
     /// The filter's state became numerically invalid (a covariance lost positive
-    /// definiteness, every particle weight vanished, …).
-    #[error("numerical failure: {0}")]
-    Numerical(String),
-    /// An error specific to one filter implementation.
-    #[error(transparent)]
-    Other(Box<dyn std::error::Error + Send + Sync>),
+    /// definiteness, every particle weight vanished, …); the source is the filter's own
+    /// error.
+    #[error("numerical failure: {source}")]
+    Numerical {
+        /// The filter's typed error.
+        #[source]
+        source: BoxedError,
+    },
+    /// Any other error of one filter implementation (a bound such as `max_landmarks`, a map
+    /// grown past its extent, …); the source is the filter's own error.
+    #[error("{source}")]
+    Other {
+        /// The filter's typed error.
+        #[source]
+        source: BoxedError,
+    },
+}
+
+impl FilterError {
+    /// [`FilterError::InvalidInput`] holding `source`.
+    pub fn invalid_input(source: impl std::error::Error + Send + Sync + 'static) -> Self {
+        Self::InvalidInput {
+            source: Box::new(source),
+        }
+    }
+
+    /// [`FilterError::Numerical`] holding `source`.
+    pub fn numerical(source: impl std::error::Error + Send + Sync + 'static) -> Self {
+        Self::Numerical {
+            source: Box::new(source),
+        }
+    }
+
+    /// [`FilterError::Other`] holding `source`.
+    pub fn other(source: impl std::error::Error + Send + Sync + 'static) -> Self {
+        Self::Other {
+            source: Box::new(source),
+        }
+    }
+
+    /// The typed error this one was made from, if it is an `E`: the filter's own error for
+    /// the boxed variants, the [`ModelError`] itself for [`FilterError::Model`].
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        match self {
+            Self::Model(m) => (m as &dyn std::error::Error).downcast_ref::<E>(),
+            Self::InvalidInput { source } | Self::Numerical { source } | Self::Other { source } => {
+                source.downcast_ref::<E>()
+            }
+        }
+    }
 }
 
 /// What one landmark update did: non-fatal diagnostics (faer style "info" struct).
@@ -80,6 +148,39 @@ pub struct WeightedPose {
     pub pose: Pose2,
     /// Normalised weight in [0, 1].
     pub weight: f64,
+}
+
+/// The one constructor shape of every filter: a configuration, the initial pose and a seed.
+///
+/// Every filter crate's filter (`EkfSlam`, `FastSlam`, `ScanMatchOdometry`,
+/// `GridFastSlam`) has an inherent `new(config, initial_pose, seed)` with exactly these
+/// arguments and implements this trait by calling it, so generic code (a filter factory, a
+/// benchmark over several filters) can build any of them the same way. Deterministic
+/// filters (the EKF, scan-matching odometry) take the seed for uniformity and ignore it;
+/// for the particle filters it fixes every random draw (same seed, same bytes).
+///
+/// `initial_pose` places the filter's own starting frame in the world frame:
+///
+/// * landmark filters and scan-matching odometry: the robot's pose before the first step
+///   (the first record);
+/// * grid FastSLAM: the pose of the odometry frame, so a record's uncorrected pose is
+///   `initial_pose ⊕ odometry` (GMapping's convention: the map is drawn in the odometry
+///   frame, and `Pose2::IDENTITY` keeps it there).
+///
+/// `Pose2::IDENTITY` gives every filter its behaviour from before this argument existed.
+pub trait FromConfig: Sized {
+    /// The filter's configuration struct.
+    type Config;
+    /// The filter's own error type (convertible into [`FilterError`] with the typed
+    /// source kept).
+    type Error: std::error::Error + Send + Sync + 'static + Into<FilterError>;
+
+    /// Builds the filter; errors on an invalid configuration or a non-finite pose.
+    fn from_config(
+        config: Self::Config,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, Self::Error>;
 }
 
 /// A landmark-based SLAM filter: EKF-SLAM, FastSLAM 1.0/2.0.

@@ -54,9 +54,10 @@ pub use data::{
     Control, LandmarkDataset, LandmarkId, LandmarkStep, LaserScan, OdometryControl, RangeBearing,
     ScanDataset, ScanRecord, TimedPose, VelocityControl,
 };
-pub use error::ModelError;
+pub use error::{ConfigError, ModelError};
 pub use filter::{
-    FilterError, LandmarkEstimate, LandmarkSlam, ScanSlam, ScanUpdateInfo, UpdateInfo, WeightedPose,
+    BoxedError, FilterError, FromConfig, LandmarkEstimate, LandmarkSlam, ScanSlam, ScanUpdateInfo,
+    UpdateInfo, WeightedPose,
 };
 pub use grid_map::GridMap;
 pub use odometry_jump::{OdometryJumpGuard, OdometryJumpLimit, OnOdometryJump};
@@ -80,6 +81,6 @@ pub type Matrix3x2 = nalgebra::Matrix3x2<f64>;
 
 /// Traits only, for glob import: `use slam_models::prelude::*;`.
 pub mod prelude {
-    pub use crate::filter::{LandmarkSlam, ScanSlam};
+    pub use crate::filter::{FromConfig, LandmarkSlam, ScanSlam};
     pub use crate::motion::MotionModel;
 }

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 /// What a laser filter does with a record whose odometry jumped beyond
 /// [`OdometryJumpLimit::max_jump`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum OnOdometryJump {
     /// Stop with [`ModelError::OdometryJump`] (the default: a glitch is reported, never
     /// mapped).
@@ -27,7 +27,7 @@ pub enum OnOdometryJump {
 
 /// The largest odometry change the laser filters accept between two consecutive records.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct OdometryJumpLimit {
     /// Largest distance between the odometry positions of two consecutive records, metres
     /// (> 0). Default 5 m: the largest step between records in the benchmark logs is 1.5 m
@@ -53,7 +53,7 @@ impl OdometryJumpLimit {
             Ok(())
         } else {
             Err(ModelError::OutOfRange {
-                name: "odometry_jump.max_jump",
+                name: "odometry-jump.max-jump",
                 value: self.max_jump,
                 expected: "> 0 m and finite",
             })

@@ -177,7 +177,7 @@ impl Path {
 
 /// Settings of the pure-pursuit follower.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct FollowerConfig {
     /// Nominal forward speed, m/s.
     pub speed: f64,

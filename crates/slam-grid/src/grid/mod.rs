@@ -519,10 +519,9 @@ impl OccupancyGrid {
         }
         const LIMIT: f64 = (1u32 << 30) as f64;
         if lo_x.abs() > LIMIT || lo_y.abs() > LIMIT || hi_x.abs() > LIMIT || hi_y.abs() > LIMIT {
-            return Err(GridError::InvalidConfig {
-                name: "beam end point (cells)",
-                value: lo_x.abs().max(hi_x.abs()).max(lo_y.abs()).max(hi_y.abs()),
-                expected: "within ±2^30 cells of the origin",
+            return Err(GridError::OutOfGrid {
+                what: "beam end point",
+                cells: lo_x.abs().max(hi_x.abs()).max(lo_y.abs()).max(hi_y.abs()),
             });
         }
         // With an incremental distance field the table extends `radius` cells beyond

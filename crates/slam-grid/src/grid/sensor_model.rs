@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 ///   a hit at or beyond `max_range` counts as a no return instead;
 /// * no return (r ≥ the scan's `max_range`): free up to `no_return_range` (0 disables).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct InverseSensorModel {
     /// Log-odds added to the end-point cell of a hit. Default 0.85 (p ≈ 0.70).
     pub l_occ: f32,

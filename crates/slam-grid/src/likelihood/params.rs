@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 /// beyond). A cell is an obstacle when its log-odds exceed `occupied_threshold`; d is
 /// measured to the obstacle cell's mean hit position when `subcell` is on.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct LikelihoodParams {
     /// σ of the end-point Gaussian, metres. Default 0.05 m (one 5 cm cell).
     pub sigma: f64,

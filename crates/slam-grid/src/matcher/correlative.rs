@@ -7,7 +7,7 @@ use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
 use crate::scan::PreparedScan;
 use serde::{Deserialize, Serialize};
-use slam_models::Pose2;
+use slam_models::{ConfigError, Pose2};
 
 /// Most rotations searched on each side of the initial heading (the automatic step is at
 /// least 10⁻⁴ rad, so ≤ 31 416 within the largest window, π).
@@ -28,7 +28,7 @@ const MAX_ROTATIONS: i32 = 100_000;
 /// in angular steps) of Σ s(cell of pᵢ), the same answer as brute force. Follow it with
 /// [`super::GaussNewtonMatcher`] for sub-cell accuracy ([`super::RefinedCorrelativeMatcher`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct CorrelativeMatcher {
     /// Half-width of the translation window in x and y, metres. Default 0.4 m.
     pub linear_window: f64,
@@ -115,11 +115,13 @@ impl CorrelativeMatcher {
         };
         let k_max = (self.angular_window / dtheta).ceil();
         if k_max > MAX_ROTATIONS as f64 {
-            return Err(GridError::InvalidConfig {
-                name: "correlative rotations per side (angular_window / angular_step)",
-                value: k_max,
-                expected: "at most 100000: a larger angular_step or a smaller angular_window",
-            });
+            return Err(GridError::InvalidConfig(ConfigError::new(
+                "correlative matcher",
+                "angular_step",
+                self.angular_step,
+                "large enough for at most 100000 rotations per side of angular_window \
+                 (angular_window / angular_step)",
+            )));
         }
         let k_max = k_max as i32;
         // Below 2^30 cells by the reach check above.
@@ -148,11 +150,13 @@ impl CorrelativeMatcher {
         let w = hi.x as i64 - lo.x as i64 + 2 * l as i64 + f as i64;
         let h = hi.y as i64 - lo.y as i64 + 2 * l as i64 + f as i64;
         if w.saturating_mul(h) > 64_000_000 {
-            return Err(GridError::InvalidConfig {
-                name: "correlative search window (cells)",
-                value: w as f64 * h as f64,
-                expected: "at most 64e6 cells: shorten the matching range or the window",
-            });
+            return Err(GridError::InvalidConfig(ConfigError::new(
+                "correlative matcher",
+                "linear_window",
+                self.linear_window,
+                "a search window of at most 64e6 cells with the scan's extent: \
+                 shorten the matching range or the window",
+            )));
         }
         let (w, h) = (w as usize, h as usize);
         let fine = grid.field_window(min, w, h);

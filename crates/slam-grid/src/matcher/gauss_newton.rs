@@ -22,7 +22,7 @@ use slam_models::{Matrix3, Pose2, Vector3};
 /// covariance is σ̂²·H⁻¹ with σ̂² = cost/(n − 3). Converges from within about σ + one cell of
 /// the optimum; start it from a correlative or hill-climbing result.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct GaussNewtonMatcher {
     /// Maximum Gauss-Newton iterations. Default 20.
     pub max_iterations: u32,

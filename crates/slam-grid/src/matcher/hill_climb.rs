@@ -18,7 +18,7 @@ use slam_models::Pose2;
 /// error is below a few cells (odometry between close scans); otherwise
 /// [`super::CorrelativeMatcher`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct HillClimbMatcher {
     /// Initial translation step, metres. Default 0.05 m (GMapping `lstep`).
     pub linear_step: f64,

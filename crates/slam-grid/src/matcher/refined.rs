@@ -11,7 +11,7 @@ use slam_models::Pose2;
 /// [`GaussNewtonMatcher`] from its result (sub-cell accuracy). If the refinement fails or
 /// strays beyond its `max_displacement`, the correlative result is returned.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct RefinedCorrelativeMatcher {
     /// The coarse global stage.
     pub correlative: CorrelativeMatcher,

@@ -212,8 +212,13 @@ fn far_off_initial_poses_are_errors_not_panics() {
         angular_step: 1e-12,
         ..Default::default()
     };
-    assert!(matches!(
-        fine.match_prepared(&g, &p, &truth),
-        Err(GridError::InvalidConfig { .. })
-    ));
+    let e = fine.match_prepared(&g, &p, &truth).unwrap_err();
+    let GridError::InvalidConfig(ref c) = e else {
+        panic!("{e:?}")
+    };
+    assert_eq!(c.field, "angular_step");
+    assert!(
+        e.to_string().contains("angular-step = 0.000000000001"),
+        "{e}"
+    );
 }

@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 /// Range-bearing sensor noise: independent Gaussian errors on range and bearing.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct RangeBearingModel {
     /// Standard deviation of the range, metres.
     pub sigma_range: f64,

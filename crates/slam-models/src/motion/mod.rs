@@ -41,7 +41,7 @@ pub trait MotionModel {
 /// One velocity model and one odometry model; the filters hold this and call it with
 /// whatever [`Control`] the data provides.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct MotionModels {
     /// Used for [`Control::Velocity`].
     pub velocity: VelocityModel,

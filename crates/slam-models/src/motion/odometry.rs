@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 /// Odometry motion model with noise parameters α1..α4 (PR table 5.6), dimensionless.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct OdometryModel {
     /// α1: rotation noise from rotation; α2: rotation noise from translation;
     /// α3: translation noise from translation; α4: translation noise from rotation.

@@ -84,7 +84,7 @@ fn dc(phi: f64) -> f64 {
 /// Velocity motion model with noise parameters α1..α6 (PR table 5.3), dimensionless
 /// (variances scale with v² [m²/s²] and ω² [rad²/s²]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct VelocityModel {
     /// α1..α6 as in PR table 5.3: (α1, α2) → v, (α3, α4) → ω, (α5, α6) → final rotation γ.
     pub alpha: [f64; 6],

@@ -38,7 +38,7 @@ use slam_models::{normalize_angle, Pose2, RangeBearing};
 /// assert!(!is_clutter && z.id == Some(LandmarkId(7)) && (z.range - 3.0).abs() < 0.6);
 /// ```
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct RangeBearingSensor {
     /// Noise standard deviations (σr in metres, σφ in radians); the same struct the filters use.
     pub noise: RangeBearingModel,

@@ -12,7 +12,7 @@ use slam_models::{Control, LandmarkDataset, LandmarkStep, TimedPose};
 
 /// Which kind of control the simulated robot reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum ControlKind {
     /// [`Control::Odometry`] (δrot1, δtrans, δrot2), the default.
     #[default]
@@ -23,7 +23,7 @@ pub enum ControlKind {
 
 /// Everything a landmark simulation needs besides the world, the path and the seed.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct LandmarkSimConfig {
     /// Dataset name.
     pub name: String,

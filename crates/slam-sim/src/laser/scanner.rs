@@ -20,7 +20,7 @@ use slam_models::{LaserScan, Pose2};
 /// * otherwise r + ε, ε ~ N(0, σ²) (PR's p_hit), clamped to ≥ 0; a noisy reading at or
 ///   beyond `max_range` reads as "no return".
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct LaserScanner {
     /// Number of beams (≥ 2).
     pub beams: usize,

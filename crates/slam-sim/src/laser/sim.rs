@@ -11,7 +11,7 @@ use slam_models::{ScanDataset, ScanRecord, TimedPose};
 
 /// Everything a laser simulation needs besides the world, the path and the seed.
 #[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct LaserSimConfig {
     /// Dataset name.
     pub name: String,

@@ -82,7 +82,7 @@ pub fn list() -> Vec<ScenarioInfo> {
 /// Options of [`generate`]. Every `None` means "the scenario's default" (listed per field).
 /// Irrelevant options (laser options for a landmark scenario and vice versa) are ignored.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct ScenarioOptions {
     /// The seed everything is drawn from (world, noise, clutter). Default 0.
     pub seed: u64,
