@@ -5,20 +5,7 @@ use serde::{Deserialize, Serialize};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 
-/// How observations are matched to landmarks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub enum AssociationMode {
-    /// Use an observation's id when it has one; match id-less observations with JCBB.
-    #[default]
-    Auto,
-    /// Every observation must carry its landmark's id; a missing id is an error.
-    KnownIds,
-    /// Ignore ids. Individual compatibility (Mahalanobis gate) and maximum-likelihood
-    /// nearest neighbour, conflicts resolved greedily by likelihood.
-    NearestNeighbour,
-    /// Ignore ids. Joint compatibility branch and bound (Neira & Tardós 2001).
-    Jcbb,
-}
+pub use slam_models::association::AssociationMode;
 
 /// Parameters of [`crate::EkfSlam`].
 ///

@@ -1,12 +1,13 @@
 //! [`EkfSlam`]: the filter, its per-update diagnostics and the `LandmarkSlam` impl.
 
-use crate::association::compatibility::{linearise, projected_cov};
-use crate::association::{candidates, jcbb, nearest, Candidate};
-use crate::chi2::{chi2_quantile, GateTable};
+use slam_models::association::{
+    candidates, jcbb, linearise, nearest, projected_cov, Candidate, GateTable, Linearised,
+    ProvisionalList,
+};
+use slam_models::chi2::chi2_quantile;
 use crate::config::{AssociationMode, EkfConfig};
 use crate::error::EkfError;
-use crate::provisional::ProvisionalList;
-use crate::state::{Linearised, State};
+use crate::state::State;
 use slam_models::gaussian::mahalanobis_squared;
 use slam_models::{
     Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3, Pose2,

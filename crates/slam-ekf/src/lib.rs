@@ -26,12 +26,9 @@
 //! sightings (or join at once when k = 1).
 #![warn(missing_docs)]
 
-mod association;
-mod chi2;
 mod config;
 mod error;
 mod filter;
-mod provisional;
 mod state;
 
 pub use config::{AssociationMode, EkfConfig, MAX_LANDMARKS};
