@@ -1,8 +1,8 @@
 //! [`EkfSlam`]: the filter, its per-update diagnostics and the `LandmarkSlam` impl.
 
 use slam_models::association::{
-    candidates, jcbb, linearise, nearest, projected_cov, Candidate, GateTable, Linearised,
-    ProvisionalList,
+    candidates, jcbb, linearise, nearest, projected_cov, Association, Candidate, GateTable,
+    Linearised, ProvisionalList, AUTO_ID_BASE,
 };
 use slam_models::chi2::chi2_quantile;
 use crate::config::{AssociationMode, EkfConfig};
@@ -15,24 +15,6 @@ use slam_models::{
 };
 use std::collections::HashMap;
 
-/// Ids the filter assigns to landmarks found without ids start here in
-/// [`AssociationMode::Auto`] (so they cannot clash with the data's own ids); in
-/// `NearestNeighbour` and `Jcbb` mode they start at 0.
-pub const AUTO_ID_BASE: u32 = 1 << 30;
-
-/// What became of one observation in the last update.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Association {
-    /// Matched to this mapped landmark and used in the update.
-    Landmark(LandmarkId),
-    /// Started (or completed the k sightings of) a landmark, which joined the map with this id.
-    New(LandmarkId),
-    /// Recorded as a sighting of a provisional landmark (not yet in the map).
-    Provisional,
-    /// Not used: outside the known-id outlier gate, ambiguous (unpaired but inside some
-    /// landmark's new-landmark gate), a negative range, or degenerate geometry.
-    Rejected,
-}
 
 /// EKF-specific diagnostics of one update (faer-style info struct), in addition to the
 /// common [`UpdateInfo`].

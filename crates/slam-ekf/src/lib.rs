@@ -33,7 +33,8 @@ mod state;
 
 pub use config::{AssociationMode, EkfConfig, MAX_LANDMARKS};
 pub use error::EkfError;
-pub use filter::{Association, EkfSlam, EkfUpdateInfo, AUTO_ID_BASE};
+pub use filter::{EkfSlam, EkfUpdateInfo};
+pub use slam_models::association::{Association, AUTO_ID_BASE};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// EKF-SLAM compiles with this crate alone (sophus-rs style).

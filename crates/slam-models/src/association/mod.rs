@@ -23,7 +23,7 @@ pub use compatibility::{candidates, cross_cov, linearise, projected_cov, Candida
 pub use provisional::ProvisionalList;
 
 use crate::chi2::chi2_quantile;
-use crate::{Matrix2, Matrix2x3, Matrix3x2, Point2, Pose2, Vector2};
+use crate::{LandmarkId, Matrix2, Matrix2x3, Matrix3x2, Point2, Pose2, Vector2};
 use serde::{Deserialize, Serialize};
 
 /// How observations are matched to landmarks.
@@ -40,6 +40,25 @@ pub enum AssociationMode {
     /// Ignore ids. Joint compatibility branch and bound (Neira & Tardós 2001).
     Jcbb,
 }
+
+/// What became of one observation in the last update.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Association {
+    /// Matched to this mapped landmark and used in the update.
+    Landmark(LandmarkId),
+    /// Started (or completed the k sightings of) a landmark, which joined the map with this id.
+    New(LandmarkId),
+    /// Recorded as a sighting of a provisional landmark (not yet in the map).
+    Provisional,
+    /// Not used: outside the known-id outlier gate, ambiguous (unpaired but inside some
+    /// landmark's new-landmark gate), a negative range, or degenerate geometry.
+    Rejected,
+}
+
+/// Ids the filter assigns to landmarks found without ids start here in
+/// [`AssociationMode::Auto`] (so they cannot clash with the data's own ids); in
+/// `NearestNeighbour` and `Jcbb` mode they start at 0.
+pub const AUTO_ID_BASE: u32 = 1 << 30;
 
 /// A joint Gaussian over the robot pose (x, y, θ) and n point landmarks, as association reads
 /// it: means and covariance blocks (metres, radians; world frame). Landmarks are numbered
