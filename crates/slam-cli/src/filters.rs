@@ -75,6 +75,14 @@ pub fn filters() -> Vec<FilterInfo> {
             unavailable: None,
         },
         FilterInfo {
+            name: "graph",
+            kind: DataKind::Landmark,
+            description:
+                "graph-based full SLAM (pose graph + LM), range-bearing edges, the EKF's data association",
+            particle_filter: false,
+            unavailable: None,
+        },
+        FilterInfo {
             name: "scanmatch",
             kind: DataKind::Laser,
             description: "scan-matching odometry against an occupancy grid (no loop closure)",
@@ -101,6 +109,20 @@ pub fn find(name: &str) -> Result<FilterInfo, CliError> {
             name: name.to_string(),
             known: all.iter().map(|f| f.name).collect::<Vec<_>>().join(", "),
         })
+}
+
+/// The filter called `name` for data of `kind`: one name may serve both kinds of data
+/// (`graph`), and the data picks which.
+pub fn find_for(name: &str, kind: DataKind) -> Option<FilterInfo> {
+    filters()
+        .into_iter()
+        .find(|f| f.name == name && f.kind == kind)
+}
+
+/// True when filters of both kinds go by `name`: what the data is decides which one runs,
+/// so the kind-specific checks wait until the data is loaded.
+pub(crate) fn serves_both_kinds(name: &str) -> bool {
+    find_for(name, DataKind::Landmark).is_some() && find_for(name, DataKind::Laser).is_some()
 }
 
 /// Names of the filters of one kind, comma separated.
@@ -240,6 +262,19 @@ pub(crate) fn build_landmark(
                 config_toml,
             })
         }
+        "graph" => {
+            use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
+            let mut loaded = config::load::<GraphLandmarkConfig>(setup.config_path)?;
+            let c = &mut loaded.config;
+            apply_sim_noise(&loaded.keys, setup, &mut c.motion, &mut c.sensor);
+            let config_toml = config::to_toml(&loaded.config);
+            let f = GraphLandmarkSlam::new(loaded.config, setup.initial_pose, setup.seed)
+                .map_err(|e| invalid(&e))?;
+            Ok(Built {
+                filter: Box::new(f),
+                config_toml,
+            })
+        }
         _ => Err(unavailable(info)),
     }
 }
@@ -307,6 +342,12 @@ mod tests {
         name: &str,
         patch: impl Fn(&mut C),
     ) {
+        // `graph` serves both kinds of data; configs/graph.toml is `slam optimize`'s.
+        let name = if name == "graph" {
+            "graph-landmark"
+        } else {
+            name
+        };
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../configs/{name}.toml"));
         let text = std::fs::read_to_string(&path).unwrap();
         let raw: toml::Value = toml::from_str(&text).unwrap();
@@ -341,6 +382,9 @@ mod tests {
                     example_is_complete_and_default::<slam_grid::ScanMatchConfig>(f.name, |_| ())
                 }
                 "ekf" => example_is_complete_and_default::<slam_ekf::EkfConfig>(f.name, |_| ()),
+                "graph" if f.kind == DataKind::Landmark => example_is_complete_and_default::<
+                    slam_graph::landmark::GraphLandmarkConfig,
+                >(f.name, |_| ()),
                 "gridfast" => {
                     example_is_complete_and_default::<slam_gridfast::GridFastConfig>(f.name, |_| ())
                 }

@@ -100,19 +100,22 @@ impl Input {
 /// Runs `slam run` with `args`, printing a short summary to `out`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let info = filters::find(&args.filter)?;
+    // A name that serves both kinds (`graph`): the kind-specific checks run once the data
+    // has picked the filter.
+    let both = filters::serves_both_kinds(&args.filter);
     if let Some(why) = info.unavailable {
         return Err(CliError::FilterUnavailable {
             name: info.name.to_string(),
             reason: why.to_string(),
         });
     }
-    if args.frames.is_some() && info.kind != DataKind::Landmark {
+    if args.frames.is_some() && info.kind != DataKind::Landmark && !both {
         return Err(CliError::InvalidArgument(format!(
             "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
             info.name
         )));
     }
-    if args.map_resolution.is_some() && info.kind != DataKind::Laser {
+    if args.map_resolution.is_some() && info.kind != DataKind::Laser && !both {
         return Err(CliError::InvalidArgument(format!(
             "--map-resolution applies to laser filters (gridfast); `{}` maps landmarks",
             info.name
@@ -139,6 +142,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         sim_models: None,
     };
     match info.kind {
+        _ if both => {}
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
         DataKind::Laser => drop(filters::build_scan(&info, &placeholder)?),
     }
@@ -174,6 +178,22 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let mut input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);
+    let info = filters::find_for(info.name, input.kind()).unwrap_or(info);
+    if both {
+        let wrong = |option: &str, kind: DataKind| {
+            CliError::InvalidArgument(format!(
+                "{option} does not apply to `{}` on {} data",
+                info.name,
+                kind.as_str()
+            ))
+        };
+        if args.frames.is_some() && info.kind != DataKind::Landmark {
+            return Err(wrong("--frames", info.kind));
+        }
+        if args.map_resolution.is_some() && info.kind != DataKind::Laser {
+            return Err(wrong("--map-resolution", info.kind));
+        }
+    }
     if input.kind() != info.kind {
         return Err(CliError::WrongDataKind {
             filter: info.name.to_string(),
@@ -532,6 +552,13 @@ fn run_landmark(
         }
         progress.set(k + 1);
     }
+    // A smoother's last optimisation is part of the run's time.
+    filter.finish().map_err(|source| CliError::FilterStep {
+        filter: info.name.to_string(),
+        step: steps.len(),
+        t: steps.last().map_or(0.0, |s| s.t),
+        source,
+    })?;
     let mcap_time = mcap.as_ref().map(McapRecorder::elapsed).unwrap_or_default();
     let wall = start
         .elapsed()

@@ -60,6 +60,11 @@ pub struct GraphLandmarkConfig {
     /// The graph is optimised (and the association belief recomputed from its marginals)
     /// after every this many new pose nodes (≥ 1), and once more by `finish`.
     pub optimize_every: usize,
+    /// … or, when more, after the graph's pose nodes grew by this fraction (0 ..= 1) since the
+    /// last optimisation: with a fixed interval a run costs O(length²); with a fraction it
+    /// is linear (each optimisation's cost is proportional to the graph, and their number
+    /// grows only logarithmically with it per unit of length).
+    pub optimize_growth: f64,
     /// The optimiser; its `max_iterations` bounds each incremental optimisation (the
     /// estimate is warm-started, so a few iterations suffice).
     pub optimizer: OptimizerConfig,
@@ -67,7 +72,8 @@ pub struct GraphLandmarkConfig {
 
 impl Default for GraphLandmarkConfig {
     /// The EKF's defaults for the shared keys; a node at every update with observations (and
-    /// at least every 10), optimisation after every node with at most 10 LM iterations.
+    /// at least every 10), optimisation after every node or 1 % growth of the graph, whichever
+    /// comes later, with at most 10 LM iterations each.
     fn default() -> Self {
         Self {
             motion: MotionModels::default(),
@@ -85,6 +91,7 @@ impl Default for GraphLandmarkConfig {
             max_landmarks: 5000,
             max_steps_between_nodes: 10,
             optimize_every: 1,
+            optimize_growth: 0.01,
             optimizer: OptimizerConfig {
                 max_iterations: 10,
                 ..OptimizerConfig::default()
@@ -159,6 +166,8 @@ impl GraphLandmarkConfig {
         at_least_one("jcbb_max_nodes", self.jcbb_max_nodes)?;
         at_least_one("max_steps_between_nodes", self.max_steps_between_nodes)?;
         at_least_one("optimize_every", self.optimize_every)?;
+        let g = self.optimize_growth;
+        check("optimize_growth", g, (0.0..=1.0).contains(&g), "in [0, 1]")?;
         self.optimizer.validate()
     }
 }

@@ -28,12 +28,14 @@
 //!
 //! # Optimisation rule
 //! Levenberg-Marquardt on the whole graph, warm-started from the current estimates (new
-//! poses from odometry, new landmarks from the inverse model), after every
-//! `optimize_every` new pose nodes and once more in `finish`, each run bounded by the
-//! optimiser's `max_iterations`. A run is O(Σ over optimisations of the graph's size):
-//! quadratic in its length when `optimize_every` is fixed, which is what the docs' timing
-//! table measures; the cost of each is one sparse factorisation per iteration plus one
-//! sparse solve per coordinate of the belief (3 + 2n).
+//! poses from odometry, new landmarks from the inverse model), once the new pose nodes
+//! since the last run reach max(`optimize_every`, ⌈`optimize_growth` × pose nodes⌉), and
+//! once more in `finish`; each run is bounded by the optimiser's `max_iterations`. Each
+//! costs one sparse factorisation per iteration plus one sparse solve per coordinate of the
+//! belief (3 + 2n), so with a fixed interval a run is quadratic in its length; the growth
+//! fraction makes it linear (optimisations get rarer as the graph grows). Between two
+//! runs the current pose is the last node's estimate ⊕ the controls since (dead
+//! reckoning), so the online path is coarser than the smoothed one.
 //!
 //! # Outputs
 //! [`pose`](LandmarkSlam::pose) and [`pose_covariance`](LandmarkSlam::pose_covariance) are
@@ -530,7 +532,8 @@ impl GraphLandmarkSlam {
                 self.path.push((at, self.rel));
             }
         }
-        if self.nodes_since_optimization >= self.config.optimize_every {
+        let growth = (self.config.optimize_growth * self.stats.pose_nodes as f64).ceil() as usize;
+        if self.nodes_since_optimization >= self.config.optimize_every.max(growth) {
             self.optimize_now()?;
         }
         Ok(info)
