@@ -43,7 +43,10 @@ fn run(f: &mut dyn LandmarkSlam, d: &LandmarkDataset) -> (Vec<TimedPose>, Option
         p[1..]
             .iter()
             .zip(&d.steps)
-            .map(|(pose, s)| TimedPose { t: s.t, pose: *pose })
+            .map(|(pose, s)| TimedPose {
+                t: s.t,
+                pose: *pose,
+            })
             .collect()
     });
     (online, full)
@@ -101,7 +104,10 @@ fn compare(name: &str, seeds: std::ops::Range<u64>) -> Vec<[f64; 8]> {
             let ea = ate(&ekf_online, gt).unwrap();
             let gl = landmark_error(&g.landmarks(), truth, true);
             let el = landmark_error(&e.landmarks(), truth, true);
-            assert_eq!(gl.matched, el.matched, "{name} seed {seed}: both map every seen landmark");
+            assert_eq!(
+                gl.matched, el.matched,
+                "{name} seed {seed}: both map every seen landmark"
+            );
             [
                 ga.rmse,
                 ea.rmse,
@@ -141,10 +147,16 @@ fn loop_and_figure8_beat_the_ekf() {
         };
         check(m[0] < m[1], "ATE not below the EKF's");
         check(m[4] < m[5], "aligned ATE not below the EKF's");
-        check(m[6] < 1.05 * m[7], "aligned landmark RMSE above 1.05 × the EKF's");
+        check(
+            m[6] < 1.05 * m[7],
+            "aligned landmark RMSE above 1.05 × the EKF's",
+        );
         check(m[4] < 0.05, "aligned ATE ≥ 0.05 m");
         check(m[6] < 0.06, "aligned landmark RMSE ≥ 0.06 m");
-        check(m[0] < 0.25 && m[2] < 0.25, "unaligned ATE or landmark RMSE ≥ 0.25 m");
+        check(
+            m[0] < 0.25 && m[2] < 0.25,
+            "unaligned ATE or landmark RMSE ≥ 0.25 m",
+        );
     }
     assert!(failures.is_empty(), "{failures:?}");
 }
@@ -156,7 +168,8 @@ fn estimate_beats_the_truth_in_chi2() {
     use slam_graph::{NodeValue, Optimizer, OptimizerConfig};
     let r = sim("loop", ScenarioOptions::default());
     let d = &r.dataset;
-    let mut g = GraphLandmarkSlam::new(graph_config(r.motion, r.sensor), d.initial_pose, 0).unwrap();
+    let mut g =
+        GraphLandmarkSlam::new(graph_config(r.motion, r.sensor), d.initial_pose, 0).unwrap();
     run(&mut g, d);
     let mut truth = g.graph().clone();
     let opt = Optimizer::new(&truth, OptimizerConfig::default()).unwrap();
@@ -205,12 +218,19 @@ fn final_pose_nees_is_consistent() {
         let mut g =
             GraphLandmarkSlam::new(graph_config(r.motion, r.sensor), d.initial_pose, seed).unwrap();
         run(&mut g, d);
-        sum += nees_pose(&g.pose(), &g.pose_covariance(), r.true_poses.last().unwrap());
+        sum += nees_pose(
+            &g.pose(),
+            &g.pose_covariance(),
+            r.true_poses.last().unwrap(),
+        );
     }
     let mean = sum / runs as f64;
     let (lo, hi) = chi2_band(3, runs as usize, 0.95);
     println!("final-pose NEES over {runs} runs of loop: mean {mean:.3}, band [{lo:.3}, {hi:.3}]");
-    assert!(mean > lo && mean < hi, "mean NEES {mean} outside [{lo}, {hi}]");
+    assert!(
+        mean > lo && mean < hi,
+        "mean NEES {mean} outside [{lo}, {hi}]"
+    );
 }
 
 /// `clutter` (ids hidden from the filter, detection probability 0.9, one false alarm per
@@ -429,4 +449,3 @@ fn mrclam_robot1_path_shape_beats_the_ekf() {
     assert_eq!(gl.matched, truth.len());
     assert!(gl.rmse < 0.4, "landmark RMSE {}", gl.rmse);
 }
-

@@ -329,9 +329,9 @@ impl State {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use slam_models::Vector2;
     use slam_models::measurement::RangeBearingModel;
     use slam_models::RangeBearing;
+    use slam_models::Vector2;
 
     /// Dense reference: the textbook update with the full H and explicit inverse.
     fn dense_update(

@@ -514,7 +514,10 @@ impl Optimizer {
         let mut wanted = Vec::new();
         let mut total = 0;
         for &i in nodes {
-            let node = graph.nodes().get(i).ok_or(GraphError::UnknownNode { id: i as u64 })?;
+            let node = graph
+                .nodes()
+                .get(i)
+                .ok_or(GraphError::UnknownNode { id: i as u64 })?;
             let d = node.value.dim();
             if let Some(b) = self.block_of[i] {
                 let o = self.pattern.offset[b];

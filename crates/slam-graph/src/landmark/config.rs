@@ -3,9 +3,10 @@
 use crate::error::GraphError;
 use crate::optimizer::OptimizerConfig;
 use serde::{Deserialize, Serialize};
-use slam_models::association::AssociationMode;
+use slam_models::association::{AssociationMode, AssociationOptions};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
+use slam_models::ModelError;
 
 /// Most landmarks the map may hold: the association belief is dense, (3 + 2n)² × 8 bytes,
 /// 3.2 GB at this bound.
@@ -100,7 +101,12 @@ impl Default for GraphLandmarkConfig {
     }
 }
 
-fn check(field: &'static str, value: f64, ok: bool, expected: &'static str) -> Result<(), GraphError> {
+fn check(
+    field: &'static str,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), GraphError> {
     if ok && value.is_finite() {
         Ok(())
     } else {
@@ -110,10 +116,6 @@ fn check(field: &'static str, value: f64, ok: bool, expected: &'static str) -> R
             expected,
         })
     }
-}
-
-fn probability(field: &'static str, p: f64) -> Result<(), GraphError> {
-    check(field, p, p > 0.0 && p < 1.0, "a probability in (0, 1)")
 }
 
 fn at_least_one(field: &'static str, v: usize) -> Result<(), GraphError> {
@@ -130,45 +132,46 @@ impl GraphLandmarkConfig {
             (1..=MAX_LANDMARKS).contains(&self.max_landmarks),
             "1 ..= 10000 (MAX_LANDMARKS)",
         )?;
-        for a in self.motion.odometry.alpha {
-            check("motion.odometry.alpha", a, a >= 0.0, "finite and >= 0")?;
-        }
-        for a in self.motion.velocity.alpha {
-            check("motion.velocity.alpha", a, a >= 0.0, "finite and >= 0")?;
-        }
         for v in self.extra_motion_noise {
             check("extra_motion_noise", v, v >= 0.0, "finite and >= 0")?;
         }
-        let s = &self.sensor;
-        check("sensor.sigma_range", s.sigma_range, s.sigma_range > 0.0, "finite and > 0")?;
-        check(
-            "sensor.sigma_bearing",
-            s.sigma_bearing,
-            s.sigma_bearing > 0.0,
-            "finite and > 0",
-        )?;
-        check("sensor.min_range", s.min_range, s.min_range >= 0.0, "finite and >= 0")?;
-        probability("gate_probability", self.gate_probability)?;
-        probability("joint_probability", self.joint_probability)?;
-        let p = self.new_landmark_gate_probability;
-        check(
-            "new_landmark_gate_probability",
-            p,
-            p >= self.gate_probability && p < 1.0,
-            "a probability in [gate_probability, 1)",
-        )?;
-        probability("provisional_gate_probability", self.provisional_gate_probability)?;
-        if let Some(p) = self.known_id_gate_probability {
-            probability("known_id_gate_probability", p)?;
-        }
-        at_least_one("min_sightings", self.min_sightings)?;
-        at_least_one("provisional_max_age", self.provisional_max_age)?;
-        at_least_one("jcbb_max_nodes", self.jcbb_max_nodes)?;
+        let named = |e: ModelError| match e {
+            ModelError::OutOfRange {
+                name,
+                value,
+                expected,
+            } => GraphError::InvalidConfig {
+                field: name,
+                value,
+                expected,
+            },
+            other => GraphError::InvalidInput(other.to_string()),
+        };
+        self.motion.validate().map_err(named)?;
+        self.sensor.validate().map_err(named)?;
+        self.association_options().validate().map_err(named)?;
         at_least_one("max_steps_between_nodes", self.max_steps_between_nodes)?;
         at_least_one("optimize_every", self.optimize_every)?;
         let g = self.optimize_growth;
         check("optimize_growth", g, (0.0..=1.0).contains(&g), "in [0, 1]")?;
         self.optimizer.validate()
+    }
+
+    /// The association keys, for `slam_models::association::Associator`; observations
+    /// closer than the sensor's `min_range` are rejected (their edge would be degenerate).
+    pub fn association_options(&self) -> AssociationOptions {
+        AssociationOptions {
+            mode: self.association,
+            gate_probability: self.gate_probability,
+            new_landmark_gate_probability: self.new_landmark_gate_probability,
+            joint_probability: self.joint_probability,
+            known_id_gate_probability: self.known_id_gate_probability,
+            min_sightings: self.min_sightings,
+            provisional_max_age: self.provisional_max_age,
+            provisional_gate_probability: self.provisional_gate_probability,
+            jcbb_max_nodes: self.jcbb_max_nodes,
+            min_range: self.sensor.min_range,
+        }
     }
 }
 
@@ -193,13 +196,25 @@ mod tests {
             other => panic!("{other:?}"),
         };
         let d = GraphLandmarkConfig::default;
-        assert_eq!(bad(GraphLandmarkConfig { optimize_every: 0, ..d() }), "optimize_every");
         assert_eq!(
-            bad(GraphLandmarkConfig { gate_probability: 1.0, ..d() }),
+            bad(GraphLandmarkConfig {
+                optimize_every: 0,
+                ..d()
+            }),
+            "optimize_every"
+        );
+        assert_eq!(
+            bad(GraphLandmarkConfig {
+                gate_probability: 1.0,
+                ..d()
+            }),
             "gate_probability"
         );
         assert_eq!(
-            bad(GraphLandmarkConfig { max_landmarks: MAX_LANDMARKS + 1, ..d() }),
+            bad(GraphLandmarkConfig {
+                max_landmarks: MAX_LANDMARKS + 1,
+                ..d()
+            }),
             "max_landmarks"
         );
         let mut c = d();

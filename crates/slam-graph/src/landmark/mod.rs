@@ -51,10 +51,9 @@ use crate::error::GraphError;
 use crate::graph::PoseGraph;
 use crate::optimizer::{OptimizeReport, Optimizer};
 use slam_models::association::{
-    candidates, jcbb, linearise, nearest, projected_cov, Association, AssociationMode, Candidate,
-    DenseGaussian, GateTable, JointGaussian, Linearised, ProvisionalList, AUTO_ID_BASE,
+    projected_cov, Association, AssociationMode, Associator, DenseGaussian, JointGaussian,
+    AUTO_ID_BASE,
 };
-use slam_models::chi2::chi2_quantile;
 use slam_models::gaussian::mahalanobis_squared;
 use slam_models::{
     Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3, Pose2,
@@ -106,7 +105,7 @@ pub struct GraphLandmarkSlam {
     ids: Vec<LandmarkId>,
     index: HashMap<LandmarkId, usize>,
     next_id: u32,
-    provisional: ProvisionalList,
+    assoc: Associator,
     step: u64,
     /// Per path entry: the graph index of its pose node and the composed motion since it.
     path: Vec<(usize, Pose2)>,
@@ -119,11 +118,6 @@ pub struct GraphLandmarkSlam {
     nodes_since_optimization: usize,
     associations: Vec<Association>,
     stats: GraphLandmarkStats,
-    gate: f64,
-    new_landmark_gate: f64,
-    known_gate: Option<f64>,
-    provisional_gate: f64,
-    joint: GateTable,
 }
 
 impl GraphLandmarkSlam {
@@ -147,13 +141,7 @@ impl GraphLandmarkSlam {
         graph.add_pose(0, start)?;
         graph.fix(0)?;
         Ok(Self {
-            gate: chi2_quantile(2, config.gate_probability),
-            new_landmark_gate: chi2_quantile(2, config.new_landmark_gate_probability),
-            known_gate: config
-                .known_id_gate_probability
-                .map(|p| chi2_quantile(2, p)),
-            provisional_gate: chi2_quantile(2, config.provisional_gate_probability),
-            joint: GateTable::new(config.joint_probability),
+            assoc: Associator::new(config.association_options()),
             next_id: if config.association == AssociationMode::Auto {
                 AUTO_ID_BASE
             } else {
@@ -164,7 +152,6 @@ impl GraphLandmarkSlam {
             config,
             ids: Vec::new(),
             index: HashMap::new(),
-            provisional: ProvisionalList::default(),
             step: 0,
             path: vec![(0, Pose2::IDENTITY)],
             last_node: 0,
@@ -206,7 +193,7 @@ impl GraphLandmarkSlam {
 
     /// Number of provisional landmarks waiting for more sightings.
     pub fn provisional_count(&self) -> usize {
-        self.provisional.len()
+        self.assoc.provisional_count()
     }
 
     fn fresh_id(&mut self) -> LandmarkId {
@@ -226,7 +213,9 @@ impl GraphLandmarkSlam {
 
     /// Moves the belief and the composed odometry by one control.
     pub fn predict_control(&mut self, control: &Control) -> Result<(), GraphError> {
-        control.validate().map_err(|e| GraphError::InvalidInput(e.to_string()))?;
+        control
+            .validate()
+            .map_err(|e| GraphError::InvalidInput(e.to_string()))?;
         let m = &self.config.motion;
         let e = self.config.extra_motion_noise;
         let extra = Matrix3::from_diagonal(&Vector3::new(e[0], e[1], e[2]));
@@ -240,7 +229,10 @@ impl GraphLandmarkSlam {
         let rel_cov = g_rel * self.rel_cov * g_rel.transpose() + r_rel;
         let finite = new_pose.is_finite()
             && rel.is_finite()
-            && g.iter().chain(r.iter()).chain(rel_cov.iter()).all(|v| v.is_finite());
+            && g.iter()
+                .chain(r.iter())
+                .chain(rel_cov.iter())
+                .all(|v| v.is_finite());
         if !finite {
             return Err(GraphError::InvalidInput(format!(
                 "control {control:?} gives a non-finite prediction"
@@ -344,7 +336,11 @@ impl GraphLandmarkSlam {
         nodes.push(last);
         for j in 0..self.ids.len() {
             let id = LANDMARK_NODE_BASE + j as u64;
-            nodes.push(self.graph.node_index(id).ok_or(GraphError::UnknownNode { id })?);
+            nodes.push(
+                self.graph
+                    .node_index(id)
+                    .ok_or(GraphError::UnknownNode { id })?,
+            );
         }
         let cov = opt.marginal_covariance(&self.graph, &nodes)?;
         let pose = self.graph.pose(self.last_node).unwrap_or(Pose2::IDENTITY);
@@ -379,127 +375,39 @@ impl GraphLandmarkSlam {
         }
         self.step += 1;
         self.updates_since_node += 1;
-        let mode = self.config.association;
         let sensor = self.config.sensor;
-        let mut assoc = vec![Association::Rejected; observations.len()];
         let mut info = UpdateInfo {
             observations: observations.len(),
             ..UpdateInfo::default()
         };
-        // (observation, landmark) pairs for edges.
-        let mut pairs: Vec<(usize, usize)> = Vec::new();
-        let mut new_known: Vec<usize> = Vec::new();
-        let mut unknown: Vec<usize> = Vec::new();
-        for (i, z) in observations.iter().enumerate() {
-            if z.range < 0.0 {
-                continue; // Rejected: a negative range is a sensor glitch.
-            }
-            let id = match mode {
-                AssociationMode::KnownIds => {
-                    Some(z.id.ok_or(GraphError::MissingId { index: i })?)
-                }
-                AssociationMode::Auto => z.id,
-                AssociationMode::NearestNeighbour | AssociationMode::Jcbb => None,
-            };
-            let Some(id) = id else {
-                unknown.push(i);
-                continue;
-            };
-            let Some(&j) = self.index.get(&id) else {
-                new_known.push(i);
-                continue;
-            };
-            let Some(lin) = linearise(&self.belief, &sensor, z, j) else {
-                continue;
-            };
-            let d2 = mahalanobis_squared(&lin.nu, &(projected_cov(&self.belief, &lin) + lin.q));
-            match (d2, self.known_gate) {
-                (Ok(d2), Some(gate)) if d2 < gate => info.nis += d2,
-                (Ok(d2), None) => info.nis += d2,
-                (_, None) => {}
-                _ => continue,
-            }
-            pairs.push((i, j));
-            assoc[i] = Association::Landmark(id);
+        // The EKF's association (slam_models::association::batch) against the belief.
+        let mut pairing = self
+            .assoc
+            .pair(&self.belief, &sensor, &self.ids, &self.index, observations)
+            .map_err(|index| GraphError::MissingId { index })?;
+        for (_, lin) in &pairing.paired {
+            let s = projected_cov(&self.belief, lin) + lin.q;
+            info.nis += mahalanobis_squared(&lin.nu, &s).unwrap_or(0.0);
         }
-        // Id-less observations: gate, then nearest neighbour or JCBB (the EKF's rules).
-        let mut near = vec![false; unknown.len()];
-        let cands: Vec<Vec<Candidate>> = unknown
-            .iter()
-            .enumerate()
-            .map(|(u, &i)| {
-                let mut c =
-                    candidates(&self.belief, &sensor, &observations[i], self.new_landmark_gate);
-                near[u] = !c.is_empty();
-                c.retain(|c| c.d2 < self.gate);
-                c
-            })
-            .collect();
-        let chosen: Vec<Option<usize>> = if cands.iter().all(|c| c.is_empty()) {
-            vec![None; cands.len()]
-        } else if mode == AssociationMode::NearestNeighbour {
-            nearest::associate(&cands)
-        } else {
-            jcbb::associate(
-                &self.belief,
-                &cands,
-                &mut self.joint,
-                self.config.jcbb_max_nodes,
-            )
-            .assignment
-        };
-        for (u, &i) in unknown.iter().enumerate() {
-            if let Some(c) = chosen[u] {
-                let Candidate { lin, d2, .. } = cands[u][c];
-                let Linearised { landmark: j, .. } = lin;
-                assoc[i] = Association::Landmark(self.ids[j]);
-                info.nis += d2;
-                pairs.push((i, j));
-            }
-        }
-        // Unpaired id-less observations: ambiguous, provisional, or ready to join.
-        let pose = self.belief.pose();
-        let pxx = self.belief.pose_cov();
-        let q = sensor.noise_covariance();
-        let mut ready: Vec<usize> = Vec::new();
-        for (u, &i) in unknown.iter().enumerate() {
-            if chosen[u].is_some() {
-                continue;
-            }
-            if near[u] {
-                continue; // Ambiguous: rejected.
-            }
-            let z = &observations[i];
-            if self.config.min_sightings <= 1 {
-                ready.push(i);
-                continue;
-            }
-            let inv = sensor.inverse(&pose, z);
-            let cov: Matrix2 =
-                inv.g_pose * pxx * inv.g_pose.transpose() + inv.g_z * q * inv.g_z.transpose();
-            let (n, k) = self
-                .provisional
-                .sight(inv.landmark, cov, self.step, self.provisional_gate);
-            if n >= self.config.min_sightings {
-                self.provisional.remove(k);
-                ready.push(i);
-            } else {
-                assoc[i] = Association::Provisional;
-            }
-        }
+        // Nothing updates the belief before the unpaired observations are judged (the
+        // graph is optimised after them), so they see the predicted pose.
+        let (pose, pxx) = (self.belief.pose(), self.belief.pose_cov());
+        let ready =
+            self.assoc
+                .unpaired(&mut pairing, &pose, &pxx, &sensor, observations, self.step);
         // A pose node when the graph gains an edge at this pose, or the gap is too long.
-        let observed = !pairs.is_empty() || !new_known.is_empty() || !ready.is_empty();
-        let node = if observed || self.updates_since_node >= self.config.max_steps_between_nodes
-        {
+        let observed =
+            !pairing.paired.is_empty() || !pairing.new_known.is_empty() || !ready.is_empty();
+        let node = if observed || self.updates_since_node >= self.config.max_steps_between_nodes {
             Some(self.add_pose_node()?)
         } else {
             None
         };
-        for &(i, j) in &pairs {
-            self.add_observation_edge(j, &observations[i])?;
+        for &(i, lin) in &pairing.paired {
+            self.add_observation_edge(lin.landmark, &observations[i])?;
         }
-        info.associated = pairs.len();
-        for i in new_known {
+        info.associated = pairing.paired.len();
+        for &i in &pairing.new_known {
             let z = &observations[i];
             let Some(id) = z.id else { continue };
             if self.index.contains_key(&id) {
@@ -508,20 +416,18 @@ impl GraphLandmarkSlam {
                 continue;
             }
             self.insert_landmark(z, id)?;
-            assoc[i] = Association::New(id);
+            pairing.associations[i] = Association::New(id);
             info.new_landmarks += 1;
         }
         for i in ready {
             let id = self.fresh_id();
             self.insert_landmark(&observations[i], id)?;
-            assoc[i] = Association::New(id);
+            pairing.associations[i] = Association::New(id);
             info.new_landmarks += 1;
         }
-        info.removed = self
-            .provisional
-            .expire(self.step, self.config.provisional_max_age);
+        info.removed = self.assoc.expire(self.step);
         info.rejected = observations.len() - info.associated - info.new_landmarks;
-        self.associations = assoc;
+        self.associations = pairing.associations;
         match node {
             Some(index) => self.path.push((index, Pose2::IDENTITY)),
             None => {

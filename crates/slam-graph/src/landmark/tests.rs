@@ -176,7 +176,11 @@ fn linear_case_matches_the_kalman_filter() {
         p[(0, 0)]
     );
     let pmm = g.landmarks()[0].covariance[(0, 0)];
-    assert!((pmm - p[(1, 1)]).abs() < 1e-5 * p[(1, 1)], "{pmm} vs {}", p[(1, 1)]);
+    assert!(
+        (pmm - p[(1, 1)]).abs() < 1e-5 * p[(1, 1)],
+        "{pmm} vs {}",
+        p[(1, 1)]
+    );
 }
 
 #[test]
@@ -220,6 +224,12 @@ fn bad_input_is_an_error_not_a_panic() {
             ..
         })
     ));
+    // A zero range (the landmark on the robot: bearing undefined) is rejected, not an error.
+    let mut g = GraphLandmarkSlam::new(GraphLandmarkConfig::default(), Pose2::IDENTITY, 0).unwrap();
+    g.predict_control(&odo(1.0, 0.0)).unwrap();
+    let info = g.update_observations(&[rb(0.0, 0.3, 9)]).unwrap();
+    assert_eq!((info.rejected, info.new_landmarks), (1, 0));
+    g.finish().unwrap();
     let small = GraphLandmarkConfig {
         max_landmarks: 1,
         ..GraphLandmarkConfig::default()

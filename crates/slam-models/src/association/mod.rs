@@ -10,16 +10,20 @@
 //! * [`jcbb`]: joint compatibility branch and bound (Neira & Tardós 2001).
 //! * [`DenseGaussian`]: a plain dense joint Gaussian with prediction and augmentation.
 //! * [`provisional`]: id-less sightings held back until k consistent sightings.
+//! * [`Associator`]: one batch of observations through all of the above, in EKF-SLAM's
+//!   order, for every back end.
 //! * [`GateTable`]: cached χ²_{2k} thresholds of the joint gate.
 
+pub mod batch;
 pub mod compatibility;
+pub mod dense;
 pub mod jcbb;
 pub mod nearest;
-pub mod dense;
 pub mod provisional;
 
-pub use dense::DenseGaussian;
+pub use batch::{AssociationOptions, Associator, Pairing};
 pub use compatibility::{candidates, cross_cov, linearise, projected_cov, Candidate};
+pub use dense::DenseGaussian;
 pub use provisional::ProvisionalList;
 
 use crate::chi2::chi2_quantile;

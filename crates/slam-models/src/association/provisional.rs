@@ -39,13 +39,7 @@ impl ProvisionalList {
     /// Records a sighting at `step`; returns the number of sightings of the candidate it
     /// was attributed to and that candidate's index. A candidate already sighted in this
     /// step is not matched twice.
-    pub fn sight(
-        &mut self,
-        p: Point2,
-        cov: Matrix2,
-        step: u64,
-        gate: f64,
-    ) -> (usize, usize) {
+    pub fn sight(&mut self, p: Point2, cov: Matrix2, step: u64, gate: f64) -> (usize, usize) {
         let mut best: Option<(usize, f64)> = None;
         for (k, c) in self.items.iter().enumerate() {
             if c.last_seen == step {
