@@ -220,6 +220,12 @@ mod tests {
                     example_is_complete_and_default::<slam_grid::ScanMatchConfig>(f.name, |_| ())
                 }
                 "ekf" => example_is_complete_and_default::<slam_ekf::EkfConfig>(f.name, |_| ()),
+                // `graph` on landmark data; configs/graph.toml is `slam optimize`'s.
+                "graph" if f.kind == DataKind::Landmark => example_is_complete_and_default::<
+                    slam_graph::landmark::GraphLandmarkConfig,
+                >(
+                    "graph-landmark", |_| ()
+                ),
                 "gridfast" => {
                     example_is_complete_and_default::<slam_gridfast::GridFastConfig>(f.name, |_| ())
                 }

@@ -67,7 +67,14 @@ fn num(v: &serde_json::Value, key: &str) -> f64 {
 fn list_names_every_filter_and_scenario() {
     let (r, out) = slam(&["list"]);
     assert!(matches!(r, Ok(Outcome::Listed)));
-    for f in ["ekf", "fastslam1", "fastslam2", "scanmatch", "gridfast"] {
+    for f in [
+        "ekf",
+        "fastslam1",
+        "fastslam2",
+        "graph",
+        "scanmatch",
+        "gridfast",
+    ] {
         assert!(out.contains(f), "{f} missing from:\n{out}");
     }
     for s in ["loop", "figure8", "city", "clutter", "office", "replay"] {
@@ -210,6 +217,54 @@ fn fastslam2_full_slam_path_on_the_loop() {
     let (mf, mo) = (median(&mut full.clone()), median(&mut online.clone()));
     assert!(mf <= 0.08, "median ATE aligned {mf} ({full:?})");
     assert!(mf < mo, "full path {full:?} vs online {online:?}");
+}
+
+/// `--filter graph` on landmark data (the graph's landmark front end): trajectory.tum is
+/// the optimised path, trajectory-online.tum the online one, and the metrics are those of
+/// the files, recomputed here against the simulator's truth. The smoothed path beats the
+/// online one after alignment at every seed (a smoother revisits the past), and the
+/// landmark front end's example configuration is accepted.
+#[test]
+fn graph_on_landmark_data_writes_the_smoothed_path() {
+    for seed in 0..3 {
+        let dir = run_loop("graph", seed);
+        let m = read_metrics(&dir);
+        let truth = loop_truth(seed);
+        let written = slam_io::tum::read_tum(&dir.join("trajectory.tum")).unwrap();
+        assert_eq!(written.len(), truth.len());
+        let ate = slam_eval::metrics::ate(&written, &truth).unwrap();
+        assert!((ate.rmse_aligned - num(&m, "ate_rmse_aligned_m")).abs() < 1e-6);
+        let on = slam_io::tum::read_tum(&dir.join("trajectory-online.tum")).unwrap();
+        let ate_on = slam_eval::metrics::ate(&on, &truth).unwrap();
+        assert!((ate_on.rmse_aligned - num(&m, "online_ate_rmse_aligned_m")).abs() < 1e-6);
+        assert!(
+            ate.rmse_aligned < ate_on.rmse_aligned,
+            "seed {seed}: smoothed {} vs online {}",
+            ate.rmse_aligned,
+            ate_on.rmse_aligned
+        );
+        assert!(ate.rmse_aligned < 0.05, "seed {seed}: {}", ate.rmse_aligned);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let config = root.join("configs/graph-landmark.toml");
+    let dir = scratch("graph-config");
+    let (r, out) = slam(&[
+        "run",
+        "--filter",
+        "graph",
+        "--sim",
+        "figure8",
+        "--steps",
+        "60",
+        "--quiet",
+        "--config",
+        config.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(r.is_ok(), "{out}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The EKF is a filter: trajectory.tum is its online estimate, no second trajectory is

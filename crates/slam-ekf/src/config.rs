@@ -5,21 +5,8 @@ use serde::{Deserialize, Serialize};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 
-/// How observations are matched to landmarks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AssociationMode {
-    /// Use an observation's id when it has one; match id-less observations with JCBB.
-    #[default]
-    Auto,
-    /// Every observation must carry its landmark's id; a missing id is an error.
-    KnownIds,
-    /// Ignore ids. Individual compatibility (Mahalanobis gate) and maximum-likelihood
-    /// nearest neighbour, conflicts resolved greedily by likelihood.
-    NearestNeighbour,
-    /// Ignore ids. Joint compatibility branch and bound (Neira & Tardós 2001).
-    Jcbb,
-}
+pub use slam_models::association::AssociationMode;
+use slam_models::association::AssociationOptions;
 
 /// Parameters of [`crate::EkfSlam`].
 ///
@@ -117,10 +104,6 @@ fn check(
     )?)
 }
 
-fn probability(field: &'static str, p: f64) -> Result<(), EkfError> {
-    check(field, p, p > 0.0 && p < 1.0, "a probability in (0, 1)")
-}
-
 impl EkfConfig {
     /// Checks every field against its documented range.
     pub fn validate(&self) -> Result<(), EkfError> {
@@ -130,70 +113,42 @@ impl EkfConfig {
             (1..=MAX_LANDMARKS).contains(&self.max_landmarks),
             "1 ..= 20000 (MAX_LANDMARKS)",
         )?;
-        for a in self.motion.odometry.alpha {
-            check("motion.odometry.alpha", a, a >= 0.0, "finite and >= 0")?;
-        }
-        for a in self.motion.velocity.alpha {
-            check("motion.velocity.alpha", a, a >= 0.0, "finite and >= 0")?;
-        }
         for v in self.extra_motion_noise {
             check("extra_motion_noise", v, v >= 0.0, "finite and >= 0")?;
         }
         for v in self.initial_pose_variance {
             check("initial_pose_variance", v, v >= 0.0, "finite and >= 0")?;
         }
-        let s = &self.sensor;
-        check(
-            "sensor.sigma_range",
-            s.sigma_range,
-            s.sigma_range > 0.0,
-            "finite and > 0",
-        )?;
-        check(
-            "sensor.sigma_bearing",
-            s.sigma_bearing,
-            s.sigma_bearing > 0.0,
-            "finite and > 0",
-        )?;
-        check(
-            "sensor.min_range",
-            s.min_range,
-            s.min_range >= 0.0,
-            "finite and >= 0",
-        )?;
-        probability("gate_probability", self.gate_probability)?;
-        probability("joint_probability", self.joint_probability)?;
-        let p = self.new_landmark_gate_probability;
-        check(
-            "new_landmark_gate_probability",
-            p,
-            p >= self.gate_probability && p < 1.0,
-            "a probability in [gate_probability, 1)",
-        )?;
-        probability(
-            "provisional_gate_probability",
-            self.provisional_gate_probability,
-        )?;
-        if let Some(p) = self.known_id_gate_probability {
-            probability("known_id_gate_probability", p)?;
+        let named = |e: slam_models::ModelError| match e {
+            slam_models::ModelError::OutOfRange {
+                name,
+                value,
+                expected,
+            } => {
+                EkfError::InvalidConfig(slam_models::ConfigError::new("EKF", name, value, expected))
+            }
+            other => EkfError::Model(other),
+        };
+        self.motion.validate().map_err(named)?;
+        self.sensor.validate().map_err(named)?;
+        self.association_options().validate().map_err(named)
+    }
+
+    /// The association keys, for `slam_models::association::Associator` (observations
+    /// with a negative range are rejected, all others kept: `min_range` = 0).
+    pub fn association_options(&self) -> AssociationOptions {
+        AssociationOptions {
+            mode: self.association,
+            gate_probability: self.gate_probability,
+            new_landmark_gate_probability: self.new_landmark_gate_probability,
+            joint_probability: self.joint_probability,
+            known_id_gate_probability: self.known_id_gate_probability,
+            min_sightings: self.min_sightings,
+            provisional_max_age: self.provisional_max_age,
+            provisional_gate_probability: self.provisional_gate_probability,
+            jcbb_max_nodes: self.jcbb_max_nodes,
+            min_range: 0.0,
         }
-        let k = self.min_sightings as f64;
-        check("min_sightings", k, self.min_sightings >= 1, "at least 1")?;
-        let age = self.provisional_max_age as f64;
-        check(
-            "provisional_max_age",
-            age,
-            self.provisional_max_age >= 1,
-            "at least 1",
-        )?;
-        let nodes = self.jcbb_max_nodes as f64;
-        check(
-            "jcbb_max_nodes",
-            nodes,
-            self.jcbb_max_nodes >= 1,
-            "at least 1",
-        )?;
-        Ok(())
     }
 }
 

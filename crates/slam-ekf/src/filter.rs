@@ -1,37 +1,14 @@
 //! [`EkfSlam`]: the filter, its per-update diagnostics and the `LandmarkSlam` impl.
 
-use crate::association::compatibility::{linearise, projected_cov};
-use crate::association::{candidates, jcbb, nearest, Candidate};
-use crate::chi2::{chi2_quantile, GateTable};
 use crate::config::{AssociationMode, EkfConfig};
 use crate::error::EkfError;
-use crate::provisional::ProvisionalList;
-use crate::state::{Linearised, State};
-use slam_models::gaussian::mahalanobis_squared;
+use crate::state::State;
+use slam_models::association::{Association, Associator, Linearised, AUTO_ID_BASE};
 use slam_models::{
-    Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3,
-    Pose2, RangeBearing, UpdateInfo, Vector3,
+    Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix3, Pose2,
+    RangeBearing, UpdateInfo, Vector3,
 };
 use std::collections::HashMap;
-
-/// Ids the filter assigns to landmarks found without ids start here in
-/// [`AssociationMode::Auto`] (so they cannot clash with the data's own ids); in
-/// `NearestNeighbour` and `Jcbb` mode they start at 0.
-pub const AUTO_ID_BASE: u32 = 1 << 30;
-
-/// What became of one observation in the last update.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Association {
-    /// Matched to this mapped landmark and used in the update.
-    Landmark(LandmarkId),
-    /// Started (or completed the k sightings of) a landmark, which joined the map with this id.
-    New(LandmarkId),
-    /// Recorded as a sighting of a provisional landmark (not yet in the map).
-    Provisional,
-    /// Not used: outside the known-id outlier gate, ambiguous (unpaired but inside some
-    /// landmark's new-landmark gate), a negative range, or degenerate geometry.
-    Rejected,
-}
 
 /// EKF-specific diagnostics of one update (faer-style info struct), in addition to the
 /// common [`UpdateInfo`].
@@ -70,15 +47,10 @@ pub struct EkfSlam {
     ids: Vec<LandmarkId>,
     index: HashMap<LandmarkId, usize>,
     next_id: u32,
-    provisional: ProvisionalList,
+    assoc: Associator,
     step: u64,
     associations: Vec<Association>,
     info: EkfUpdateInfo,
-    gate: f64,
-    new_landmark_gate: f64,
-    known_gate: Option<f64>,
-    provisional_gate: f64,
-    joint: GateTable,
 }
 
 impl EkfSlam {
@@ -100,13 +72,7 @@ impl EkfSlam {
             Matrix3::from_diagonal(&Vector3::new(v[0], v[1], v[2])),
         );
         Ok(Self {
-            gate: chi2_quantile(2, config.gate_probability),
-            new_landmark_gate: chi2_quantile(2, config.new_landmark_gate_probability),
-            known_gate: config
-                .known_id_gate_probability
-                .map(|p| chi2_quantile(2, p)),
-            provisional_gate: chi2_quantile(2, config.provisional_gate_probability),
-            joint: GateTable::new(config.joint_probability),
+            assoc: Associator::new(config.association_options()),
             next_id: if config.association == AssociationMode::Auto {
                 AUTO_ID_BASE
             } else {
@@ -116,7 +82,6 @@ impl EkfSlam {
             state,
             ids: Vec::new(),
             index: HashMap::new(),
-            provisional: ProvisionalList::default(),
             step: 0,
             associations: Vec::new(),
             info: EkfUpdateInfo::default(),
@@ -135,7 +100,7 @@ impl EkfSlam {
 
     /// Number of provisional landmarks waiting for more sightings.
     pub fn provisional_count(&self) -> usize {
-        self.provisional.len()
+        self.assoc.provisional_count()
     }
 
     /// The state mean μ = (x, y, θ, m₁ₓ, m₁ᵧ, …), metres and radians; landmark `k` of
@@ -221,9 +186,7 @@ impl EkfSlam {
             }
         }
         self.step += 1;
-        let mode = self.config.association;
         let sensor = self.config.sensor;
-        let mut assoc = vec![Association::Rejected; observations.len()];
         let mut info = EkfUpdateInfo {
             common: UpdateInfo {
                 observations: observations.len(),
@@ -231,86 +194,21 @@ impl EkfSlam {
             },
             ..EkfUpdateInfo::default()
         };
-        let mut lins: Vec<Linearised> = Vec::new();
-        let mut new_known: Vec<usize> = Vec::new();
-        let mut unknown: Vec<usize> = Vec::new();
-        for (i, z) in observations.iter().enumerate() {
-            if z.range < 0.0 {
-                continue; // Rejected: a negative range is a sensor glitch.
-            }
-            let id = match mode {
-                AssociationMode::KnownIds => Some(z.id.ok_or(EkfError::MissingId { index: i })?),
-                AssociationMode::Auto => z.id,
-                AssociationMode::NearestNeighbour | AssociationMode::Jcbb => None,
-            };
-            let Some(id) = id else {
-                unknown.push(i);
-                continue;
-            };
-            let Some(&slot) = self.index.get(&id) else {
-                new_known.push(i);
-                continue;
-            };
-            let Some(lin) = linearise(&self.state, &sensor, z, slot) else {
-                continue;
-            };
-            if let Some(gate) = self.known_gate {
-                let s = projected_cov(&self.state, &lin) + lin.q;
-                match mahalanobis_squared(&lin.nu, &s) {
-                    Ok(d2) if d2 < gate => {}
-                    _ => continue,
-                }
-            }
-            lins.push(lin);
-            assoc[i] = Association::Landmark(id);
-        }
-        // Id-less observations: gate, then associate. `near` records whether any landmark
-        // lies inside the wider new-landmark gate.
-        let mut near = vec![false; unknown.len()];
-        let cands: Vec<Vec<Candidate>> = unknown
-            .iter()
-            .enumerate()
-            .map(|(u, &i)| {
-                let mut c = candidates(
-                    &self.state,
-                    &sensor,
-                    &observations[i],
-                    self.new_landmark_gate,
-                );
-                near[u] = !c.is_empty();
-                c.retain(|c| c.d2 < self.gate);
-                c
-            })
-            .collect();
-        let chosen: Vec<Option<usize>> = if cands.iter().all(|c| c.is_empty()) {
-            vec![None; cands.len()]
-        } else if mode == AssociationMode::NearestNeighbour {
-            nearest::associate(&cands)
-        } else {
-            let r = jcbb::associate(
-                &self.state,
-                &cands,
-                &mut self.joint,
-                self.config.jcbb_max_nodes,
-            );
-            info.jcbb_nodes = r.nodes;
-            info.jcbb_exhausted = r.exhausted;
-            r.assignment
-        };
-        for (u, &i) in unknown.iter().enumerate() {
-            if let Some(c) = chosen[u] {
-                let lin = cands[u][c].lin;
-                assoc[i] = Association::Landmark(self.ids[lin.landmark]);
-                lins.push(lin);
-            }
-        }
+        // Known ids and id-less observations paired (slam_models::association::batch).
+        let mut pairing = self
+            .assoc
+            .pair(&self.state, &sensor, &self.ids, &self.index, observations)
+            .map_err(|index| EkfError::MissingId { index })?;
+        info.jcbb_nodes = pairing.jcbb_nodes;
+        info.jcbb_exhausted = pairing.jcbb_exhausted;
         // One batched update with every associated observation.
+        let lins: Vec<Linearised> = pairing.paired.iter().map(|&(_, lin)| lin).collect();
         if !lins.is_empty() {
             info.common.nis = self.state.update(&lins)?;
             info.common.associated = lins.len();
         }
         // New landmarks with known ids join at once, from the updated pose.
-        for i in new_known {
+        for i in std::mem::take(&mut pairing.new_known) {
             let z = &observations[i];
             let Some(id) = z.id else { continue };
             if self.index.contains_key(&id) {
@@ -319,53 +217,26 @@ impl EkfSlam {
                 continue;
             }
             self.insert_landmark(z, id)?;
-            assoc[i] = Association::New(id);
+            pairing.associations[i] = Association::New(id);
             info.common.new_landmarks += 1;
         }
         // Unpaired id-less observations: ambiguous, provisional or new.
-        let pose = self.state.pose();
-        let pxx = self.state.pose_cov();
-        let q = sensor.noise_covariance();
-        for (u, &i) in unknown.iter().enumerate() {
-            if chosen[u].is_some() {
-                continue;
-            }
-            if near[u] {
-                info.ambiguous += 1;
-                continue;
-            }
-            let z = &observations[i];
-            let ready = if self.config.min_sightings <= 1 {
-                true
-            } else {
-                let inv = sensor.inverse(&pose, z);
-                let cov: Matrix2 =
-                    inv.g_pose * pxx * inv.g_pose.transpose() + inv.g_z * q * inv.g_z.transpose();
-                let (n, k) =
-                    self.provisional
-                        .sight(inv.landmark, cov, self.step, self.provisional_gate);
-                if n >= self.config.min_sightings {
-                    self.provisional.remove(k);
-                    true
-                } else {
-                    assoc[i] = Association::Provisional;
-                    info.provisional += 1;
-                    false
-                }
-            };
-            if ready {
-                let id = self.fresh_id();
-                self.insert_landmark(z, id)?;
-                assoc[i] = Association::New(id);
-                info.common.new_landmarks += 1;
-            }
+        let (pose, pxx) = (self.state.pose(), self.state.pose_cov());
+        let ready =
+            self.assoc
+                .unpaired(&mut pairing, &pose, &pxx, &sensor, observations, self.step);
+        info.ambiguous = pairing.ambiguous;
+        info.provisional = pairing.provisional;
+        for i in ready {
+            let id = self.fresh_id();
+            self.insert_landmark(&observations[i], id)?;
+            pairing.associations[i] = Association::New(id);
+            info.common.new_landmarks += 1;
         }
-        info.common.removed = self
-            .provisional
-            .expire(self.step, self.config.provisional_max_age);
+        info.common.removed = self.assoc.expire(self.step);
         info.common.rejected =
             observations.len() - info.common.associated - info.common.new_landmarks;
-        self.associations = assoc;
+        self.associations = pairing.associations;
         self.info = info;
         Ok(info)
     }

@@ -26,17 +26,15 @@
 //! sightings (or join at once when k = 1).
 #![warn(missing_docs)]
 
-mod association;
-mod chi2;
 mod config;
 mod error;
 mod filter;
-mod provisional;
 mod state;
 
 pub use config::{AssociationMode, EkfConfig, MAX_LANDMARKS};
 pub use error::EkfError;
-pub use filter::{Association, EkfSlam, EkfUpdateInfo, AUTO_ID_BASE};
+pub use filter::{EkfSlam, EkfUpdateInfo};
+pub use slam_models::association::{Association, AUTO_ID_BASE};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// EKF-SLAM compiles with this crate alone (sophus-rs style).

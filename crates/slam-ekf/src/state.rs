@@ -15,29 +15,14 @@ use crate::error::EkfError;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::{Accum, Mat, Par};
+use slam_models::association::{JointGaussian, Linearised};
 use slam_models::measurement::InverseRangeBearing;
-use slam_models::{normalize_angle, Matrix2, Matrix2x3, Matrix3, Point2, Pose2, Vector2};
+use slam_models::{normalize_angle, Matrix2, Matrix3, Point2, Pose2};
 
 /// Index of landmark `j`'s x coordinate in the state vector.
 #[inline]
 pub(crate) fn lm_index(j: usize) -> usize {
     3 + 2 * j
-}
-
-/// One observation linearised at the current mean: innovation ν = z − h(μ) (bearing
-/// normalised), H's two non-zero blocks and the measurement noise Q.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Linearised {
-    /// Landmark slot.
-    pub landmark: usize,
-    /// ν = z − ẑ.
-    pub nu: Vector2,
-    /// ∂h/∂(x, y, θ).
-    pub h_pose: Matrix2x3,
-    /// ∂h/∂(mx, my).
-    pub h_landmark: Matrix2,
-    /// Q.
-    pub q: Matrix2,
 }
 
 /// Mean and covariance of the joint pose–landmark Gaussian.
@@ -114,7 +99,34 @@ impl State {
         let (a, b) = (lm_index(i), lm_index(j));
         Matrix2::from_fn(|r, c| self.cov[(a + r, b + c)])
     }
+}
 
+/// Association reads the EKF state through the shared trait.
+impl JointGaussian for State {
+    fn pose(&self) -> Pose2 {
+        State::pose(self)
+    }
+    fn landmark_count(&self) -> usize {
+        State::landmark_count(self)
+    }
+    fn landmark(&self, j: usize) -> Point2 {
+        State::landmark(self, j)
+    }
+    fn pose_cov(&self) -> Matrix3 {
+        State::pose_cov(self)
+    }
+    fn pose_landmark_cov(&self, j: usize) -> nalgebra::Matrix3x2<f64> {
+        State::pose_landmark_cov(self, j)
+    }
+    fn landmark_cov(&self, j: usize) -> Matrix2 {
+        State::landmark_cov(self, j)
+    }
+    fn landmark_landmark_cov(&self, i: usize, j: usize) -> Matrix2 {
+        State::landmark_landmark_cov(self, i, j)
+    }
+}
+
+impl State {
     /// EKF prediction (PR table 10.1 lines 3–5) given the predicted pose g(u, μ), its
     /// Jacobian G and the process noise R: Σxx ← G·Σxx·Gᵀ + R, Σxm ← G·Σxm, Σmx = Σxmᵀ.
     /// Landmark rows and columns are not touched: O(N).
@@ -319,6 +331,7 @@ mod tests {
     use super::*;
     use slam_models::measurement::RangeBearingModel;
     use slam_models::RangeBearing;
+    use slam_models::Vector2;
 
     /// Dense reference: the textbook update with the full H and explicit inverse.
     fn dense_update(

@@ -20,6 +20,7 @@
 use serde::{Deserialize, Serialize};
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
+use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
 use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{LandmarkSlam, Pose2, ScanSlam};
@@ -85,6 +86,14 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "FastSLAM 2.0 (Montemerlo et al. 2003), proposal using the current observations",
             particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "graph",
+            kind: DataKind::Landmark,
+            description:
+                "graph-based full SLAM (pose graph + LM), range-bearing edges, the EKF's data association",
+            particle_filter: false,
             unavailable: None,
         },
         FilterInfo {
@@ -208,6 +217,8 @@ pub enum FilterConfig {
     Fastslam1(FastSlamConfig),
     /// FastSLAM 2.0 (the table's `variant` is set to match).
     Fastslam2(FastSlamConfig),
+    /// Pose-graph SLAM with range-bearing landmark edges.
+    Graph(GraphLandmarkConfig),
     /// Scan-matching odometry.
     Scanmatch(ScanMatchConfig),
     /// Grid-based FastSLAM.
@@ -240,6 +251,7 @@ impl ParsedConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor)
             }
+            FilterConfig::Graph(c) => noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor),
             FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => NoiseApplied::default(),
         }
     }
@@ -258,6 +270,7 @@ impl FilterConfig {
                 variant: Variant::FastSlam2,
                 ..FastSlamConfig::default()
             }),
+            "graph" => FilterConfig::Graph(GraphLandmarkConfig::default()),
             "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
             "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
             other => {
@@ -335,6 +348,7 @@ impl FilterConfig {
                     FilterConfig::Fastslam2(c)
                 }
             }
+            "graph" => FilterConfig::Graph(de(&body)?),
             "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
             "gridfast" => FilterConfig::Gridfast(de(&body)?),
             other => {
@@ -353,6 +367,7 @@ impl FilterConfig {
             FilterConfig::Ekf(_) => "ekf",
             FilterConfig::Fastslam1(_) => "fastslam1",
             FilterConfig::Fastslam2(_) => "fastslam2",
+            FilterConfig::Graph(_) => "graph",
             FilterConfig::Scanmatch(_) => "scanmatch",
             FilterConfig::Gridfast(_) => "gridfast",
         }
@@ -361,9 +376,10 @@ impl FilterConfig {
     /// The filter's kind.
     pub fn kind(&self) -> DataKind {
         match self {
-            FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
-                DataKind::Landmark
-            }
+            FilterConfig::Ekf(_)
+            | FilterConfig::Fastslam1(_)
+            | FilterConfig::Fastslam2(_)
+            | FilterConfig::Graph(_) => DataKind::Landmark,
             FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => DataKind::Laser,
         }
     }
@@ -373,7 +389,7 @@ impl FilterConfig {
         match self {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => c.particles = n,
             FilterConfig::Gridfast(c) => c.particles = n,
-            FilterConfig::Ekf(_) | FilterConfig::Scanmatch(_) => {
+            FilterConfig::Ekf(_) | FilterConfig::Graph(_) | FilterConfig::Scanmatch(_) => {
                 return Err(FactoryError::NotAParticleFilter {
                     filter: self.name(),
                 })
@@ -388,6 +404,7 @@ impl FilterConfig {
         let text = match self {
             FilterConfig::Ekf(c) => toml::to_string_pretty(c),
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => toml::to_string_pretty(c),
+            FilterConfig::Graph(c) => toml::to_string_pretty(c),
             FilterConfig::Scanmatch(c) => toml::to_string_pretty(c),
             FilterConfig::Gridfast(c) => toml::to_string_pretty(c),
         };
@@ -412,6 +429,9 @@ impl FilterConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
             }
+            FilterConfig::Graph(c) => Box::new(
+                GraphLandmarkSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?,
+            ),
             FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
@@ -437,7 +457,10 @@ impl FilterConfig {
             FilterConfig::Gridfast(c) => Box::new(
                 GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
             ),
-            FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
+            FilterConfig::Ekf(_)
+            | FilterConfig::Fastslam1(_)
+            | FilterConfig::Fastslam2(_)
+            | FilterConfig::Graph(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
                     kind: DataKind::Landmark.as_str(),

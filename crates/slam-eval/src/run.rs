@@ -282,6 +282,15 @@ pub fn run_landmarks_observed(
             });
         }
     }
+    // A smoother's last optimisation ([`LandmarkSlam::finish`]) is part of the run's time.
+    if !steps.is_empty() {
+        filter.finish().map_err(|source| RunError::Step {
+            filter: filter_name.clone(),
+            step: steps.len() - 1,
+            t: steps[steps.len() - 1].t,
+            source,
+        })?;
+    }
     let wall = start.elapsed().saturating_sub(observed).as_secs_f64();
 
     let mut warnings = Vec::new();

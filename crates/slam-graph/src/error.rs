@@ -68,7 +68,38 @@ pub enum GraphError {
         /// What failed.
         reason: String,
     },
+    /// Landmark front end: an observation had no id but the association mode is `KnownIds`.
+    #[error("observation {index} has no landmark id, but association mode is known-ids")]
+    MissingId {
+        /// 0-based index in the update's batch.
+        index: usize,
+    },
+    /// Landmark front end: one more landmark would exceed `max_landmarks`.
+    #[error("the map would exceed max_landmarks = {max}")]
+    TooManyLandmarks {
+        /// The configured bound.
+        max: usize,
+    },
+    /// Landmark front end: a control or observation that is not finite, or that gives a
+    /// non-finite prediction.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
     /// The sparse factorisation's symbolic analysis failed (out of memory or index overflow).
     #[error("sparse Cholesky analysis failed: {0}")]
     Sparse(String),
+}
+
+impl From<GraphError> for slam_models::FilterError {
+    fn from(e: GraphError) -> Self {
+        use slam_models::FilterError;
+        match e {
+            e @ (GraphError::InvalidInput(_)
+            | GraphError::MissingId { .. }
+            | GraphError::NonFinite { .. }) => FilterError::invalid_input(e),
+            e @ (GraphError::NotPositiveDefinite { .. } | GraphError::Degenerate { .. }) => {
+                FilterError::numerical(e)
+            }
+            e => FilterError::other(e),
+        }
+    }
 }

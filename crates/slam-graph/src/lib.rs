@@ -15,6 +15,9 @@
 //!   ([`RobustKernel`]: Huber, Cauchy, DCS) by IRLS, the gauge fixed at the first pose, an
 //!   [`IterationInfo`] per iteration and a documented stopping rule.
 //!
+//! * [`landmark`]: the landmark front end, [`landmark::GraphLandmarkSlam`], full SLAM with
+//!   range-bearing landmark edges and the EKF's data association behind `LandmarkSlam`.
+//!
 //! The χ² reported everywhere is g2o's: Σ eᵀΩe over the edges (GTSAM reports half of it).
 //! File input and output (g2o format) live in `slam-io`.
 
@@ -24,6 +27,7 @@ pub mod error;
 pub mod factor;
 pub mod graph;
 pub mod kernel;
+pub mod landmark;
 pub mod linear;
 pub mod optimizer;
 

@@ -243,6 +243,15 @@ impl SparseLlt {
             .is_ok()
     }
 
+    /// Overwrites the n × k column-major `rhs` with H⁻¹ rhs, using the last successful
+    /// factorisation (scratch for the k columns is allocated here).
+    pub fn solve_columns_in_place(&self, rhs: &mut [f64], k: usize) {
+        let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.l_values);
+        let mut mem = MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(k, Par::Seq));
+        let x = MatMut::from_column_major_slice_mut(rhs, self.n, k);
+        llt.solve_in_place_with_conj(Conj::No, x, Par::Seq, MemStack::new(&mut mem));
+    }
+
     /// Overwrites `rhs` with H⁻¹ rhs, using the last successful factorisation.
     pub fn solve_in_place(&mut self, rhs: &mut [f64]) {
         let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.l_values);

@@ -213,6 +213,13 @@ pub trait LandmarkSlam: Send {
     /// Incorporates a batch of observations taken at the current pose.
     fn update(&mut self, observations: &[RangeBearing]) -> Result<UpdateInfo, FilterError>;
 
+    /// Called once after the last step. A smoother runs its final optimisation here, so
+    /// [`full_path`](LandmarkSlam::full_path) and [`landmarks`](LandmarkSlam::landmarks)
+    /// read afterwards use every observation; filters have nothing to do (the default).
+    fn finish(&mut self) -> Result<(), FilterError> {
+        Ok(())
+    }
+
     /// Current pose estimate (the mean, or the best particle's pose for particle filters).
     fn pose(&self) -> Pose2;
 

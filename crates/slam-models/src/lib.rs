@@ -21,6 +21,9 @@
 //!   pose ⊕ odometry since, GMapping's convention).
 //! * [`odometry_jump`]: the laser filters' guard against glitched odometry (a jump between
 //!   two records beyond a limit is an error, or skipped).
+//! * [`association`]: data association of range-bearing observations against a joint
+//!   Gaussian (individual gating, nearest neighbour, JCBB, provisional landmarks), shared
+//!   by EKF-SLAM and the pose graph.
 //! * [`filter`]: the traits [`LandmarkSlam`] and [`ScanSlam`] that downstream code swaps
 //!   filters behind.
 //!
@@ -34,6 +37,7 @@
 #![warn(missing_docs)]
 
 pub mod angle;
+pub mod association;
 pub mod chi2;
 pub mod data;
 pub mod detmath;

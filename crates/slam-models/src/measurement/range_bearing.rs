@@ -74,6 +74,40 @@ pub struct InverseRangeBearing {
 }
 
 impl RangeBearingModel {
+    /// σr, σφ finite and > 0, `min_range` finite and ≥ 0; the error names the field
+    /// (`sensor.sigma_range`, …).
+    pub fn validate(&self) -> Result<(), crate::ModelError> {
+        for (name, v, ok, expected) in [
+            (
+                "sensor.sigma_range",
+                self.sigma_range,
+                self.sigma_range > 0.0,
+                "finite and > 0",
+            ),
+            (
+                "sensor.sigma_bearing",
+                self.sigma_bearing,
+                self.sigma_bearing > 0.0,
+                "finite and > 0",
+            ),
+            (
+                "sensor.min_range",
+                self.min_range,
+                self.min_range >= 0.0,
+                "finite and >= 0",
+            ),
+        ] {
+            if !(ok && v.is_finite()) {
+                return Err(crate::ModelError::OutOfRange {
+                    name,
+                    value: v,
+                    expected,
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// A model with the given standard deviations (metres, radians).
     pub fn new(sigma_range: f64, sigma_bearing: f64) -> Self {
         Self {

@@ -50,6 +50,31 @@ pub struct MotionModels {
 }
 
 impl MotionModels {
+    /// Every α finite and ≥ 0; the error names the table (`motion.odometry.alpha`, …).
+    pub fn validate(&self) -> Result<(), crate::ModelError> {
+        let alphas = self
+            .odometry
+            .alpha
+            .iter()
+            .map(|&a| ("motion.odometry.alpha", a))
+            .chain(
+                self.velocity
+                    .alpha
+                    .iter()
+                    .map(|&a| ("motion.velocity.alpha", a)),
+            );
+        for (name, a) in alphas {
+            if !(a >= 0.0 && a.is_finite()) {
+                return Err(crate::ModelError::OutOfRange {
+                    name,
+                    value: a,
+                    expected: "finite and >= 0",
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// g(u, x) for either kind of control.
     pub fn predict(&self, pose: &Pose2, u: &Control) -> Pose2 {
         match u {

@@ -2,14 +2,14 @@
 //! compatible when d²ᵢⱼ = νᵢⱼᵀ·Sᵢⱼ⁻¹·νᵢⱼ < χ²₂(p), with νᵢⱼ = zᵢ − h(x, mⱼ) and
 //! Sᵢⱼ = Hᵢⱼ·Σ·Hᵢⱼᵀ + Q, Hᵢⱼ touching only the pose and mⱼ.
 
-use crate::state::{Linearised, State};
-use slam_models::gaussian::mahalanobis_and_log_det;
-use slam_models::measurement::RangeBearingModel;
-use slam_models::{Matrix2, Matrix2x3, RangeBearing};
+use super::{JointGaussian, Linearised};
+use crate::gaussian::mahalanobis_and_log_det;
+use crate::measurement::RangeBearingModel;
+use crate::{Matrix2, Matrix2x3, RangeBearing};
 
 /// A gated pairing of one observation with one landmark.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Candidate {
+pub struct Candidate {
     /// The observation linearised against this landmark.
     pub lin: Linearised,
     /// Innovation covariance Sᵢⱼ (Q included).
@@ -21,7 +21,7 @@ pub(crate) struct Candidate {
 }
 
 /// H·Σ·Hᵀ for the pose–landmark pair of `lin` (no Q).
-pub(crate) fn projected_cov(state: &State, lin: &Linearised) -> Matrix2 {
+pub fn projected_cov<B: JointGaussian + ?Sized>(state: &B, lin: &Linearised) -> Matrix2 {
     let j = lin.landmark;
     let pxx = state.pose_cov();
     let pxm = state.pose_landmark_cov(j);
@@ -34,7 +34,7 @@ pub(crate) fn projected_cov(state: &State, lin: &Linearised) -> Matrix2 {
 
 /// Cov(h_a, h_b) between two predicted measurements of different landmarks (no Q):
 /// [Hp_a Hl_a]·Σ[(x, m_a), (x, m_b)]·[Hp_b Hl_b]ᵀ.
-pub(crate) fn cross_cov(state: &State, a: &Linearised, b: &Linearised) -> Matrix2 {
+pub fn cross_cov<B: JointGaussian + ?Sized>(state: &B, a: &Linearised, b: &Linearised) -> Matrix2 {
     let pxx = state.pose_cov();
     let pxa = state.pose_landmark_cov(a.landmark);
     let pxb = state.pose_landmark_cov(b.landmark);
@@ -47,8 +47,8 @@ pub(crate) fn cross_cov(state: &State, a: &Linearised, b: &Linearised) -> Matrix
 
 /// Linearises observation `z` against landmark slot `j` at the current mean; `None` when
 /// the landmark sits on the robot (degenerate geometry).
-pub(crate) fn linearise(
-    state: &State,
+pub fn linearise<B: JointGaussian + ?Sized>(
+    state: &B,
     sensor: &RangeBearingModel,
     z: &RangeBearing,
     j: usize,
@@ -65,8 +65,8 @@ pub(crate) fn linearise(
 
 /// Every landmark individually compatible with `z` at threshold `gate` (a χ²₂ value),
 /// sorted by increasing d². O(n).
-pub(crate) fn candidates(
-    state: &State,
+pub fn candidates<B: JointGaussian + ?Sized>(
+    state: &B,
     sensor: &RangeBearingModel,
     z: &RangeBearing,
     gate: f64,

@@ -19,14 +19,12 @@
 //! Among hypotheses with equally many pairings the one with the smaller D² is kept.
 
 use super::compatibility::cross_cov;
-use super::Candidate;
-use crate::chi2::GateTable;
-use crate::state::State;
+use super::{Candidate, GateTable, JointGaussian};
 use nalgebra::{DMatrix, DVector};
 
 /// The outcome of one JCBB search.
 #[derive(Debug, Clone)]
-pub(crate) struct JcbbResult {
+pub struct JcbbResult {
     /// Per observation, the index into its candidate list, or `None` (unpaired).
     pub assignment: Vec<Option<usize>>,
     /// Nodes of the interpretation tree visited.
@@ -43,8 +41,8 @@ struct Hyp {
     d2: f64,
 }
 
-struct Search<'a> {
-    state: &'a State,
+struct Search<'a, B: ?Sized> {
+    state: &'a B,
     cands: &'a [Vec<Candidate>],
     order: Vec<usize>,
     gates: &'a mut GateTable,
@@ -56,7 +54,7 @@ struct Search<'a> {
     best_d2: f64,
 }
 
-impl Search<'_> {
+impl<B: JointGaussian + ?Sized> Search<'_, B> {
     fn extend(&mut self, h: &Hyp, i: usize, c: usize) -> Option<Hyp> {
         let cand = &self.cands[i][c];
         let k = h.pairs.len();
@@ -138,8 +136,8 @@ impl Search<'_> {
 
 /// Runs JCBB over the candidate lists (one per observation, each individually gated).
 /// `gates` gives χ²_{2k}(p) for the joint test.
-pub(crate) fn associate(
-    state: &State,
+pub fn associate<B: JointGaussian + ?Sized>(
+    state: &B,
     cands: &[Vec<Candidate>],
     gates: &mut GateTable,
     max_nodes: usize,
@@ -174,10 +172,10 @@ pub(crate) fn associate(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::association::{candidates, nearest};
+    use crate::association::{candidates, nearest, DenseGaussian};
     use crate::chi2::chi2_quantile;
-    use slam_models::measurement::RangeBearingModel;
-    use slam_models::{Matrix3, Pose2, RangeBearing, Vector3};
+    use crate::measurement::RangeBearingModel;
+    use crate::{Matrix3, Pose2, RangeBearing, Vector3};
 
     /// Five landmarks on an arc 0.2 rad apart at 5 m; the robot's heading is uncertain
     /// (σθ = 0.2 rad) and in truth off by +0.2 rad, so every observation lands on the
@@ -186,7 +184,7 @@ mod tests {
     #[test]
     fn jcbb_resolves_a_common_heading_error_that_fools_nearest_neighbour() {
         let sensor = RangeBearingModel::new(0.05, 0.01);
-        let mut st = State::new(Pose2::IDENTITY, Matrix3::zeros());
+        let mut st = DenseGaussian::new(Pose2::IDENTITY, Matrix3::zeros());
         let precise = RangeBearingModel::new(1e-3, 1e-4).noise_covariance();
         let bearings = [-0.4, -0.2, 0.0, 0.2, 0.4];
         for b in bearings {
@@ -195,8 +193,7 @@ mod tests {
                 bearing: b,
                 id: None,
             };
-            st.add_landmark(&sensor.inverse(&Pose2::IDENTITY, &z), &precise, usize::MAX)
-                .unwrap();
+            st.add_landmark(&sensor.inverse(&Pose2::IDENTITY, &z), &precise);
         }
         st.predict(
             &Pose2::IDENTITY,
@@ -237,7 +234,7 @@ mod tests {
     #[test]
     fn incremental_joint_distance_matches_batch() {
         let sensor = RangeBearingModel::new(0.1, 0.03);
-        let mut st = State::new(
+        let mut st = DenseGaussian::new(
             Pose2::new(0.5, -0.3, 0.2),
             Matrix3::from_diagonal(&Vector3::new(0.02, 0.01, 0.005)),
         );
@@ -247,12 +244,7 @@ mod tests {
                 bearing: b,
                 id: None,
             };
-            st.add_landmark(
-                &sensor.inverse(&st.pose(), &z),
-                &sensor.noise_covariance(),
-                usize::MAX,
-            )
-            .unwrap();
+            st.add_landmark(&sensor.inverse(&st.pose(), &z), &sensor.noise_covariance());
         }
         let obs = [(3.1, 0.52), (3.9, -0.68), (2.45, 1.18)];
         let cands: Vec<Vec<Candidate>> = obs
@@ -295,13 +287,13 @@ mod tests {
             h = s.extend(&h, i, c).expect("jointly compatible");
         }
         // Batch: S = H Σ Hᵀ + Q over the three pairings, from the dense covariance.
-        let n = st.dim();
+        let n = st.mean.len();
         let mut hm = DMatrix::<f64>::zeros(6, n);
         let mut q = DMatrix::<f64>::zeros(6, 6);
         let mut nu = DVector::<f64>::zeros(6);
         for (a, &(i, c)) in h.pairs.iter().enumerate() {
             let lin = &cands[i][c].lin;
-            let l = crate::state::lm_index(lin.landmark);
+            let l = 3 + 2 * lin.landmark;
             for r in 0..2 {
                 for k in 0..3 {
                     hm[(2 * a + r, k)] = lin.h_pose[(r, k)];
@@ -313,7 +305,7 @@ mod tests {
                 nu[2 * a + r] = lin.nu[r];
             }
         }
-        let p = DMatrix::from_fn(n, n, |i, j| st.covariance()[(i, j)]);
+        let p = st.cov.clone();
         let sm = &hm * p * hm.transpose() + q;
         let d2 = (nu.transpose() * sm.try_inverse().unwrap() * &nu)[(0, 0)];
         assert!((h.d2 - d2).abs() < 1e-9 * d2.max(1.0), "{} vs {d2}", h.d2);

@@ -8,36 +8,38 @@
 //! candidate's covariance is not shrunk by fusion: successive sightings share the pose
 //! error, so treating them as independent would make the gate too tight.
 
-use slam_models::{Matrix2, Point2};
+use crate::{Matrix2, Point2};
 
 #[derive(Debug, Clone)]
-pub(crate) struct Candidate {
-    pub point: Point2,
-    pub cov: Matrix2,
-    pub sightings: usize,
-    pub last_seen: u64,
+struct Candidate {
+    point: Point2,
+    cov: Matrix2,
+    sightings: usize,
+    last_seen: u64,
 }
 
+/// Landmarks seen but not yet mapped, each with its running mean, latest covariance, number
+/// of sightings and the step it was last seen.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct ProvisionalList {
+pub struct ProvisionalList {
     items: Vec<Candidate>,
 }
 
 impl ProvisionalList {
-    pub(crate) fn len(&self) -> usize {
+    /// Number of provisional landmarks.
+    pub fn len(&self) -> usize {
         self.items.len()
+    }
+
+    /// True when there is none.
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
     }
 
     /// Records a sighting at `step`; returns the number of sightings of the candidate it
     /// was attributed to and that candidate's index. A candidate already sighted in this
     /// step is not matched twice.
-    pub(crate) fn sight(
-        &mut self,
-        p: Point2,
-        cov: Matrix2,
-        step: u64,
-        gate: f64,
-    ) -> (usize, usize) {
+    pub fn sight(&mut self, p: Point2, cov: Matrix2, step: u64, gate: f64) -> (usize, usize) {
         let mut best: Option<(usize, f64)> = None;
         for (k, c) in self.items.iter().enumerate() {
             if c.last_seen == step {
@@ -74,12 +76,13 @@ impl ProvisionalList {
         }
     }
 
-    pub(crate) fn remove(&mut self, k: usize) {
+    /// Removes candidate `k` (it joined the map); the last candidate takes its index.
+    pub fn remove(&mut self, k: usize) {
         self.items.swap_remove(k);
     }
 
     /// Drops candidates not seen for more than `max_age` steps; returns how many.
-    pub(crate) fn expire(&mut self, step: u64, max_age: usize) -> usize {
+    pub fn expire(&mut self, step: u64, max_age: usize) -> usize {
         let before = self.items.len();
         self.items
             .retain(|c| step.saturating_sub(c.last_seen) <= max_age as u64);

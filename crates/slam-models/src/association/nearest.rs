@@ -8,7 +8,7 @@ use super::Candidate;
 
 /// For each observation (outer index), the index into its candidate list that it is
 /// assigned, or `None`.
-pub(crate) fn associate(cands: &[Vec<Candidate>]) -> Vec<Option<usize>> {
+pub fn associate(cands: &[Vec<Candidate>]) -> Vec<Option<usize>> {
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for (i, cs) in cands.iter().enumerate() {
         for (c, cand) in cs.iter().enumerate() {

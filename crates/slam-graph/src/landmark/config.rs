@@ -1,0 +1,226 @@
+//! Configuration of the landmark front end ([`super::GraphLandmarkSlam`]).
+
+use crate::error::GraphError;
+use crate::optimizer::OptimizerConfig;
+use serde::{Deserialize, Serialize};
+use slam_models::association::{AssociationMode, AssociationOptions};
+use slam_models::measurement::RangeBearingModel;
+use slam_models::motion::MotionModels;
+use slam_models::ModelError;
+
+/// Most landmarks the map may hold: the association belief is dense, (3 + 2n)² × 8 bytes,
+/// 3.2 GB at this bound.
+pub const MAX_LANDMARKS: usize = 10_000;
+
+/// Parameters of [`super::GraphLandmarkSlam`]. The noise models and the association keys
+/// mean what they mean in `slam_ekf::EkfConfig` (same names, same defaults), so one data
+/// set's settings carry over between the two.
+///
+/// ```
+/// let c: slam_graph::landmark::GraphLandmarkConfig = toml::from_str("optimize_every = 5").unwrap();
+/// assert_eq!(c.optimize_every, 5);
+/// c.validate().unwrap();
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct GraphLandmarkConfig {
+    /// Motion models (velocity and odometry, PR tables 5.3/5.6); their noise, propagated
+    /// between two pose nodes, is the information of the odometry edge.
+    pub motion: MotionModels,
+    /// Extra process noise per control, variances (m², m², rad²) added to the motion
+    /// model's in the robot frame (as the EKF's `extra_motion_noise`).
+    pub extra_motion_noise: [f64; 3],
+    /// Range-bearing sensor noise Q = diag(σr², σφ²); Q⁻¹ is each landmark edge's
+    /// information.
+    pub sensor: RangeBearingModel,
+    /// Data association mode.
+    pub association: AssociationMode,
+    /// Individual-compatibility gate (χ²₂ probability), as the EKF's.
+    pub gate_probability: f64,
+    /// Unpaired id-less observations inside this wider χ²₂ gate of some landmark are
+    /// dropped as ambiguous, as the EKF's.
+    pub new_landmark_gate_probability: f64,
+    /// JCBB's joint gate (χ²_{2k} probability), as the EKF's.
+    pub joint_probability: f64,
+    /// Outlier gate for known ids (χ²₂ probability); `None` accepts every observation.
+    pub known_id_gate_probability: Option<f64>,
+    /// Sightings an id-less landmark needs before it joins the graph (1 = at once).
+    pub min_sightings: usize,
+    /// A provisional landmark not seen for more than this many updates is dropped.
+    pub provisional_max_age: usize,
+    /// Gate (χ²₂ probability) for matching a sighting to a provisional landmark.
+    pub provisional_gate_probability: f64,
+    /// JCBB's search budget (interpretation-tree nodes per update).
+    pub jcbb_max_nodes: usize,
+    /// Most landmarks the map may hold (1 ..= [`MAX_LANDMARKS`]).
+    pub max_landmarks: usize,
+    /// A new pose node is added at every update with observations, and after this many
+    /// updates without any (≥ 1); between nodes the controls are composed into one odometry
+    /// edge whose covariance is the motion noise propagated over them.
+    pub max_steps_between_nodes: usize,
+    /// The graph is optimised (and the association belief recomputed from its marginals)
+    /// after every this many new pose nodes (≥ 1), and once more by `finish`.
+    pub optimize_every: usize,
+    /// … or, when more, after the graph's pose nodes grew by this fraction (0 ..= 1) since the
+    /// last optimisation: with a fixed interval a run costs O(length²); with a fraction it
+    /// is linear (each optimisation's cost is proportional to the graph, and their number
+    /// grows only logarithmically with it per unit of length).
+    pub optimize_growth: f64,
+    /// The optimiser; its `max_iterations` bounds each incremental optimisation (the
+    /// estimate is warm-started, so a few iterations suffice).
+    pub optimizer: OptimizerConfig,
+}
+
+impl Default for GraphLandmarkConfig {
+    /// The EKF's defaults for the shared keys; a node at every update with observations (and
+    /// at least every 10), optimisation after every node or 1 % growth of the graph, whichever
+    /// comes later, with at most 10 LM iterations each.
+    fn default() -> Self {
+        Self {
+            motion: MotionModels::default(),
+            extra_motion_noise: [0.0; 3],
+            sensor: RangeBearingModel::default(),
+            association: AssociationMode::Auto,
+            gate_probability: 0.999,
+            new_landmark_gate_probability: 0.99999,
+            joint_probability: 0.99,
+            known_id_gate_probability: Some(0.9999),
+            min_sightings: 4,
+            provisional_max_age: 2,
+            provisional_gate_probability: 0.99,
+            jcbb_max_nodes: 100_000,
+            max_landmarks: 5000,
+            max_steps_between_nodes: 10,
+            optimize_every: 1,
+            optimize_growth: 0.01,
+            optimizer: OptimizerConfig {
+                max_iterations: 10,
+                ..OptimizerConfig::default()
+            },
+        }
+    }
+}
+
+fn check(
+    field: &'static str,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), GraphError> {
+    Ok(slam_models::error::ensure_config(
+        ok,
+        "graph landmark SLAM",
+        field,
+        value,
+        expected,
+    )?)
+}
+
+fn at_least_one(field: &'static str, v: usize) -> Result<(), GraphError> {
+    check(field, v as f64, v >= 1, "at least 1")
+}
+
+impl GraphLandmarkConfig {
+    /// Checks every field against its documented range; the error names the field, the
+    /// value and the bound.
+    pub fn validate(&self) -> Result<(), GraphError> {
+        check(
+            "max_landmarks",
+            self.max_landmarks as f64,
+            (1..=MAX_LANDMARKS).contains(&self.max_landmarks),
+            "1 ..= 10000 (MAX_LANDMARKS)",
+        )?;
+        for v in self.extra_motion_noise {
+            check("extra_motion_noise", v, v >= 0.0, "finite and >= 0")?;
+        }
+        let named = |e: ModelError| match e {
+            ModelError::OutOfRange {
+                name,
+                value,
+                expected,
+            } => GraphError::InvalidConfig(slam_models::ConfigError::new(
+                "graph landmark SLAM",
+                name,
+                value,
+                expected,
+            )),
+            other => GraphError::InvalidInput(other.to_string()),
+        };
+        self.motion.validate().map_err(named)?;
+        self.sensor.validate().map_err(named)?;
+        self.association_options().validate().map_err(named)?;
+        at_least_one("max_steps_between_nodes", self.max_steps_between_nodes)?;
+        at_least_one("optimize_every", self.optimize_every)?;
+        let g = self.optimize_growth;
+        check("optimize_growth", g, (0.0..=1.0).contains(&g), "in [0, 1]")?;
+        self.optimizer.validate()
+    }
+
+    /// The association keys, for `slam_models::association::Associator`; observations
+    /// closer than the sensor's `min_range` are rejected (their edge would be degenerate).
+    pub fn association_options(&self) -> AssociationOptions {
+        AssociationOptions {
+            mode: self.association,
+            gate_probability: self.gate_probability,
+            new_landmark_gate_probability: self.new_landmark_gate_probability,
+            joint_probability: self.joint_probability,
+            known_id_gate_probability: self.known_id_gate_probability,
+            min_sightings: self.min_sightings,
+            provisional_max_age: self.provisional_max_age,
+            provisional_gate_probability: self.provisional_gate_probability,
+            jcbb_max_nodes: self.jcbb_max_nodes,
+            min_range: self.sensor.min_range,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_valid_and_round_trips() {
+        let c = GraphLandmarkConfig::default();
+        c.validate().unwrap();
+        let s = toml::to_string(&c).unwrap();
+        let back: GraphLandmarkConfig = toml::from_str(&s).unwrap();
+        assert_eq!(back, c);
+        assert!(toml::from_str::<GraphLandmarkConfig>("no_such_field = 1").is_err());
+    }
+
+    #[test]
+    fn rejects_bad_values_naming_the_field() {
+        let bad = |c: GraphLandmarkConfig| match c.validate() {
+            Err(GraphError::InvalidConfig(e)) => e.field,
+            other => panic!("{other:?}"),
+        };
+        let d = GraphLandmarkConfig::default;
+        assert_eq!(
+            bad(GraphLandmarkConfig {
+                optimize_every: 0,
+                ..d()
+            }),
+            "optimize_every"
+        );
+        assert_eq!(
+            bad(GraphLandmarkConfig {
+                gate_probability: 1.0,
+                ..d()
+            }),
+            "gate_probability"
+        );
+        assert_eq!(
+            bad(GraphLandmarkConfig {
+                max_landmarks: MAX_LANDMARKS + 1,
+                ..d()
+            }),
+            "max_landmarks"
+        );
+        let mut c = d();
+        c.sensor.sigma_bearing = f64::NAN;
+        assert_eq!(bad(c), "sensor.sigma_bearing");
+        let mut c = d();
+        c.optimizer.lambda_factor = 0.5;
+        assert_eq!(bad(c), "lambda_factor");
+    }
+}
