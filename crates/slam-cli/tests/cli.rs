@@ -19,7 +19,7 @@ fn available(kind: filters::DataKind) -> Vec<&'static str> {
         .collect()
 }
 
-const METRIC_KEYS: [&str; 23] = [
+const METRIC_KEYS: [&str; 25] = [
     "filter",
     "dataset",
     "steps",
@@ -43,6 +43,8 @@ const METRIC_KEYS: [&str; 23] = [
     "nees_pose_median",
     "nees_pose_mean",
     "peak_rss_mb",
+    "match_failed",
+    "match_recovered",
 ];
 
 /// Reads `metrics.json` and checks it has exactly the contract's keys.
