@@ -9,7 +9,7 @@
 //!   `fastslam`, `grid`, `gridfast`, `graph`, `sim`).
 //! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
 //!   into `slam-out/eval/`; not part of the test suite.
-//! * `cargo xtask eval robust [--seeds N] [--only NAME,…] [--keep]`: grid FastSLAM's
+//! * `cargo xtask eval robust [--seeds N] [--only NAME,…] [--keep | --no-run]`: grid FastSLAM's
 //!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers
 //!   (see [`mcap_check`]), writing into `slam-out/mcap/`.
@@ -557,12 +557,14 @@ struct RobustCase {
 ///
 /// `--only a,b` runs those inputs only; `--keep` reuses the runs already in
 /// `slam-out/robust` (a folder with its `metrics.json`) instead of repeating them, so the
-/// suite can be run in pieces and summarised at the end. `SLAM_BIN` names a `slam`
-/// executable to use instead of building one.
+/// suite can be run in pieces and summarised at the end; `--no-run` only summarises the
+/// runs there (a seed without one is left out, and the table says how many were run).
+/// `SLAM_BIN` names a `slam` executable to use instead of building one.
 fn robust(extra: &[String]) -> Result<(), String> {
     let mut seeds = 5u64;
     let mut only: Option<Vec<String>> = None;
     let mut keep = false;
+    let mut no_run = false;
     let mut it = extra.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -583,6 +585,7 @@ fn robust(extra: &[String]) -> Result<(), String> {
                 )
             }
             "--keep" => keep = true,
+            "--no-run" => (keep, no_run) = (true, true),
             other => return Err(format!("eval robust: unknown argument {other:?}")),
         }
     }
@@ -692,7 +695,7 @@ fn robust(extra: &[String]) -> Result<(), String> {
     cases.retain(|c| wanted(&c.name));
 
     let mut table = String::from(
-        "| input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost | matches failed / recovered (median per run) |\n|---|---|---|---|---|---|\n",
+        "| input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost of seeds run | matches failed / recovered (median per run) |\n|---|---|---|---|---|---|\n",
     );
     // Per input, the map of its worst seed (a lost seed first).
     let mut sheet = Vec::new();
@@ -701,10 +704,15 @@ fn robust(extra: &[String]) -> Result<(), String> {
         let mut rel = Vec::new();
         let mut matches = Vec::new();
         let mut lost = 0;
+        let mut runs = 0;
         let mut worst: Option<(f64, std::path::PathBuf)> = None;
         for seed in 0..seeds {
             let dir = out.join(format!("{}-seed{seed}", case.name));
             let done = keep && dir.join("metrics.json").is_file();
+            if no_run && !done {
+                continue;
+            }
+            runs += 1;
             let ok = done || {
                 let _ = std::fs::remove_dir_all(&dir);
                 let mut cmd = Command::new(&exe);
@@ -779,7 +787,7 @@ fn robust(extra: &[String]) -> Result<(), String> {
             "GMapping reference"
         };
         table.push_str(&format!(
-            "| {} | {truth} | {ate} | {rel} | {lost} of {seeds} | {matched} |\n",
+            "| {} | {truth} | {ate} | {rel} | {lost} of {runs} | {matched} |\n",
             case.name
         ));
         if let Some((_, png)) = worst {
