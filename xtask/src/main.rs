@@ -761,18 +761,22 @@ fn robust(extra: &[String]) -> Result<(), String> {
                 matches.push((f, r));
             }
         }
-        ates.sort_by(f64::total_cmp);
-        rel.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let ate = match (ates.get(ates.len() / 2), ates.last()) {
+        // The median (of an even count, the mean of the middle two).
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            (n > 0).then(|| 0.5 * (v[(n - 1) / 2] + v[n / 2]))
+        };
+        let ate = match (median(ates.clone()), ates.iter().copied().reduce(f64::max)) {
             (Some(m), Some(w)) => format!("{m:.3} / {w:.3}"),
             _ => "–".into(),
         };
-        let rel = rel
-            .get(rel.len() / 2)
-            .map_or("–".into(), |(t, r)| format!("{t:.4} / {r:.2}"));
-        let median = |mut v: Vec<f64>| {
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2).copied()
+        let rel = match (
+            median(rel.iter().map(|r| r.0).collect()),
+            median(rel.iter().map(|r| r.1).collect()),
+        ) {
+            (Some(t), Some(r)) => format!("{t:.4} / {r:.3}"),
+            _ => "–".into(),
         };
         let matched = match (
             median(matches.iter().map(|m| m.0).collect()),
@@ -805,9 +809,9 @@ fn robust(extra: &[String]) -> Result<(), String> {
 }
 
 /// Writes the pictures `pngs` (missing ones left blank) as one PNG, six to a row, each scaled
-/// to fit a 400 × 400 cell, in order.
+/// to fit a 300 × 300 cell, in order.
 fn contact_sheet(pngs: &[std::path::PathBuf], path: &std::path::Path) -> Result<(), String> {
-    const CELL: u32 = 400;
+    const CELL: u32 = 300;
     const COLUMNS: u32 = 6;
     let n = pngs.len().max(1) as u32;
     let (columns, rows) = (n.min(COLUMNS), n.div_ceil(COLUMNS));
