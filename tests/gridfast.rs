@@ -319,7 +319,7 @@ fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
     };
     let truth = run.dataset.ground_truth.expect("campus has ground truth");
     let records = run.dataset.records;
-    let odometry = slam::io::eval::ate(&dead_reckoning(&records), &truth).unwrap();
+    let odometry = slam::eval::metrics::ate(&dead_reckoning(&records), &truth).unwrap();
     for seed in [0, 1] {
         let mut slam = GridFastSlam::new(
             GridFastConfig {
@@ -335,7 +335,7 @@ fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
         let c = slam.config();
         assert_eq!(c.preset, slam::gridfast::Preset::Outdoor);
         assert_eq!(c.sensor.max_range, Some(80.0));
-        let e = slam::io::eval::ate(&slam.trajectory(), &truth).unwrap();
+        let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
         eprintln!(
             "campus prefix, seed {seed}: ATE aligned {:.3} m (dead reckoning {:.3} m)",
             e.rmse_aligned, odometry.rmse_aligned
@@ -377,12 +377,12 @@ fn perturbed_intel_prefix_is_not_lost() {
     std::fs::remove_dir_all(&dir).unwrap();
     // One ODOM and one FLASER record per scan.
     let records = &records[..800];
-    let odometry = slam::io::eval::ate(&dead_reckoning(records), &truth).unwrap();
+    let odometry = slam::eval::metrics::ate(&dead_reckoning(records), &truth).unwrap();
     let mut slam = GridFastSlam::new(GridFastConfig::default(), 0).unwrap();
     for r in records {
         slam.process(r).unwrap();
     }
-    let e = slam::io::eval::ate(&slam.trajectory(), &truth).unwrap();
+    let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
     eprintln!(
         "intel-moderate prefix: ATE aligned {:.3} m (dead reckoning {:.3} m)",
         e.rmse_aligned, odometry.rmse_aligned
