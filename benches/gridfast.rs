@@ -6,7 +6,7 @@
 #![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
+use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal, ProposalConfig};
 use slam_models::ScanSlam;
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
@@ -46,7 +46,10 @@ fn bench(c: &mut Criterion) {
                     pool.install(|| {
                         let config = GridFastConfig {
                             particles: 30,
-                            proposal,
+                            proposal: ProposalConfig {
+                                kind: proposal,
+                                ..Default::default()
+                            },
                             ..Default::default()
                         };
                         let mut slam =

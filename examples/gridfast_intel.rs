@@ -45,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match a.as_str() {
             "--particles" => config.particles = val()?.parse()?,
             "--proposal" => {
-                config.proposal = serde_json::from_str::<Proposal>(&format!("\"{}\"", val()?))?
+                config.proposal.kind = serde_json::from_str::<Proposal>(&format!("\"{}\"", val()?))?
             }
             "--threads" => threads = val()?.parse()?,
             "--seed" => seed = val()?.parse()?,
@@ -70,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .num_threads(threads)
         .build()?;
     let threads = pool.current_num_threads();
-    let (proposal, particles) = (config.proposal, config.particles);
+    let (proposal, particles) = (config.proposal.kind, config.particles);
     let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed)?;
     let start = Instant::now();
     let cpu0 = cpu_seconds().unwrap_or(f64::NAN);

@@ -14,7 +14,7 @@
 //! measures the map's consistency. Prints a Markdown table of the means over seeds and draws
 //! the anchored curves on log–log axes (improved in orange, odometry in blue).
 
-use slam_gridfast::{GridFastConfig, GridFastSlam, Pose2, Proposal};
+use slam_gridfast::{GridFastConfig, GridFastSlam, Pose2, Proposal, ProposalConfig};
 use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
@@ -37,7 +37,10 @@ fn run(
         return Err("office is a laser scenario".into());
     };
     let config = GridFastConfig {
-        proposal,
+        proposal: ProposalConfig {
+            kind: proposal,
+            ..Default::default()
+        },
         particles,
         ..GridFastConfig::default()
     };

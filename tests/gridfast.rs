@@ -14,7 +14,7 @@ const LOOP_CLOSED_RMSE: f64 = 0.2;
 
 mod common;
 
-use slam::gridfast::{GridFastConfig, GridFastSlam, Proposal};
+use slam::gridfast::{GridFastConfig, GridFastSlam, Proposal, ProposalConfig};
 use slam::models::{Pose2, ScanRecord, ScanSlam, TimedPose};
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::SimOutput;
@@ -146,7 +146,10 @@ fn every_proposal_beats_dead_reckoning_in_the_office() {
     ] {
         let config = GridFastConfig {
             particles,
-            proposal,
+            proposal: ProposalConfig {
+                kind: proposal,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let errs: Vec<f64> = (1..=5)
@@ -296,4 +299,95 @@ fn keyframe_pose_rule_reproduces_gmappings_trajectory() {
     );
     // 6 printed decimals in both files: 5e-7 each, plus composition round-off.
     assert!(worst.0 < 5e-6 && worst.1 < 5e-6, "{worst:?}");
+}
+
+/// The fast subset of `cargo xtask eval robust` (issue 21), with exact ground truth: the
+/// first 800 scans (≈ 360 m) of the simulated outdoor `campus` (seed 1, as the suite
+/// simulates it). The preset and the range limit come from the data: outdoor (returns
+/// 10–25 m away) and the laser's 80 m. With the earlier fixed settings (50 m, 5 cm cells)
+/// seed 0 of the whole run scored 0.646 m aligned (docs/results.md), and the issue's bound
+/// for the whole run's worst seed is 0.5 m; a short stretch must stay well inside it.
+#[test]
+fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
+    let opts = ScenarioOptions {
+        seed: 1,
+        steps: Some(800),
+        ..Default::default()
+    };
+    let Ok(SimOutput::Laser(run)) = generate("campus", &opts) else {
+        panic!("campus scenario did not generate a laser run");
+    };
+    let truth = run.dataset.ground_truth.expect("campus has ground truth");
+    let records = run.dataset.records;
+    let odometry = slam::eval::metrics::ate(&dead_reckoning(&records), &truth).unwrap();
+    for seed in [0, 1] {
+        let mut slam = GridFastSlam::new(
+            GridFastConfig {
+                particles: 10,
+                ..Default::default()
+            },
+            Pose2::IDENTITY,
+            seed,
+        )
+        .unwrap();
+        for r in &records {
+            slam.process(r).unwrap();
+        }
+        let c = slam.config();
+        assert_eq!(c.preset, slam::gridfast::Preset::Outdoor);
+        assert_eq!(c.sensor.max_range, Some(80.0));
+        let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
+        eprintln!(
+            "campus prefix, seed {seed}: ATE aligned {:.3} m (dead reckoning {:.3} m)",
+            e.rmse_aligned, odometry.rmse_aligned
+        );
+        assert!(e.rmse_aligned < 0.3, "{e:?}");
+        assert!(e.rmse_aligned < odometry.rmse_aligned / 3.0);
+    }
+}
+
+/// The other half of the fast subset: Intel's corrected scans with odometry perturbed at
+/// the `moderate` profile by the shared tool (`perturb-odometry --seed 1 --profile
+/// moderate`, as the suite does), first 400 scans, exact ground truth (the corrected poses).
+/// Lost, in the suite's terms, is an aligned ATE above 1 m; a kept run is within 3 cells.
+/// (At the `hard` profile the filter is lost on this log, before and after issue 21's
+/// changes: docs/results.md.)
+#[test]
+fn perturbed_intel_prefix_is_not_lost() {
+    let (Some(corrected), Some(tool)) = (
+        common::dataset("radish-corrected/intel-corrected.log.gz"),
+        common::dataset("../tools/perturb-odometry"),
+    ) else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("slam-gridfast-perturbed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let prefix = dir.join("intel-moderate");
+    let status = std::process::Command::new(&tool)
+        .arg(&corrected)
+        .arg(&prefix)
+        .args(["--seed", "1", "--profile", "moderate"])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let records = slam::io::carmen::read_carmen(&prefix.with_extension("log"))
+        .unwrap()
+        .dataset
+        .records;
+    let truth = slam::io::tum::read_tum(&dir.join("intel-moderate.gt.tum")).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    // One ODOM and one FLASER record per scan.
+    let records = &records[..800];
+    let odometry = slam::eval::metrics::ate(&dead_reckoning(records), &truth).unwrap();
+    let mut slam = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 0).unwrap();
+    for r in records {
+        slam.process(r).unwrap();
+    }
+    let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
+    eprintln!(
+        "intel-moderate prefix: ATE aligned {:.3} m (dead reckoning {:.3} m)",
+        e.rmse_aligned, odometry.rmse_aligned
+    );
+    assert!(odometry.rmse_aligned > 0.3, "{odometry:?}");
+    assert!(e.rmse_aligned < 0.15, "{e:?}");
 }

@@ -9,8 +9,8 @@
 //!   `fastslam`, `grid`, `gridfast`, `graph`, `sim`).
 //! * `cargo xtask eval`: the long dataset runs (every filter on every real dataset), writing
 //!   into `slam-out/eval/`; not part of the test suite.
-//! * `cargo xtask eval robust [--seeds N] [--only NAME]`: grid FastSLAM's robustness suite
-//!   (see [`robust`]), writing into `slam-out/robust/`.
+//! * `cargo xtask eval robust [--seeds N] [--only NAME,…] [--keep | --no-run]`: grid FastSLAM's
+//!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers
 //!   (see [`mcap_check`]), writing into `slam-out/mcap/`.
 
@@ -565,11 +565,20 @@ struct RobustCase {
 /// at the `moderate` and `hard` profiles (the corrected poses are then exact ground truth);
 /// and on the simulated `campus` (exact ground truth). Each with filter seeds 0..N (default
 /// 5). Prints and writes `slam-out/robust/summary.md`: per input the median and worst
-/// aligned ATE, the median relations error where relations exist, and the runs counted
-/// lost (aligned ATE above 1 m, or a failed run).
+/// aligned ATE, the median relations error where relations exist, the runs counted lost
+/// (aligned ATE above 1 m, or a failed run) and the scan matches failed and recovered; and
+/// `slam-out/robust/contact-sheet.png`, every input's map from its worst seed side by side.
+///
+/// `--only a,b` runs those inputs only; `--keep` reuses the runs already in
+/// `slam-out/robust` (a folder with its `metrics.json`) instead of repeating them, so the
+/// suite can be run in pieces and summarised at the end; `--no-run` only summarises the
+/// runs there (a seed without one is left out, and the table says how many were run).
+/// `SLAM_BIN` names a `slam` executable to use instead of building one.
 fn robust(extra: &[String]) -> Result<(), String> {
     let mut seeds = 5u64;
-    let mut only: Option<String> = None;
+    let mut only: Option<Vec<String>> = None;
+    let mut keep = false;
+    let mut no_run = false;
     let mut it = extra.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -580,10 +589,21 @@ fn robust(extra: &[String]) -> Result<(), String> {
                     .filter(|&n| n > 0)
                     .ok_or("--seeds takes a positive count")?
             }
-            "--only" => only = Some(it.next().ok_or("--only takes a case name")?.clone()),
+            "--only" => {
+                only = Some(
+                    it.next()
+                        .ok_or("--only takes case names, comma separated")?
+                        .split(',')
+                        .map(str::to_string)
+                        .collect(),
+                )
+            }
+            "--keep" => keep = true,
+            "--no-run" => (keep, no_run) = (true, true),
             other => return Err(format!("eval robust: unknown argument {other:?}")),
         }
     }
+    let wanted = |name: &str| only.as_ref().is_none_or(|o| o.iter().any(|x| x == name));
     let data = std::env::var_os("SLAM_DATASETS")
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::path::PathBuf::from("../shared/datasets"));
@@ -591,14 +611,20 @@ fn robust(extra: &[String]) -> Result<(), String> {
     if !data.join("bench").is_dir() {
         return Err(format!("{} not found", data.join("bench").display()));
     }
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
-    let exe = target.join("release").join("slam");
+    let exe = match std::env::var_os("SLAM_BIN") {
+        Some(bin) => std::path::PathBuf::from(bin),
+        None => {
+            run(
+                "build slam",
+                cargo().args(["build", "--release", "-p", "slam-cli"]),
+            )?;
+            std::env::var_os("CARGO_TARGET_DIR")
+                .map(std::path::PathBuf::from)
+                .unwrap_or_else(|| std::path::PathBuf::from("target"))
+                .join("release")
+                .join("slam")
+        }
+    };
     let out = std::path::Path::new("slam-out/robust");
     let inputs = out.join("inputs");
     std::fs::create_dir_all(&inputs).map_err(|e| format!("{}: {e}", inputs.display()))?;
@@ -642,7 +668,7 @@ fn robust(extra: &[String]) -> Result<(), String> {
         let stem = file.trim_end_matches("-corrected.log.gz");
         for profile in ["moderate", "hard"] {
             let name = format!("{stem}-{profile}");
-            if only.as_ref().is_some_and(|o| o != &name) {
+            if !wanted(&name) {
                 continue;
             }
             let prefix = inputs.join(&name);
@@ -665,7 +691,7 @@ fn robust(extra: &[String]) -> Result<(), String> {
         }
     }
     let campus = inputs.join("campus");
-    if !campus.join("campus.log").exists() && only.as_deref().is_none_or(|o| o == "campus") {
+    if !campus.join("campus.log").exists() && wanted("campus") {
         run(
             "simulate campus",
             Command::new(&exe)
@@ -680,44 +706,61 @@ fn robust(extra: &[String]) -> Result<(), String> {
         exact: true,
         relations: None,
     });
-    cases.retain(|c| only.as_ref().is_none_or(|o| o == &c.name));
+    cases.retain(|c| wanted(&c.name));
 
     let mut table = String::from(
-        "| input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost |\n|---|---|---|---|---|\n",
+        "| input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost of seeds run | matches failed / recovered (median per run) |\n|---|---|---|---|---|---|\n",
     );
+    // Per input, the map of its worst seed (a lost seed first).
+    let mut sheet = Vec::new();
     for case in &cases {
         let mut ates = Vec::new();
         let mut rel = Vec::new();
+        let mut matches = Vec::new();
         let mut lost = 0;
+        let mut runs = 0;
+        let mut worst: Option<(f64, std::path::PathBuf)> = None;
         for seed in 0..seeds {
             let dir = out.join(format!("{}-seed{seed}", case.name));
-            let _ = std::fs::remove_dir_all(&dir);
-            let mut cmd = Command::new(&exe);
-            cmd.args([
-                "run",
-                "--filter",
-                "gridfast",
-                "--particles",
-                "30",
-                "--quiet",
-            ])
-            .arg("--dataset")
-            .arg(&case.log)
-            .arg("--ground-truth")
-            .arg(&case.truth)
-            .args(["--seed", &seed.to_string(), "--out"])
-            .arg(&dir);
-            if let Some(r) = &case.relations {
-                cmd.arg("--relations").arg(r);
+            let done = keep && dir.join("metrics.json").is_file();
+            if no_run && !done {
+                continue;
             }
-            let ok = run(&format!("{} seed {seed}", case.name), &mut cmd).is_ok();
+            runs += 1;
+            let ok = done || {
+                let _ = std::fs::remove_dir_all(&dir);
+                let mut cmd = Command::new(&exe);
+                cmd.args([
+                    "run",
+                    "--filter",
+                    "gridfast",
+                    "--particles",
+                    "30",
+                    "--quiet",
+                ])
+                .arg("--dataset")
+                .arg(&case.log)
+                .arg("--ground-truth")
+                .arg(&case.truth)
+                .args(["--seed", &seed.to_string(), "--out"])
+                .arg(&dir);
+                if let Some(r) = &case.relations {
+                    cmd.arg("--relations").arg(r);
+                }
+                run(&format!("{} seed {seed}", case.name), &mut cmd).is_ok()
+            };
             let metrics = std::fs::read_to_string(dir.join("metrics.json")).unwrap_or_default();
-            match (ok, json_number(&metrics, "ate_rmse_aligned_m")) {
-                (true, Some(a)) => {
+            let ate = json_number(&metrics, "ate_rmse_aligned_m").filter(|_| ok);
+            match ate {
+                Some(a) => {
                     lost += usize::from(a > 1.0);
                     ates.push(a);
                 }
-                _ => lost += 1,
+                None => lost += 1,
+            }
+            let badness = ate.unwrap_or(f64::INFINITY);
+            if worst.as_ref().is_none_or(|(w, _)| badness > *w) {
+                worst = Some((badness, dir.join("map.png")));
             }
             if let (Some(t), Some(r)) = (
                 json_number(&metrics, "relations_trans_mean_m"),
@@ -725,31 +768,79 @@ fn robust(extra: &[String]) -> Result<(), String> {
             ) {
                 rel.push((t, r));
             }
+            if let (Some(f), Some(r)) = (
+                json_number(&metrics, "match_failed"),
+                json_number(&metrics, "match_recovered"),
+            ) {
+                matches.push((f, r));
+            }
         }
-        ates.sort_by(f64::total_cmp);
-        rel.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let ate = match (ates.get(ates.len() / 2), ates.last()) {
+        // The median (of an even count, the mean of the middle two).
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            (n > 0).then(|| 0.5 * (v[(n - 1) / 2] + v[n / 2]))
+        };
+        let ate = match (median(ates.clone()), ates.iter().copied().reduce(f64::max)) {
             (Some(m), Some(w)) => format!("{m:.3} / {w:.3}"),
             _ => "–".into(),
         };
-        let rel = rel
-            .get(rel.len() / 2)
-            .map_or("–".into(), |(t, r)| format!("{t:.4} / {r:.2}"));
+        let rel = match (
+            median(rel.iter().map(|r| r.0).collect()),
+            median(rel.iter().map(|r| r.1).collect()),
+        ) {
+            (Some(t), Some(r)) => format!("{t:.4} / {r:.3}"),
+            _ => "–".into(),
+        };
+        let matched = match (
+            median(matches.iter().map(|m| m.0).collect()),
+            median(matches.iter().map(|m| m.1).collect()),
+        ) {
+            (Some(f), Some(r)) => format!("{f} / {r}"),
+            _ => "–".into(),
+        };
         let truth = if case.exact {
             "exact"
         } else {
             "GMapping reference"
         };
         table.push_str(&format!(
-            "| {} | {truth} | {ate} | {rel} | {lost} of {seeds} |\n",
+            "| {} | {truth} | {ate} | {rel} | {lost} of {runs} | {matched} |\n",
             case.name
         ));
+        if let Some((_, png)) = worst {
+            sheet.push(png);
+        }
     }
     println!("{table}");
     let summary = out.join("summary.md");
     std::fs::write(&summary, &table).map_err(|e| format!("{}: {e}", summary.display()))?;
     println!("xtask: wrote {}", summary.display());
+    let contact = out.join("contact-sheet.png");
+    contact_sheet(&sheet, &contact)?;
+    println!("xtask: wrote {}", contact.display());
     Ok(())
+}
+
+/// Writes the pictures `pngs` (missing ones left blank) as one PNG, six to a row, each scaled
+/// to fit a 300 × 300 cell, in order.
+fn contact_sheet(pngs: &[std::path::PathBuf], path: &std::path::Path) -> Result<(), String> {
+    const CELL: u32 = 300;
+    const COLUMNS: u32 = 6;
+    let n = pngs.len().max(1) as u32;
+    let (columns, rows) = (n.min(COLUMNS), n.div_ceil(COLUMNS));
+    let mut sheet = image::RgbImage::from_pixel(columns * CELL, rows * CELL, image::Rgb([255; 3]));
+    for (i, png) in pngs.iter().enumerate() {
+        let Ok(picture) = image::open(png) else {
+            continue;
+        };
+        let thumb = picture.thumbnail(CELL, CELL).to_rgb8();
+        let (x, y) = ((i as u32 % COLUMNS) * CELL, (i as u32 / COLUMNS) * CELL);
+        image::imageops::overlay(&mut sheet, &thumb, x.into(), y.into());
+    }
+    sheet
+        .save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// The number after `"key":` in a flat JSON text, or `None` (absent, `null`).

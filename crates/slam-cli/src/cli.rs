@@ -119,6 +119,12 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
 
+    /// gridfast: the environment its scale-dependent settings are for (cell size, endpoint
+    /// model, search windows; docs/gridfast.md); overrides the config file's `preset`.
+    /// `auto` chooses from the first scan.
+    #[arg(long, value_name = "PRESET", value_parser = ["auto", "indoor", "outdoor"])]
+    pub preset: Option<String>,
+
     /// Ground-truth trajectory (TUM) to score against, instead of the dataset's own.
     #[arg(long, value_name = "FILE")]
     pub ground_truth: Option<PathBuf>,

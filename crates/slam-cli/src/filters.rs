@@ -32,6 +32,12 @@ pub(crate) struct Setup<'a> {
     pub initial_pose: Pose2,
     /// The noise models simulated data was generated with.
     pub sim_noise: Option<NoiseModels>,
+    /// `--preset` (gridfast).
+    pub preset: Option<&'a str>,
+    /// The first scan of the data (laser filters), for the settings taken from the data.
+    pub first_scan: Option<&'a slam_models::LaserScan>,
+    /// Print the settings taken from the data on stderr.
+    pub verbose: bool,
 }
 
 /// A built filter and the configuration it runs with (as TOML, written beside the output).
@@ -85,6 +91,12 @@ fn configure(
     setup: &Setup<'_>,
 ) -> Result<(ParsedConfig, Option<String>), CliError> {
     check_particles(info, setup.particles.is_some())?;
+    if setup.preset.is_some() && info.name != "gridfast" {
+        return Err(CliError::InvalidArgument(format!(
+            "--preset applies to gridfast; `{}` has none",
+            info.name
+        )));
+    }
     if let Some(reason) = info.unavailable {
         return Err(CliError::FilterUnavailable {
             name: info.name.to_string(),
@@ -146,7 +158,13 @@ pub(crate) fn build_scan(
     info: &FilterInfo,
     setup: &Setup<'_>,
 ) -> Result<Built<dyn ScanSlam>, CliError> {
-    let (parsed, noise_note) = configure(info, setup)?;
+    let (mut parsed, noise_note) = configure(info, setup)?;
+    if let FilterConfig::Gridfast(c) = &mut parsed.config {
+        gridfast_from_data(c, setup).map_err(|e| CliError::FilterConfig {
+            filter: info.name.to_string(),
+            message: e.to_string(),
+        })?;
+    }
     let filter = parsed
         .config
         .build_scan(setup.seed)
@@ -156,6 +174,46 @@ pub(crate) fn build_scan(
         config_toml: parsed.config.table_toml(),
         noise_note,
     })
+}
+
+/// gridfast: `--preset` over the file's `preset`, then every value the configuration leaves
+/// to the data (range limit, preset) resolved with the first scan, as the filter would
+/// resolve it there ([`slam_gridfast::GridFastConfig::resolve`]), so that `config.toml` holds
+/// the effective values; printed on stderr when `setup.verbose`.
+fn gridfast_from_data(
+    c: &mut slam_gridfast::GridFastConfig,
+    setup: &Setup<'_>,
+) -> Result<(), slam_gridfast::GridFastError> {
+    use slam_gridfast::Preset;
+    c.preset = match setup.preset {
+        Some("indoor") => Preset::Indoor,
+        Some("outdoor") => Preset::Outdoor,
+        Some(_) => Preset::Auto,
+        None => c.preset,
+    };
+    let Some(scan) = setup.first_scan else {
+        return Ok(());
+    };
+    let effective = c.resolve(Some(scan))?;
+    if setup.verbose {
+        let from = |given: bool| if given { "configured" } else { "from the data" };
+        let max_range = effective.sensor.max_range.unwrap_or(scan.max_range);
+        let median = slam_gridfast::median_return_range(scan, max_range)
+            .map_or("no returns".to_string(), |m| {
+                format!("median return {m:.1} m")
+            });
+        eprintln!(
+            "gridfast: max-range {max_range} m ({}; no return at or above the scan's {} m), preset {} ({}; first scan: {} beams, {median}), cells {} m",
+            from(c.sensor.max_range.is_some()),
+            scan.max_range,
+            if effective.preset == Preset::Outdoor { "outdoor" } else { "indoor" },
+            from(c.preset != Preset::Auto),
+            scan.ranges.len(),
+            effective.map.resolution.unwrap_or(f64::NAN),
+        );
+    }
+    *c = effective;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -140,6 +140,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         seed: args.seed,
         initial_pose: slam_models::Pose2::default(),
         sim_noise: None,
+        preset: args.preset.as_deref(),
+        first_scan: None,
+        verbose: false,
     };
     match info.kind {
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
@@ -467,6 +470,9 @@ fn run_landmark(
             seed: ctx.args.seed,
             initial_pose: dataset.initial_pose,
             sim_noise,
+            preset: ctx.args.preset.as_deref(),
+            first_scan: None,
+            verbose: false,
         },
     )?;
     let mut filter = built.filter;
@@ -642,6 +648,9 @@ fn run_scan(
             seed: ctx.args.seed,
             initial_pose: slam_models::Pose2::default(),
             sim_noise: None,
+            preset: ctx.args.preset.as_deref(),
+            first_scan: dataset.records.iter().find_map(|r| r.scan.as_ref()),
+            verbose: !ctx.args.quiet,
         },
     )?;
     let mut filter = built.filter;

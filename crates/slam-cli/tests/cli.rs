@@ -19,7 +19,7 @@ fn available(kind: filters::DataKind) -> Vec<&'static str> {
         .collect()
 }
 
-const METRIC_KEYS: [&str; 23] = [
+const METRIC_KEYS: [&str; 25] = [
     "filter",
     "dataset",
     "steps",
@@ -43,6 +43,8 @@ const METRIC_KEYS: [&str; 23] = [
     "nees_pose_median",
     "nees_pose_mean",
     "peak_rss_mb",
+    "match_failed",
+    "match_recovered",
 ];
 
 /// Reads `metrics.json` and checks it has exactly the contract's keys.
@@ -729,6 +731,60 @@ fn gridfast_results_do_not_depend_on_threads() {
         outputs[0] == outputs[1],
         "trajectory or map differs with 1 and 3 threads"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 21: gridfast's `config.toml` is the effective configuration — the range limit
+/// from the data (the simulated office's laser reaches 20 m) and the preset, here forced by
+/// `--preset outdoor` (20 cm cells) — and `--preset` is refused for other filters.
+#[test]
+fn gridfast_writes_the_settings_it_took_from_the_data() {
+    if !available(filters::DataKind::Laser).contains(&"gridfast") {
+        eprintln!("SKIPPED: gridfast not available");
+        return;
+    }
+    let dir = scratch("preset-gridfast");
+    let out = dir.join("outdoor");
+    let (r, text) = slam(&[
+        "run",
+        "--filter",
+        "gridfast",
+        "--sim",
+        "office",
+        "--steps",
+        "20",
+        "--particles",
+        "2",
+        "--preset",
+        "outdoor",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(matches!(r, Ok(Outcome::Ran(_))), "{r:?}\n{text}");
+    let config: toml::Value =
+        toml::from_str(&std::fs::read_to_string(out.join("config.toml")).unwrap()).unwrap();
+    assert_eq!(config["preset"].as_str(), Some("outdoor"));
+    assert_eq!(config["sensor"]["max-range"].as_float(), Some(20.0));
+    assert_eq!(config["map"]["resolution"].as_float(), Some(0.2));
+    let m = read_metrics(&out);
+    assert_eq!(m["match_failed"].as_u64().map(|n| n <= 2 * 20), Some(true));
+    let (r, _) = slam(&[
+        "run",
+        "--filter",
+        "scanmatch",
+        "--sim",
+        "office",
+        "--steps",
+        "5",
+        "--preset",
+        "indoor",
+        "--quiet",
+        "--out",
+        dir.join("scanmatch").to_str().unwrap(),
+    ]);
+    let e = format!("{:?}", r.unwrap_err());
+    assert!(e.contains("--preset applies to gridfast"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

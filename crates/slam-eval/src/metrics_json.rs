@@ -76,6 +76,14 @@ pub struct Metrics {
     /// outputs are written (a `--map-resolution` re-rendering is not counted), MiB; null
     /// where /proc is unavailable.
     pub peak_rss_mb: Option<f64>,
+    /// Laser filters: scan matches that failed and fell back to the motion model, summed
+    /// over particles and processed scans (`ScanUpdateInfo::match_failures`); null for
+    /// landmark filters.
+    pub match_failed: Option<usize>,
+    /// Laser filters: poor scan matches that a wider search recovered, summed over
+    /// particles and processed scans (`ScanUpdateInfo::match_recoveries`); null for
+    /// landmark filters.
+    pub match_recovered: Option<usize>,
 }
 
 impl Metrics {
@@ -105,6 +113,8 @@ impl Metrics {
             nees_pose_median: None,
             nees_pose_mean: None,
             peak_rss_mb: None,
+            match_failed: None,
+            match_recovered: None,
         }
     }
 
@@ -289,6 +299,8 @@ mod tests {
             "nees_pose_median",
             "nees_pose_mean",
             "peak_rss_mb",
+            "match_failed",
+            "match_recovered",
         ];
         let mut sorted_keys = keys.clone();
         sorted_keys.sort_unstable();

@@ -480,6 +480,9 @@ pub fn run_scans_observed(
         ));
     }
     metrics.peak_rss_mb = peak;
+    // Scan matches that failed (motion model instead) and that a wider search recovered.
+    metrics.match_failed = Some(updates.iter().map(|u| u.match_failures).sum());
+    metrics.match_recovered = Some(updates.iter().map(|u| u.match_recoveries).sum());
     Ok(ScanRun {
         trajectory,
         map,

@@ -1,9 +1,18 @@
-//! The configuration of [`crate::GridFastSlam`].
+//! The configuration of [`crate::GridFastSlam`]: nested tables (sensor, map, matching,
+//! proposal, resampling, motion), kebab-case keys, every value documented with its default.
+//!
+//! Values that depend on the environment — the sensor's range limit, the cell size, and
+//! the lengths of the endpoint model and of the searches that scale with it — are
+//! `Option`s: `None` takes them from the data (the range limit) or from the
+//! [`Preset`] (everything else), which is itself chosen from the data unless the config
+//! names one. [`GridFastConfig::resolve`] turns a configuration and the first scan into
+//! the effective one, with every value set; the filter runs with that.
 
 use crate::error::GridFastError;
 use serde::{Deserialize, Serialize};
 use slam_models::motion::OdometryModel;
 use slam_models::particle::Resampler;
+use slam_models::LaserScan;
 
 /// How each particle draws its new pose at a processed scan.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -16,7 +25,7 @@ pub enum Proposal {
     /// scan is matched once against the best particle's map, the matched motion replaces the
     /// raw odometry increment, and every particle samples from the motion model around the
     /// corrected increment with its noise scaled by
-    /// [`GridFastConfig::corrected_odometry_noise_scale`]; weights by the scan likelihood.
+    /// [`ProposalConfig::corrected_odometry_noise_scale`]; weights by the scan likelihood.
     ScanMatchedOdometry,
     /// The improved proposal (Grisetti, Stachniss & Burgard, T-RO 2007, §IV and Table I):
     /// each particle matches the scan against its own map, evaluates K poses around the
@@ -26,25 +35,380 @@ pub enum Proposal {
     Improved,
 }
 
+/// The environment the scale-dependent values are chosen for (cell size, the endpoint
+/// model's lengths, search windows). See `docs/gridfast.md`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Preset {
+    /// Chosen from the first processed scan: [`Preset::Outdoor`] when the median range of
+    /// its returns is at least [`AUTO_OUTDOOR_MEDIAN_RANGE`], else [`Preset::Indoor`].
+    #[default]
+    Auto,
+    /// Offices and corridors, ranges of a few metres: 5 cm cells (GMapping's `delta`) and
+    /// the values tuned on `bench/intel.log` and the simulated office.
+    Indoor,
+    /// Open ground, returns tens of metres away and metres apart: 20 cm cells (the
+    /// grid-FastSLAM lecture's campus run) and every length of the endpoint model and the
+    /// searches scaled with the cell (×4); finer rotation steps, since a heading error
+    /// moves an end point 25 m away five times as far as one 5 m away.
+    Outdoor,
+}
+
+/// [`Preset::Auto`] picks [`Preset::Outdoor`] when the median range of the first processed
+/// scan's returns is at least this, metres. The bench logs' scans have medians of 1.8–6.6 m
+/// (first 50 scans of each), the simulated campus's 10–25 m.
+pub const AUTO_OUTDOOR_MEDIAN_RANGE: f64 = 10.0;
+
+/// The range limit used before the first scan has been seen (the filter re-reads it from
+/// that scan when [`SensorConfig::max_range`] is `None`), metres.
+const PROVISIONAL_MAX_RANGE: f64 = 50.0;
+
+/// The preset-dependent values. Every field is the default of the `Option` of the same
+/// name in the configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct PresetValues {
+    resolution: f64,
+    sigma: f64,
+    field_radius: f64,
+    likelihood_radius: f64,
+    linear_step: f64,
+    search_range_xy: f64,
+    search_step_xy: f64,
+    search_step_theta: f64,
+    sample_range_xy: f64,
+    recovery_range_xy: f64,
+    recovery_step_xy: f64,
+    recovery_step_theta: f64,
+}
+
+impl Preset {
+    fn values(self) -> PresetValues {
+        match self {
+            Preset::Auto | Preset::Indoor => PresetValues {
+                resolution: 0.05,
+                sigma: 0.05,
+                field_radius: 0.2,
+                likelihood_radius: 0.15,
+                linear_step: 0.1,
+                search_range_xy: 0.3,
+                search_step_xy: 0.05,
+                search_step_theta: 0.025,
+                sample_range_xy: 0.01,
+                recovery_range_xy: 1.5,
+                recovery_step_xy: 0.1,
+                recovery_step_theta: 0.02,
+            },
+            Preset::Outdoor => PresetValues {
+                resolution: 0.2,
+                sigma: 0.2,
+                field_radius: 0.8,
+                likelihood_radius: 0.6,
+                linear_step: 0.4,
+                search_range_xy: 1.2,
+                search_step_xy: 0.2,
+                search_step_theta: 0.01,
+                sample_range_xy: 0.04,
+                recovery_range_xy: 3.0,
+                recovery_step_xy: 0.4,
+                recovery_step_theta: 0.01,
+            },
+        }
+    }
+
+    /// The preset [`Preset::Auto`] stands for on `scan` (returns below `max_range`);
+    /// an explicit preset is returned as it is. A scan without returns counts as indoor.
+    pub fn choose(self, scan: &LaserScan, max_range: f64) -> Preset {
+        if self != Preset::Auto {
+            return self;
+        }
+        match median_return_range(scan, max_range) {
+            Some(m) if m >= AUTO_OUTDOOR_MEDIAN_RANGE => Preset::Outdoor,
+            _ => Preset::Indoor,
+        }
+    }
+}
+
+/// The median range of the returns of `scan` (0 < r < min(`max_range`, the scan's own
+/// no-return value)), or `None` without any.
+pub fn median_return_range(scan: &LaserScan, max_range: f64) -> Option<f64> {
+    let limit = max_range.min(scan.max_range);
+    let mut r: Vec<f64> = scan
+        .ranges
+        .iter()
+        .copied()
+        .filter(|&r| r > 0.0 && r < limit)
+        .collect();
+    if r.is_empty() {
+        return None;
+    }
+    r.sort_by(f64::total_cmp);
+    Some(r[r.len() / 2])
+}
+
 /// Upper bound of [`GridFastConfig::particles`]: every particle carries its own map, so
 /// 10⁴ particles already need gigabytes on a building-sized map (GMapping runs 30–100);
 /// 10⁹ would be an allocation abort.
 pub const MAX_PARTICLES: usize = 10_000;
 
+/// The laser, as the filter uses it. Beam geometry (angles, count, mounting) and the
+/// no-return convention (a reading at or above the scan's `max_range` is no return) always
+/// come from the data.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct SensorConfig {
+    /// Beams with a range at or above this are not used (neither for mapping nor for
+    /// matching: slam-grid's sensor model with `far_hits_clear` off), metres. `None` (the
+    /// default): the first processed scan's own `max_range`, its no-return value, so every
+    /// return the laser gives is used. No-return readings are never used.
+    pub max_range: Option<f64>,
+    /// Use every `beam_step`-th hit (end point within `max_range`) for matching and
+    /// weighting (1 = all). Mapping always uses every beam. Default 1.
+    pub beam_step: usize,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        Self {
+            max_range: None,
+            beam_step: 1,
+        }
+    }
+}
+
+/// Every particle's occupancy grid.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct MapConfig {
+    /// Cell edge length of every particle's map, metres. Default from the preset: 0.05
+    /// indoor (GMapping's `delta`), 0.2 outdoor.
+    pub resolution: Option<f64>,
+    /// Log-odds added to a cell where a beam ended. Default 0.85 (p = 0.7).
+    pub log_odds_hit: f32,
+    /// Log-odds added to a cell a beam passed through (negative). Default −0.2 (p = 0.45):
+    /// walls survive more grazing pass-throughs (on intel.log −0.2 scored 0.0555 m against
+    /// 0.0578 m for −0.4).
+    pub log_odds_miss: f32,
+    /// Log-odds clamping bounds (lower, upper). Default (−2.0, 3.5).
+    pub log_odds_clamp: [f32; 2],
+}
+
+impl Default for MapConfig {
+    fn default() -> Self {
+        Self {
+            resolution: None,
+            log_odds_hit: 0.85,
+            log_odds_miss: -0.2,
+            log_odds_clamp: [-2.0, 3.5],
+        }
+    }
+}
+
+/// The endpoint model and the scan matching against each particle's map.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct MatchingConfig {
+    /// Standard deviation σ of the endpoint model (PR §6.4): a beam whose end point lies
+    /// at distance d from the nearest occupied cell contributes −d²/(2σ²) to the log
+    /// likelihood, metres. Default from the preset: 0.05 indoor, 0.2 outdoor (one cell).
+    pub sigma: Option<f64>,
+    /// How far from the occupied cells each particle map's distance field reaches, metres
+    /// (1 to 15 cells). This is the capture range of the coarse search and of the hill
+    /// climber's coarse phase, which score with the endpoint model truncated here.
+    /// Default from the preset: 0.2 indoor, 0.8 outdoor (four cells).
+    pub field_radius: Option<f64>,
+    /// The endpoint model's truncation r (PR §6.4's outlier floor): a beam ending farther
+    /// than r from any occupied cell counts as an outlier with the constant penalty
+    /// −r²/(2σ²), metres, in (0, `field_radius`]. It applies where the pose is decided and
+    /// weighed: the hill climber's fine phase, the improved proposal's samples, and every
+    /// proposal's weights. Default from the preset: 0.6 outdoor; 0.15 indoor: on intel.log
+    /// (30 particles, filter seeds 0–31) it lowers the relations error from 0.0557 m /
+    /// 2.301° (r = 0.2 m, the field's reach) to 0.0544 m / 2.295°, and on the simulated
+    /// office (seeds 1–80, ATE after SE(2) alignment, 1 / 10 / 30 particles) from 0.134 /
+    /// 0.078 / 0.076 m to 0.095 / 0.074 / 0.072 m. Shrinking the capture range with it
+    /// (`field_radius` 0.15) scores the same on Intel but 0.144 / 0.085 / 0.081 m on the
+    /// office. The cost: with 8–10 particles a few more office runs (7 of 40 against 2,
+    /// filter seed 42) end with a consistent map whose long corridors came out short,
+    /// where only door jambs fix the position along them.
+    pub likelihood_radius: Option<f64>,
+    /// The summed beam log-likelihood is divided by this in the particle weights (every
+    /// proposal) and in the coarse search's trade-off against the motion prior: a
+    /// smoothing of the over-confident independent-beam model, GMapping's `ogain`, which
+    /// enters its weight normalisation only. The improved proposal's Gaussian N(μ, Σ) is
+    /// fitted to the untempered likelihood (see the proposal's docs for why). Default 3.
+    pub gain: f64,
+    /// Hill-climbing matcher: initial translation step, metres. Default from the preset:
+    /// 0.4 outdoor; 0.1 indoor (twice GMapping's: the wider first steps widen the capture
+    /// range at the cost of a few more evaluations).
+    pub linear_step: Option<f64>,
+    /// Hill-climbing matcher: initial rotation step, radians. Default 0.1.
+    pub angular_step: f64,
+    /// Hill-climbing matcher: how many times the steps are halved. Default 6 (final steps
+    /// 1.6 mm / 1.6 mrad indoors).
+    pub refinements: usize,
+    /// Coarse search before hill climbing: ±this in x and y around the best particle's
+    /// prediction, metres (0 with `search_range_theta` 0 switches the search off).
+    /// Default from the preset: 0.3 indoor, 1.2 outdoor.
+    pub search_range_xy: Option<f64>,
+    /// Coarse search translation step, metres. Default from the preset: 0.05 indoor, 0.2
+    /// outdoor.
+    pub search_step_xy: Option<f64>,
+    /// Coarse search: ±this in θ, radians. Default 0.3.
+    pub search_range_theta: f64,
+    /// Coarse search rotation step, radians. Default from the preset: 0.025 indoor, 0.01
+    /// outdoor.
+    pub search_step_theta: Option<f64>,
+    /// A match counts as failed, and the particle falls back to the motion model, when
+    /// fewer than this fraction of the used beams end within `likelihood_radius` of an
+    /// occupied cell at the matched pose. Default 0.25.
+    pub min_inlier_fraction: f64,
+    /// What a poor match triggers before that fallback: a wider search.
+    pub recovery: RecoveryConfig,
+}
+
+impl Default for MatchingConfig {
+    fn default() -> Self {
+        Self {
+            sigma: None,
+            field_radius: None,
+            likelihood_radius: None,
+            gain: 3.0,
+            linear_step: None,
+            angular_step: 0.1,
+            refinements: 6,
+            search_range_xy: None,
+            search_step_xy: None,
+            search_range_theta: 0.3,
+            search_step_theta: None,
+            min_inlier_fraction: 0.25,
+            recovery: RecoveryConfig::default(),
+        }
+    }
+}
+
+/// The answer to a poor match (improved proposal): a particle whose hill-climbed match has
+/// fewer than `trigger_fraction` of its beams on the map searches a wide window around its
+/// prediction exhaustively (the coarse correlative search of Olson, ICRA 2009, on the
+/// capture field), with the motion prior widened to the window, and climbs from the best
+/// pose found. The result replaces the local match when more beams find the map there.
+/// Only then is the motion model the fallback.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct RecoveryConfig {
+    /// A match with fewer than this fraction of its beams within `likelihood_radius` of the
+    /// map is poor and triggers the wide search (0 switches it off). Default 0.4.
+    pub trigger_fraction: f64,
+    /// ± this in x and y around the prediction, metres. Default from the preset: 1.5
+    /// indoor, 3.0 outdoor.
+    pub range_xy: Option<f64>,
+    /// ± this in θ, radians. Default 0.4 (23°).
+    pub range_theta: f64,
+    /// Translation step, metres (at most the field's reach, so that every basin is hit).
+    /// Default from the preset: 0.1 indoor, 0.4 outdoor.
+    pub step_xy: Option<f64>,
+    /// Rotation step, radians. Default from the preset: 0.02 indoor, 0.01 outdoor.
+    pub step_theta: Option<f64>,
+}
+
+impl Default for RecoveryConfig {
+    fn default() -> Self {
+        Self {
+            trigger_fraction: 0.4,
+            range_xy: None,
+            range_theta: 0.4,
+            step_xy: None,
+            step_theta: None,
+        }
+    }
+}
+
+/// The proposal distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct ProposalConfig {
+    /// Which proposal. Default [`Proposal::Improved`].
+    pub kind: Proposal,
+    /// Improved proposal: samples per axis around the mode, so K = n³. Default 3.
+    pub samples_per_axis: usize,
+    /// Improved proposal: the samples span ±this around the mode in x and y, metres.
+    /// Default from the preset: 0.01 indoor (GMapping's `llsamplerange`), 0.04 outdoor.
+    pub sample_range_xy: Option<f64>,
+    /// Improved proposal: the samples span ±this around the mode in θ, radians.
+    /// Default 0.005.
+    pub sample_range_theta: f64,
+    /// Scan-matched-odometry proposal only: factor on the motion model's standard deviations
+    /// around the corrected increment. Default 0.3.
+    pub corrected_odometry_noise_scale: f64,
+}
+
+impl Default for ProposalConfig {
+    fn default() -> Self {
+        Self {
+            kind: Proposal::Improved,
+            samples_per_axis: 3,
+            sample_range_xy: None,
+            sample_range_theta: 0.005,
+            corrected_odometry_noise_scale: 0.3,
+        }
+    }
+}
+
+/// Selective resampling (Grisetti et al. 2007 §V).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct ResamplingConfig {
+    /// Resample when N_eff < `threshold`·M. Default 0.5.
+    pub threshold: f64,
+    /// Resampling scheme (slam-models). Default systematic.
+    pub scheme: Resampler,
+}
+
+impl Default for ResamplingConfig {
+    fn default() -> Self {
+        Self {
+            threshold: 0.5,
+            scheme: Resampler::Systematic,
+        }
+    }
+}
+
+/// The motion between processed scans.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct MotionConfig {
+    /// Odometry motion model (PR table 5.6). Default α = (0.05, 0.002, 0.02, 0.002): 22 %
+    /// of a rotation, 4.5 cm of heading per metre as rotation noise; 14 % of the
+    /// translation as translation noise. Both of its keys must be given in a file (a
+    /// missing one takes slam-models' default, not this one).
+    pub odometry: OdometryModel,
+    /// Standard deviations added (in quadrature) to the motion model's position and heading
+    /// noise so that its covariance stays positive definite for near-zero motion,
+    /// (metres, radians). Default (0.01, 0.005).
+    pub min_std: [f64; 2],
+}
+
+impl Default for MotionConfig {
+    fn default() -> Self {
+        Self {
+            odometry: OdometryModel::new([0.05, 0.002, 0.02, 0.002]),
+            min_std: [0.01, 0.005],
+        }
+    }
+}
+
 /// Configuration of grid-based FastSLAM. Lengths in metres, angles in radians.
 ///
 /// Defaults follow GMapping's ROS defaults where GMapping has the parameter (particles 30,
-/// 5 cm cells, `linearUpdate` 1.0 m, `angularUpdate` 0.5 rad, resampling threshold 0.5,
-/// K = 3³ samples within ±1 cm / ±0.005 rad, likelihood gain 3).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+/// 5 cm cells indoors, `linearUpdate` 1.0 m, `angularUpdate` 0.5 rad, resampling threshold
+/// 0.5, K = 3³ samples within ±1 cm / ±0.005 rad, likelihood gain 3). `None` values come
+/// from the data or the [`Preset`]; [`GridFastConfig::resolve`] fills them in.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct GridFastConfig {
     /// Number of particles M (1 ..= [`MAX_PARTICLES`]). Default 30.
     pub particles: usize,
-    /// Proposal distribution. Default [`Proposal::Improved`].
-    pub proposal: Proposal,
-    /// Cell edge length of every particle's map, metres. Default 0.05.
-    pub resolution: f64,
+    /// The environment the scale-dependent defaults are chosen for. Default
+    /// [`Preset::Auto`] (from the first processed scan).
+    pub preset: Preset,
     /// Run a filter update once the robot travelled this far (path length of the odometry
     /// since the last update), metres. Default 1.0 (GMapping `linearUpdate`).
     pub linear_update: f64,
@@ -56,96 +420,18 @@ pub struct GridFastConfig {
     /// the odometry of every record (GMapping's `processScan`, which sums |Δodometry| over
     /// every laser reading of a raw log). Default false.
     pub accumulate_per_scan: bool,
-    /// Resample when N_eff < `resample_threshold`·M (Grisetti et al. 2007 §V). Default 0.5.
-    pub resample_threshold: f64,
-    /// Resampling scheme (slam-models). Default systematic.
-    pub resampler: Resampler,
-    /// Odometry motion model (PR table 5.6) used between processed scans. Default
-    /// α = (0.05, 0.002, 0.02, 0.002): 22 % of a rotation, 4.5 cm of heading per metre as
-    /// rotation noise; 14 % of the translation as translation noise.
-    pub motion: OdometryModel,
-    /// Standard deviations added (in quadrature) to the motion model's position and heading
-    /// noise so that its covariance stays positive definite for near-zero motion,
-    /// (metres, radians). Default (0.01, 0.005).
-    pub motion_min_std: [f64; 2],
-    /// Scan-matched-odometry proposal only: factor on the motion model's standard deviations
-    /// around the corrected increment. Default 0.3.
-    pub corrected_odometry_noise_scale: f64,
-    /// Beams with a range at or above this are not used (neither for mapping nor for
-    /// matching: slam-grid's sensor model with `far_hits_clear` off), metres. No-return
-    /// readings (≥ the scan's `max_range`) are never used.
-    /// Default 50.
-    pub max_range: f64,
-    /// Use every `beam_step`-th hit (end point within `max_range`) for matching and
-    /// weighting (1 = all). Mapping always uses every beam. Default 1.
-    pub beam_step: usize,
-    /// Log-odds added to a cell where a beam ended. Default 0.85 (p = 0.7).
-    pub log_odds_hit: f32,
-    /// Log-odds added to a cell a beam passed through (negative). Default −0.2 (p = 0.45):
-    /// walls survive more grazing pass-throughs (on intel.log −0.2 scored 0.0555 m against
-    /// 0.0578 m for −0.4).
-    pub log_odds_miss: f32,
-    /// Log-odds clamping bounds (lower, upper). Default (−2.0, 3.5).
-    pub log_odds_clamp: [f32; 2],
-    /// Standard deviation σ of the endpoint model (PR §6.4): a beam whose end point lies
-    /// at distance d from the nearest occupied cell contributes −d²/(2σ²) to the log
-    /// likelihood, metres. Default 0.05.
-    pub likelihood_sigma: f64,
-    /// How far from the occupied cells each particle map's distance field reaches, metres
-    /// (1 to 15 cells). This is the capture range of the coarse search and of the hill
-    /// climber's coarse phase, which score with the endpoint model truncated here.
-    /// Default 0.2.
-    pub field_radius: f64,
-    /// The endpoint model's truncation r (PR §6.4's outlier floor): a beam ending farther
-    /// than r from any occupied cell counts as an outlier with the constant penalty
-    /// −r²/(2σ²), metres, in (0, `field_radius`]. It applies where the pose is decided and
-    /// weighed: the hill climber's fine phase, the improved proposal's samples, and every
-    /// proposal's weights. Default 0.15: on intel.log (30 particles, filter seeds 0–31) it
-    /// lowers the relations error from 0.0557 m / 2.301° (r = 0.2 m, the field's reach) to
-    /// 0.0544 m / 2.295°, and on the simulated office (seeds 1–80, ATE after SE(2)
-    /// alignment, 1 / 10 / 30 particles) from 0.134 / 0.078 / 0.076 m to 0.095 / 0.074 /
-    /// 0.072 m. Shrinking the capture range with it (`field_radius` 0.15) scores the same on
-    /// Intel but 0.144 / 0.085 / 0.081 m on the office. The cost: with 8–10 particles a
-    /// few more office runs (7 of 40 against 2, filter seed 42) end with a consistent map
-    /// whose long corridors came out short, where only door jambs fix the position along
-    /// them.
-    pub likelihood_radius: f64,
-    /// The summed beam log-likelihood is divided by this in the particle weights (every
-    /// proposal) and in the coarse search's trade-off against the motion prior: a
-    /// smoothing of the over-confident independent-beam model, GMapping's `ogain`, which
-    /// enters its weight normalisation only. The improved proposal's Gaussian N(μ, Σ) is
-    /// fitted to the untempered likelihood (see the proposal's docs for why). Default 3.
-    pub likelihood_gain: f64,
-    /// Hill-climbing matcher: initial translation step, metres. Default 0.1 (twice
-    /// GMapping's: the wider first steps widen the capture range at the cost of a few
-    /// more evaluations).
-    pub match_linear_step: f64,
-    /// Hill-climbing matcher: initial rotation step, radians. Default 0.1.
-    pub match_angular_step: f64,
-    /// Hill-climbing matcher: how many times the steps are halved. Default 6 (final steps
-    /// 1.6 mm / 1.6 mrad).
-    pub match_refinements: usize,
-    /// Coarse search before hill climbing: ±this in x and y around the best particle's
-    /// prediction, metres (0 with `search_range_theta` 0 switches the search off).
-    /// Default 0.3.
-    pub search_range_xy: f64,
-    /// Coarse search translation step, metres. Default 0.05.
-    pub search_step_xy: f64,
-    /// Coarse search: ±this in θ, radians. Default 0.3.
-    pub search_range_theta: f64,
-    /// Coarse search rotation step, radians. Default 0.025.
-    pub search_step_theta: f64,
-    /// A match counts as failed when fewer than this fraction of the used beams end within
-    /// `likelihood_radius` of an occupied cell at the matched pose. Default 0.25.
-    pub match_min_inlier_fraction: f64,
-    /// Improved proposal: samples per axis around the mode, so K = n³. Default 3.
-    pub samples_per_axis: usize,
-    /// Improved proposal: the samples span ±this around the mode in x and y, metres.
-    /// Default 0.01.
-    pub sample_range_xy: f64,
-    /// Improved proposal: the samples span ±this around the mode in θ, radians.
-    /// Default 0.005.
-    pub sample_range_theta: f64,
+    /// The laser.
+    pub sensor: SensorConfig,
+    /// The particles' maps.
+    pub map: MapConfig,
+    /// The endpoint model and scan matching.
+    pub matching: MatchingConfig,
+    /// The proposal distribution.
+    pub proposal: ProposalConfig,
+    /// Selective resampling.
+    pub resampling: ResamplingConfig,
+    /// The motion model between processed scans.
+    pub motion: MotionConfig,
     /// The largest odometry jump between two consecutive records, and whether a larger
     /// one is an error (default: beyond 5 m) or skipped
     /// ([`slam_models::OdometryJumpLimit`]).
@@ -156,36 +442,16 @@ impl Default for GridFastConfig {
     fn default() -> Self {
         Self {
             particles: 30,
-            proposal: Proposal::Improved,
-            resolution: 0.05,
+            preset: Preset::Auto,
             linear_update: 1.0,
             angular_update: 0.5,
             accumulate_per_scan: false,
-            resample_threshold: 0.5,
-            resampler: Resampler::Systematic,
-            motion: OdometryModel::new([0.05, 0.002, 0.02, 0.002]),
-            motion_min_std: [0.01, 0.005],
-            corrected_odometry_noise_scale: 0.3,
-            max_range: 50.0,
-            beam_step: 1,
-            log_odds_hit: 0.85,
-            log_odds_miss: -0.2,
-            log_odds_clamp: [-2.0, 3.5],
-            likelihood_sigma: 0.05,
-            field_radius: 0.2,
-            likelihood_radius: 0.15,
-            likelihood_gain: 3.0,
-            match_linear_step: 0.1,
-            match_angular_step: 0.1,
-            match_refinements: 6,
-            match_min_inlier_fraction: 0.25,
-            search_range_xy: 0.3,
-            search_step_xy: 0.05,
-            search_range_theta: 0.3,
-            search_step_theta: 0.025,
-            samples_per_axis: 3,
-            sample_range_xy: 0.01,
-            sample_range_theta: 0.005,
+            sensor: SensorConfig::default(),
+            map: MapConfig::default(),
+            matching: MatchingConfig::default(),
+            proposal: ProposalConfig::default(),
+            resampling: ResamplingConfig::default(),
+            motion: MotionConfig::default(),
             odometry_jump: slam_models::OdometryJumpLimit::default(),
         }
     }
@@ -206,8 +472,103 @@ fn check(
     )?)
 }
 
+/// Checks an optional value when it is given.
+fn check_opt(
+    v: Option<f64>,
+    ok: impl Fn(f64) -> bool,
+    field: &'static str,
+    expected: &'static str,
+) -> Result<(), GridFastError> {
+    match v {
+        Some(v) => check(ok(v), field, v, expected),
+        None => Ok(()),
+    }
+}
+
 impl GridFastConfig {
-    /// Checks every field against its documented range.
+    /// The same configuration with the preset's values for every `None` of `preset`
+    /// ([`Preset::Auto`] stands for [`Preset::Indoor`] here), the range limit left as it
+    /// is.
+    pub fn with_preset(&self, preset: Preset) -> GridFastConfig {
+        let p = preset.values();
+        let mut c = self.clone();
+        c.preset = match preset {
+            Preset::Auto => Preset::Indoor,
+            other => other,
+        };
+        c.map.resolution.get_or_insert(p.resolution);
+        let m = &mut c.matching;
+        m.sigma.get_or_insert(p.sigma);
+        m.field_radius.get_or_insert(p.field_radius);
+        m.likelihood_radius.get_or_insert(p.likelihood_radius);
+        m.linear_step.get_or_insert(p.linear_step);
+        m.search_range_xy.get_or_insert(p.search_range_xy);
+        m.search_step_xy.get_or_insert(p.search_step_xy);
+        m.search_step_theta.get_or_insert(p.search_step_theta);
+        m.recovery.range_xy.get_or_insert(p.recovery_range_xy);
+        m.recovery.step_xy.get_or_insert(p.recovery_step_xy);
+        m.recovery.step_theta.get_or_insert(p.recovery_step_theta);
+        c.proposal.sample_range_xy.get_or_insert(p.sample_range_xy);
+        c
+    }
+
+    /// The effective configuration for a run whose first processed scan is `scan`: the
+    /// range limit from the scan (its `max_range`, the no-return value) unless given, the
+    /// preset chosen from the scan unless given ([`Preset::choose`]), and every other
+    /// `None` from that preset. Without a scan (before the first one) the range limit is a
+    /// provisional 50 m and `Auto` stands for indoor. The result is validated.
+    pub fn resolve(&self, scan: Option<&LaserScan>) -> Result<GridFastConfig, GridFastError> {
+        self.validate()?;
+        let max_range = match (self.sensor.max_range, scan) {
+            (Some(r), _) => r,
+            (None, Some(s)) => s.max_range,
+            (None, None) => PROVISIONAL_MAX_RANGE,
+        };
+        let preset = match scan {
+            Some(s) => self.preset.choose(s, max_range),
+            None => self.preset,
+        };
+        let mut c = self.with_preset(preset);
+        c.sensor.max_range = Some(max_range);
+        c.validate()?;
+        c.check_resolved()?;
+        Ok(c)
+    }
+
+    /// The relations between values that only hold once every value is known.
+    fn check_resolved(&self) -> Result<(), GridFastError> {
+        let r = Resolved::from(self);
+        let cells = r.field_radius / r.resolution;
+        check(
+            (1.0..=15.0).contains(&cells),
+            "matching.field-radius",
+            r.field_radius,
+            "between 1 and 15 cells of map.resolution",
+        )?;
+        check(
+            r.likelihood_radius <= r.field_radius,
+            "matching.likelihood-radius",
+            r.likelihood_radius,
+            "at most matching.field-radius",
+        )?;
+        check(
+            r.search_range_xy / r.search_step_xy <= 50.0
+                && r.search_range_theta / r.search_step_theta <= 50.0,
+            "matching.search-range-xy",
+            r.search_range_xy,
+            "at most 50 steps per side in each search dimension",
+        )?;
+        check(
+            r.recovery_range_xy / r.recovery_step_xy <= 50.0
+                && r.recovery_range_theta / r.recovery_step_theta <= 100.0,
+            "matching.recovery.range-xy",
+            r.recovery_range_xy,
+            "at most 50 steps per side in x and y and 100 in θ",
+        )
+    }
+
+    /// Checks every given value against its documented range (the relations between
+    /// values that depend on the preset are checked by [`GridFastConfig::resolve`]).
     pub fn validate(&self) -> Result<(), GridFastError> {
         check(
             (1..=MAX_PARTICLES).contains(&self.particles),
@@ -215,188 +576,276 @@ impl GridFastConfig {
             self.particles as f64,
             "1 ..= 10000 (MAX_PARTICLES)",
         )?;
-        check(self.resolution > 0.0, "resolution", self.resolution, "> 0")?;
         check(
             self.odometry_jump.max_jump > 0.0,
-            "odometry_jump.max_jump",
+            "odometry-jump.max-jump",
             self.odometry_jump.max_jump,
             "> 0 m and finite",
         )?;
         check(
             self.linear_update >= 0.0,
-            "linear_update",
+            "linear-update",
             self.linear_update,
             ">= 0",
         )?;
         check(
             self.angular_update >= 0.0,
-            "angular_update",
+            "angular-update",
             self.angular_update,
             ">= 0",
         )?;
+        let s = &self.sensor;
+        check_opt(s.max_range, |v| v > 0.0, "sensor.max-range", "> 0")?;
         check(
-            (0.0..=1.0).contains(&self.resample_threshold),
-            "resample_threshold",
-            self.resample_threshold,
-            "in [0, 1]",
-        )?;
-        for (i, a) in self.motion.alpha.iter().enumerate() {
-            let name = [
-                "motion.alpha[0]",
-                "motion.alpha[1]",
-                "motion.alpha[2]",
-                "motion.alpha[3]",
-            ][i];
-            check(*a >= 0.0, name, *a, ">= 0")?;
-        }
-        check(
-            self.motion_min_std[0] > 0.0,
-            "motion_min_std[0]",
-            self.motion_min_std[0],
-            "> 0",
-        )?;
-        check(
-            self.motion_min_std[1] > 0.0,
-            "motion_min_std[1]",
-            self.motion_min_std[1],
-            "> 0",
-        )?;
-        check(
-            self.corrected_odometry_noise_scale >= 0.0,
-            "corrected_odometry_noise_scale",
-            self.corrected_odometry_noise_scale,
-            ">= 0",
-        )?;
-        check(self.max_range > 0.0, "max_range", self.max_range, "> 0")?;
-        check(
-            self.beam_step >= 1,
-            "beam_step",
-            self.beam_step as f64,
+            s.beam_step >= 1,
+            "sensor.beam-step",
+            s.beam_step as f64,
             ">= 1",
         )?;
+        let map = &self.map;
+        check_opt(map.resolution, |v| v > 0.0, "map.resolution", "> 0")?;
         check(
-            self.log_odds_hit > 0.0,
-            "log_odds_hit",
-            self.log_odds_hit as f64,
+            map.log_odds_hit > 0.0,
+            "map.log-odds-hit",
+            map.log_odds_hit as f64,
             "> 0",
         )?;
         check(
-            self.log_odds_miss < 0.0,
-            "log_odds_miss",
-            self.log_odds_miss as f64,
+            map.log_odds_miss < 0.0,
+            "map.log-odds-miss",
+            map.log_odds_miss as f64,
             "< 0",
         )?;
         check(
-            self.log_odds_clamp[0] < 0.0,
-            "log_odds_clamp[0]",
-            self.log_odds_clamp[0] as f64,
+            map.log_odds_clamp[0] < 0.0,
+            "map.log-odds-clamp[0]",
+            map.log_odds_clamp[0] as f64,
             "< 0",
         )?;
         check(
-            self.log_odds_clamp[1] > 0.0,
-            "log_odds_clamp[1]",
-            self.log_odds_clamp[1] as f64,
+            map.log_odds_clamp[1] > 0.0,
+            "map.log-odds-clamp[1]",
+            map.log_odds_clamp[1] as f64,
+            "> 0",
+        )?;
+        let m = &self.matching;
+        check_opt(m.sigma, |v| v > 0.0, "matching.sigma", "> 0")?;
+        check_opt(m.field_radius, |v| v > 0.0, "matching.field-radius", "> 0")?;
+        check_opt(
+            m.likelihood_radius,
+            |v| v > 0.0,
+            "matching.likelihood-radius",
+            "> 0",
+        )?;
+        check(m.gain > 0.0, "matching.gain", m.gain, "> 0")?;
+        check_opt(m.linear_step, |v| v > 0.0, "matching.linear-step", "> 0")?;
+        check(
+            m.angular_step > 0.0,
+            "matching.angular-step",
+            m.angular_step,
             "> 0",
         )?;
         check(
-            self.likelihood_sigma > 0.0,
-            "likelihood_sigma",
-            self.likelihood_sigma,
-            "> 0",
-        )?;
-        let cells = self.field_radius / self.resolution;
-        check(
-            self.field_radius > 0.0 && (1.0..=15.0).contains(&cells),
-            "field_radius",
-            self.field_radius,
-            "between 1 and 15 cells",
-        )?;
-        check(
-            self.likelihood_radius > 0.0 && self.likelihood_radius <= self.field_radius,
-            "likelihood_radius",
-            self.likelihood_radius,
-            "> 0 and at most field_radius",
-        )?;
-        check(
-            self.likelihood_gain > 0.0,
-            "likelihood_gain",
-            self.likelihood_gain,
-            "> 0",
-        )?;
-        check(
-            self.match_linear_step > 0.0,
-            "match_linear_step",
-            self.match_linear_step,
-            "> 0",
-        )?;
-        check(
-            self.match_angular_step > 0.0,
-            "match_angular_step",
-            self.match_angular_step,
-            "> 0",
-        )?;
-        check(
-            self.match_refinements <= 30,
-            "match_refinements",
-            self.match_refinements as f64,
+            m.refinements <= 30,
+            "matching.refinements",
+            m.refinements as f64,
             "<= 30",
         )?;
         check(
-            (0.0..=1.0).contains(&self.match_min_inlier_fraction),
-            "match_min_inlier_fraction",
-            self.match_min_inlier_fraction,
+            (0.0..=1.0).contains(&m.min_inlier_fraction),
+            "matching.min-inlier-fraction",
+            m.min_inlier_fraction,
             "in [0, 1]",
         )?;
-        check(
-            self.search_range_xy >= 0.0,
-            "search_range_xy",
-            self.search_range_xy,
+        check_opt(
+            m.search_range_xy,
+            |v| v >= 0.0,
+            "matching.search-range-xy",
             ">= 0",
         )?;
-        check(
-            self.search_step_xy > 0.0,
-            "search_step_xy",
-            self.search_step_xy,
+        check_opt(
+            m.search_step_xy,
+            |v| v > 0.0,
+            "matching.search-step-xy",
             "> 0",
         )?;
         check(
-            self.search_range_theta >= 0.0,
-            "search_range_theta",
-            self.search_range_theta,
+            m.search_range_theta >= 0.0,
+            "matching.search-range-theta",
+            m.search_range_theta,
+            ">= 0",
+        )?;
+        check_opt(
+            m.search_step_theta,
+            |v| v > 0.0,
+            "matching.search-step-theta",
+            "> 0",
+        )?;
+        let rc = &m.recovery;
+        check(
+            (0.0..=1.0).contains(&rc.trigger_fraction),
+            "matching.recovery.trigger-fraction",
+            rc.trigger_fraction,
+            "in [0, 1]",
+        )?;
+        check_opt(
+            rc.range_xy,
+            |v| v >= 0.0,
+            "matching.recovery.range-xy",
             ">= 0",
         )?;
         check(
-            self.search_step_theta > 0.0,
-            "search_step_theta",
-            self.search_step_theta,
+            (0.0..=std::f64::consts::PI).contains(&rc.range_theta),
+            "matching.recovery.range-theta",
+            rc.range_theta,
+            "in [0, π]",
+        )?;
+        check_opt(rc.step_xy, |v| v > 0.0, "matching.recovery.step-xy", "> 0")?;
+        check_opt(
+            rc.step_theta,
+            |v| v > 0.0,
+            "matching.recovery.step-theta",
             "> 0",
         )?;
+        let p = &self.proposal;
         check(
-            self.search_range_xy / self.search_step_xy <= 50.0
-                && self.search_range_theta / self.search_step_theta <= 50.0,
-            "search_range_xy",
-            self.search_range_xy,
-            "at most 50 steps per side in each search dimension",
-        )?;
-        check(
-            (1..=9).contains(&self.samples_per_axis),
-            "samples_per_axis",
-            self.samples_per_axis as f64,
+            (1..=9).contains(&p.samples_per_axis),
+            "proposal.samples-per-axis",
+            p.samples_per_axis as f64,
             "in 1..=9",
         )?;
-        check(
-            self.sample_range_xy >= 0.0,
-            "sample_range_xy",
-            self.sample_range_xy,
+        check_opt(
+            p.sample_range_xy,
+            |v| v >= 0.0,
+            "proposal.sample-range-xy",
             ">= 0",
         )?;
         check(
-            self.sample_range_theta >= 0.0,
-            "sample_range_theta",
-            self.sample_range_theta,
+            p.sample_range_theta >= 0.0,
+            "proposal.sample-range-theta",
+            p.sample_range_theta,
             ">= 0",
+        )?;
+        check(
+            p.corrected_odometry_noise_scale >= 0.0,
+            "proposal.corrected-odometry-noise-scale",
+            p.corrected_odometry_noise_scale,
+            ">= 0",
+        )?;
+        check(
+            (0.0..=1.0).contains(&self.resampling.threshold),
+            "resampling.threshold",
+            self.resampling.threshold,
+            "in [0, 1]",
+        )?;
+        for (a, name) in self.motion.odometry.alpha.iter().zip([
+            "motion.odometry.alpha[0]",
+            "motion.odometry.alpha[1]",
+            "motion.odometry.alpha[2]",
+            "motion.odometry.alpha[3]",
+        ]) {
+            check(*a >= 0.0, name, *a, ">= 0")?;
+        }
+        check(
+            self.motion.min_std[0] > 0.0,
+            "motion.min-std[0]",
+            self.motion.min_std[0],
+            "> 0",
+        )?;
+        check(
+            self.motion.min_std[1] > 0.0,
+            "motion.min-std[1]",
+            self.motion.min_std[1],
+            "> 0",
         )?;
         Ok(())
+    }
+}
+
+/// Every value of a resolved configuration as a plain number: what the filter reads.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Resolved {
+    pub proposal: Proposal,
+    pub linear_update: f64,
+    pub angular_update: f64,
+    pub accumulate_per_scan: bool,
+    pub log_odds_hit: f32,
+    pub log_odds_miss: f32,
+    pub log_odds_clamp: [f32; 2],
+    pub resolution: f64,
+    pub max_range: f64,
+    pub beam_step: usize,
+    pub likelihood_sigma: f64,
+    pub field_radius: f64,
+    pub likelihood_radius: f64,
+    pub likelihood_gain: f64,
+    pub match_linear_step: f64,
+    pub match_angular_step: f64,
+    pub match_refinements: usize,
+    pub search_range_xy: f64,
+    pub search_step_xy: f64,
+    pub search_range_theta: f64,
+    pub search_step_theta: f64,
+    pub match_min_inlier_fraction: f64,
+    pub recovery_trigger_fraction: f64,
+    pub recovery_range_xy: f64,
+    pub recovery_step_xy: f64,
+    pub recovery_range_theta: f64,
+    pub recovery_step_theta: f64,
+    pub samples_per_axis: usize,
+    pub sample_range_xy: f64,
+    pub sample_range_theta: f64,
+    pub corrected_odometry_noise_scale: f64,
+    pub motion: OdometryModel,
+    pub motion_min_std: [f64; 2],
+    pub resample_threshold: f64,
+    pub resampler: Resampler,
+}
+
+impl From<&GridFastConfig> for Resolved {
+    /// The values of `c`, with the indoor preset's and the provisional range limit for any
+    /// `None` (a configuration from [`GridFastConfig::resolve`] has none).
+    fn from(c: &GridFastConfig) -> Self {
+        let c = c.with_preset(c.preset);
+        let (m, p) = (&c.matching, &c.proposal);
+        let v = |x: Option<f64>| x.unwrap_or(f64::NAN);
+        Resolved {
+            proposal: p.kind,
+            linear_update: c.linear_update,
+            angular_update: c.angular_update,
+            accumulate_per_scan: c.accumulate_per_scan,
+            log_odds_hit: c.map.log_odds_hit,
+            log_odds_miss: c.map.log_odds_miss,
+            log_odds_clamp: c.map.log_odds_clamp,
+            resolution: v(c.map.resolution),
+            max_range: c.sensor.max_range.unwrap_or(PROVISIONAL_MAX_RANGE),
+            beam_step: c.sensor.beam_step,
+            likelihood_sigma: v(m.sigma),
+            field_radius: v(m.field_radius),
+            likelihood_radius: v(m.likelihood_radius),
+            likelihood_gain: m.gain,
+            match_linear_step: v(m.linear_step),
+            match_angular_step: m.angular_step,
+            match_refinements: m.refinements,
+            search_range_xy: v(m.search_range_xy),
+            search_step_xy: v(m.search_step_xy),
+            search_range_theta: m.search_range_theta,
+            search_step_theta: v(m.search_step_theta),
+            match_min_inlier_fraction: m.min_inlier_fraction,
+            recovery_trigger_fraction: m.recovery.trigger_fraction,
+            recovery_range_xy: v(m.recovery.range_xy),
+            recovery_step_xy: v(m.recovery.step_xy),
+            recovery_range_theta: m.recovery.range_theta,
+            recovery_step_theta: v(m.recovery.step_theta),
+            samples_per_axis: p.samples_per_axis,
+            sample_range_xy: v(p.sample_range_xy),
+            sample_range_theta: p.sample_range_theta,
+            corrected_odometry_noise_scale: p.corrected_odometry_noise_scale,
+            motion: c.motion.odometry,
+            motion_min_std: c.motion.min_std,
+            resample_threshold: c.resampling.threshold,
+            resampler: c.resampling.scheme,
+        }
     }
 }
 
@@ -404,19 +853,44 @@ impl GridFastConfig {
 mod tests {
     use super::*;
 
+    fn scan(ranges: Vec<f64>, max_range: f64) -> LaserScan {
+        LaserScan {
+            angle_min: -1.5,
+            angle_increment: 3.0 / (ranges.len() - 1) as f64,
+            ranges,
+            max_range,
+            sensor_pose: slam_models::Pose2::IDENTITY,
+        }
+    }
+
     #[test]
     fn default_is_valid_and_round_trips_through_serde() {
         let c = GridFastConfig::default();
         c.validate().unwrap();
         let json = serde_json::to_string(&c).unwrap();
         let back: GridFastConfig = serde_json::from_str(&json).unwrap();
-        assert_eq!(back.particles, 30);
-        let p: GridFastConfig =
-            serde_json::from_str(r#"{"particles": 5, "proposal": "scan-matched-odometry"}"#)
-                .unwrap();
-        assert_eq!(p.proposal, Proposal::ScanMatchedOdometry);
+        assert_eq!(back, c);
+        let p: GridFastConfig = serde_json::from_str(
+            r#"{"particles": 5, "proposal": {"kind": "scan-matched-odometry"},
+                "map": {"resolution": 0.1}, "matching": {"min-inlier-fraction": 0.3}}"#,
+        )
+        .unwrap();
+        assert_eq!(p.proposal.kind, Proposal::ScanMatchedOdometry);
+        assert_eq!(p.map.resolution, Some(0.1));
+        assert_eq!(p.matching.min_inlier_fraction, 0.3);
         assert_eq!(p.linear_update, 1.0);
-        assert!(serde_json::from_str::<GridFastConfig>(r#"{"particle": 5}"#).is_err());
+        // Unknown keys, old flat names and snake_case spellings are errors.
+        for bad in [
+            r#"{"particle": 5}"#,
+            r#"{"resolution": 0.1}"#,
+            r#"{"matching": {"min_inlier_fraction": 0.3}}"#,
+            r#"{"sensor": {"range": 3}}"#,
+        ] {
+            assert!(
+                serde_json::from_str::<GridFastConfig>(bad).is_err(),
+                "{bad}"
+            );
+        }
     }
 
     /// `particles = 10^9` used to be accepted and allocated.
@@ -447,28 +921,76 @@ mod tests {
         };
         assert!(c.validate().is_err());
         c.particles = 3;
-        c.field_radius = 1.0; // 20 cells
+        c.matching.field_radius = Some(1.0); // 20 cells of the indoor 5 cm
         assert!(matches!(
-            c.validate(),
+            c.resolve(None),
             Err(GridFastError::InvalidConfig(slam_models::ConfigError {
-                field: "field_radius",
+                field: "matching.field-radius",
                 ..
             }))
         ));
-        c.field_radius = 0.2;
+        c.matching.field_radius = Some(0.2);
         for r in [0.0, 0.25, f64::NAN] {
-            c.likelihood_radius = r;
+            c.matching.likelihood_radius = Some(r);
             assert!(matches!(
-                c.validate(),
+                c.resolve(None),
                 Err(GridFastError::InvalidConfig(slam_models::ConfigError {
-                    field: "likelihood_radius",
+                    field: "matching.likelihood-radius",
                     ..
                 }))
             ));
         }
-        c.likelihood_radius = 0.2;
-        c.validate().unwrap();
-        c.likelihood_sigma = f64::NAN;
+        c.matching.likelihood_radius = Some(0.2);
+        c.resolve(None).unwrap();
+        c.matching.sigma = Some(f64::NAN);
         assert!(c.validate().is_err());
+        c.matching.sigma = None;
+        c.sensor.max_range = Some(-1.0);
+        assert!(c.validate().is_err());
+    }
+
+    /// The range limit and the preset come from the scan unless given; the result has
+    /// every value set, and an explicit value is kept over the preset's.
+    #[test]
+    fn resolve_takes_the_sensor_and_the_preset_from_the_data() {
+        let c = GridFastConfig::default();
+        // An office: returns 1–4 m, no-return value 81.83.
+        let office = scan(vec![1.0, 2.0, 3.0, 81.83, 4.0], 81.83);
+        let r = c.resolve(Some(&office)).unwrap();
+        assert_eq!(r.sensor.max_range, Some(81.83));
+        assert_eq!(r.preset, Preset::Indoor);
+        assert_eq!(r.map.resolution, Some(0.05));
+        // Open ground: median return 25 m.
+        let campus = scan(vec![20.0, 25.0, 30.0, 80.0, 80.0], 80.0);
+        let r = c.resolve(Some(&campus)).unwrap();
+        assert_eq!(
+            (r.sensor.max_range, r.preset),
+            (Some(80.0), Preset::Outdoor)
+        );
+        assert_eq!(r.map.resolution, Some(0.2));
+        assert_eq!(r.matching.field_radius, Some(0.8));
+        // Everything the preset sets is set.
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(!json.contains("null"), "{json}");
+        // An explicit range limit and preset win; an explicit value wins over the preset's.
+        let mut c = GridFastConfig {
+            preset: Preset::Indoor,
+            ..Default::default()
+        };
+        c.sensor.max_range = Some(20.0);
+        c.map.resolution = Some(0.1);
+        let r = c.resolve(Some(&campus)).unwrap();
+        assert_eq!(r.sensor.max_range, Some(20.0));
+        assert_eq!(r.preset, Preset::Indoor);
+        assert_eq!(r.map.resolution, Some(0.1));
+        assert_eq!(r.matching.field_radius, Some(0.2));
+        // Below a 26 m limit the campus scan keeps 20 and 25 m returns: still outdoor.
+        assert_eq!(Preset::Auto.choose(&campus, 26.0), Preset::Outdoor);
+        assert_eq!(
+            Preset::Auto.choose(&scan(vec![80.0; 3], 80.0), 80.0),
+            Preset::Indoor
+        );
+        // Resolving twice changes nothing.
+        assert_eq!(r.resolve(Some(&office)).unwrap(), r);
     }
 }

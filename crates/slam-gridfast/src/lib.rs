@@ -10,8 +10,12 @@
 //! * [`GridFastSlam`]: the filter; implements [`slam_models::ScanSlam`] (name
 //!   `"gridfast"`), and [`GridFastSlam::render_map`] re-renders the best particle's map at
 //!   any resolution from its trajectory and every processed scan.
-//! * [`GridFastConfig`]: every parameter with a documented default; [`Proposal`] selects
-//!   the proposal distribution (`odometry`, `scan-matched-odometry`, `improved`).
+//! * [`GridFastConfig`]: every parameter with a documented default, in tables (sensor,
+//!   map, matching, proposal, resampling, motion); [`Proposal`] selects the proposal
+//!   distribution (`odometry`, `scan-matched-odometry`, `improved`), [`Preset`] the
+//!   environment (`auto`, `indoor`, `outdoor`) the scale-dependent defaults are for. The
+//!   sensor's range limit and the preset come from the data unless the configuration sets
+//!   them ([`GridFastConfig::resolve`]).
 //!
 //! The maps are slam-grid's: scan integration (exact traversal, inverse sensor model with
 //! `protect_scan_hits`) and the likelihood field, a truncated distance field that slam-grid
@@ -20,8 +24,8 @@
 //! like the occupancy. This crate adds the filter, the proposals and a GMapping-style scorer
 //! and hill climber on that field (the scan's log-likelihood, which the weights need). The
 //! scorer truncates the field twice, coarse to fine: at its full reach
-//! ([`GridFastConfig::field_radius`]) for the capture range of the coarse search and of the
-//! hill climber's first steps, and tighter ([`GridFastConfig::likelihood_radius`]) where
+//! (`matching.field-radius`) for the capture range of the coarse search and of the
+//! hill climber's first steps, and tighter (`matching.likelihood-radius`) where
 //! the pose is decided and weighed, so that beams ending on clutter pull less.
 //!
 //! Speed comes from work done once instead of per particle or per beam: beam end points
@@ -40,7 +44,11 @@ mod matcher;
 mod par;
 mod proposal;
 
-pub use config::{GridFastConfig, Proposal, MAX_PARTICLES};
+pub use config::{
+    median_return_range, GridFastConfig, MapConfig, MatchingConfig, MotionConfig, Preset, Proposal,
+    ProposalConfig, RecoveryConfig, ResamplingConfig, SensorConfig, AUTO_OUTDOOR_MEDIAN_RANGE,
+    MAX_PARTICLES,
+};
 pub use error::GridFastError;
 pub use filter::GridFastSlam;
 

@@ -1,7 +1,9 @@
 //! The three proposal distributions: how one particle draws its pose at a processed scan
 //! and by how much its weight changes.
 
-use crate::matcher::{coarse_score, hill_climb, score, HillClimb, Likelihood, PreparedScan};
+use crate::matcher::{
+    coarse_score, grid_search, hill_climb, score, HillClimb, Likelihood, PreparedScan, SearchWindow,
+};
 use nalgebra::Cholesky;
 use rand::Rng;
 use slam_grid::DistanceField;
@@ -29,13 +31,29 @@ pub(crate) struct StepContext<'a> {
     /// The correction x̂_best ⊖ x'_best that the shared coarse search found for the best
     /// particle (identity when the search is off).
     pub correction: Pose2,
+    /// The answer to a poor match, if any.
+    pub recovery: Option<Recovery>,
 }
 
-/// A particle's new pose, its log-weight increment, and whether matching failed.
+/// The wide search a poor match triggers ([`crate::RecoveryConfig`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Recovery {
+    /// A match with fewer inliers than this is poor.
+    pub trigger_inliers: usize,
+    /// ± window and steps (x/y in metres, θ in radians).
+    pub range_xy: f64,
+    pub step_xy: f64,
+    pub range_theta: f64,
+    pub step_theta: f64,
+}
+
+/// A particle's new pose, its log-weight increment, whether matching failed (the pose is
+/// the motion model's) and whether a poor match was replaced by the wide search's.
 pub(crate) struct Drawn {
     pub pose: Pose2,
     pub log_weight: f64,
     pub match_failed: bool,
+    pub match_recovered: bool,
 }
 
 /// Sample the motion model and weight by the scan likelihood (FastSLAM 1.0 on grids).
@@ -52,6 +70,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
         pose: x,
         log_weight: score(field, ctx.scan, &x, &ctx.lk).log_likelihood,
         match_failed: false,
+        match_recovered: false,
     }
 }
 
@@ -78,8 +97,19 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// → 0.105 / 0.081 m; 30: 0.112 / 0.075 → 0.117 / 0.101 m; 100: 0.097 / 0.077 → 0.103 /
 /// 0.073 m) it is neutral: paired by seed, it wins 22, 21, 17 and 22 of the 40 runs.
 ///
-/// When the match has too few inliers (empty or unrelated map) the particle falls back to
-/// [`motion_and_likelihood`] and the failure is reported.
+/// A poor match (fewer inliers than [`Recovery::trigger_inliers`]: the prediction was too
+/// far off for the hill climber's capture range, e.g. after an odometry jump) is answered
+/// by an exhaustive search of a wide window around the prediction on the capture field
+/// ([`grid_search`]), under the motion model widened by the window, N(x', R + W) with
+/// W = diag((w_xy/2)², (w_xy/2)², (w_θ/2)²): the broad component of a mixture that admits
+/// odometry errors of the window's size. Hill climbing from its best pose replaces the
+/// local match when more beams find the map there; the samples τⱼ then use that widened
+/// motion density, so that the recovered particle is neither favoured nor punished for the
+/// distance from its prediction beyond what the window allows. The wide search's match is
+/// taken only when it is not poor itself.
+///
+/// When the match still has too few inliers (empty or unrelated map) the particle falls
+/// back to [`motion_and_likelihood`] and the failure is reported.
 pub(crate) fn improved<R: Rng + ?Sized>(
     pose: &Pose2,
     field: &DistanceField<'_>,
@@ -98,9 +128,38 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     } else {
         predicted
     };
-    let m = hill_climb(field, ctx.scan, &start, &ctx.capture, &ctx.lk, &ctx.hc);
-    let covariance =
+    let mut m = hill_climb(field, ctx.scan, &start, &ctx.capture, &ctx.lk, &ctx.hc);
+    let mut covariance =
         ctx.motion.noise_covariance(pose, &ctx.u) + Matrix3::from_diagonal(&ctx.min_var);
+    let mut recovered = false;
+    if let Some(rc) = ctx
+        .recovery
+        .filter(|rc| m.score.inliers < rc.trigger_inliers)
+    {
+        let wide = covariance
+            + Matrix3::from_diagonal(&Vector3::new(
+                (0.5 * rc.range_xy).powi(2),
+                (0.5 * rc.range_xy).powi(2),
+                (0.5 * rc.range_theta).powi(2),
+            ));
+        let window = SearchWindow {
+            range_xy: rc.range_xy,
+            step_xy: rc.step_xy,
+            range_theta: rc.range_theta,
+            step_theta: rc.step_theta,
+            information: wide.try_inverse().unwrap_or_else(Matrix3::zeros),
+        };
+        let found = grid_search(field, ctx.scan, &predicted, &ctx.capture, &window);
+        let m2 = hill_climb(field, ctx.scan, &found, &ctx.capture, &ctx.lk, &ctx.hc);
+        // Taken when it is no longer poor itself (and better than the local match).
+        if m2.score.inliers > m.score.inliers
+            && m2.score.inliers >= rc.trigger_inliers.max(ctx.min_inliers)
+        {
+            m = m2;
+            covariance = wide;
+            recovered = true;
+        }
+    }
     let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
     let (Some(chol), true) = (chol, m.score.inliers >= ctx.min_inliers) else {
         let mut d = motion_and_likelihood(pose, field, ctx, &ctx.motion, &ctx.u, rng);
@@ -168,6 +227,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
         ),
         log_weight: top + eta.ln(),
         match_failed: false,
+        match_recovered: recovered,
     }
 }
 
@@ -244,6 +304,7 @@ mod tests {
                 min_inliers: 10,
                 offsets: &offsets,
                 correction: Pose2::IDENTITY,
+                recovery: None,
             };
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
             (improved(&previous, &field(&map), &ctx, &mut rng), ctx)

@@ -285,6 +285,11 @@ pub struct ScanUpdateInfo {
     pub resampled: bool,
     /// Particles whose scan matching failed and fell back to the motion model.
     pub match_failures: usize,
+    /// Particles whose match was poor (too few beams found the map) and that a wider
+    /// search recovered (grid FastSLAM's improved proposal); not counted in
+    /// `match_failures`.
+    #[serde(default)]
+    pub match_recoveries: usize,
     /// Odometry jumps skipped at this record (0 or 1; only with
     /// [`crate::OnOdometryJump::Skip`]): the caller should warn.
     #[serde(default)]
