@@ -156,6 +156,29 @@ fn test_all() -> Result<(), String> {
             "--no-default-features",
         ]),
     )?;
+    // Downstream users of single crates (tests/downstream, outside the workspace): each
+    // program compiles with only the crates it names. The workspace's target folder is
+    // shared (same lock file versions, same release profile), so only the programs build;
+    // the two that need no data run (they check their results against known geometry).
+    let target = std::env::var_os("CARGO_TARGET_DIR").unwrap_or_else(|| "target".into());
+    let target = std::fs::canonicalize(&target).unwrap_or_else(|_| target.into());
+    run(
+        "downstream crates",
+        cargo()
+            .args([
+                "build",
+                "--release",
+                "--manifest-path",
+                "tests/downstream/Cargo.toml",
+            ])
+            .env("CARGO_TARGET_DIR", &target),
+    )?;
+    for bin in ["ekf_alone", "grid_alone"] {
+        run(
+            &format!("downstream {bin}"),
+            &mut Command::new(target.join("release").join(bin)),
+        )?;
+    }
     let (passed, failed, ignored) =
         run_tests(cargo().args(["test", "--workspace", "--release", "--no-fail-fast"]))?;
     println!("test-all took {:.0} s", t.elapsed().as_secs_f64());

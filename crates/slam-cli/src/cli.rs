@@ -1,14 +1,18 @@
 //! The command line, as clap types. This module only describes the arguments; the
 //! subcommands live in [`crate::run`], [`crate::sim`], [`crate::eval`] and `list`.
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{ArgGroup, Args, Parser, Subcommand};
+use std::ffi::OsStr;
 use std::path::PathBuf;
 
 /// `slam`: run 2-D SLAM filters on simulated worlds and real logs, and score the results.
 #[derive(Debug, Parser)]
 #[command(
     name = "slam",
-    version,
+    // The package version and the commit it was built from (build.rs; "unknown" outside
+    // a git checkout), so a bug report names the exact source.
+    version = concat!(env!("CARGO_PKG_VERSION"), " (commit ", env!("SLAM_GIT_COMMIT"), ")"),
     about = "2-D SLAM (EKF-SLAM, FastSLAM 1.0/2.0, grid FastSLAM, scan matching) on simulated worlds and real logs",
     long_about = None,
     propagate_version = true
@@ -19,7 +23,7 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// The six subcommands.
+/// The seven subcommands.
 #[derive(Debug, Subcommand)]
 // The run options make `Run` large; a command is parsed once per process, so boxing it
 // would buy nothing.
@@ -37,6 +41,16 @@ pub enum Command {
     List,
     /// Say what a dataset holds (a ROS bag's topics, counts, laser and odometry; a log's records).
     Info(InfoArgs),
+    /// Print a shell completion script (e.g. `slam completions bash > ~/.local/share/bash-completion/completions/slam`).
+    Completions(CompletionsArgs),
+}
+
+/// `slam completions`.
+#[derive(Debug, Clone, Args)]
+pub struct CompletionsArgs {
+    /// The shell to write the completion script for.
+    #[arg(value_name = "SHELL")]
+    pub shell: clap_complete::Shell,
 }
 
 /// `slam info`.
@@ -72,11 +86,11 @@ pub struct OptimizeArgs {
 #[command(group(ArgGroup::new("input").required(true).args(["sim", "dataset"])))]
 pub struct RunArgs {
     /// Filter to run (see `slam list`): ekf, fastslam1, fastslam2, graph, scanmatch, gridfast.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", value_parser = filter_names())]
     pub filter: String,
 
     /// Simulated scenario to run on (see `slam list`); `replay:<map.yaml>` replays a ROS map.
-    #[arg(long, value_name = "SCENARIO")]
+    #[arg(long, value_name = "SCENARIO", value_parser = ScenarioName)]
     pub sim: Option<String>,
 
     /// Seed of the simulator and of the filter's random numbers (same seed, same output).
@@ -185,7 +199,7 @@ pub struct RunArgs {
 #[derive(Debug, Clone, Args)]
 pub struct SimArgs {
     /// Scenario (see `slam list`); `replay:<map.yaml>` replays a ROS map_server map.
-    #[arg(value_name = "SCENARIO")]
+    #[arg(value_name = "SCENARIO", value_parser = ScenarioName)]
     pub scenario: String,
 
     /// Seed of the simulator.
@@ -250,5 +264,58 @@ fn positive_metres(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("`{s}`: expected a cell size of at least 0.001 m"))
+    }
+}
+
+/// `--filter`: one of the factory's filter names (available in this build or not; `slam run`
+/// says why an unavailable one cannot run), so clap lists them, suggests the nearest for a
+/// typo and completes them.
+fn filter_names() -> PossibleValuesParser {
+    // One name may serve both kinds of data (`graph`): list it once.
+    let mut names: Vec<&'static str> = Vec::new();
+    for f in slam_eval::factory::filters() {
+        if !names.contains(&f.name) {
+            names.push(f.name);
+        }
+    }
+    PossibleValuesParser::new(names.into_iter().map(PossibleValue::new))
+}
+
+/// A scenario name (`--sim`, `slam sim`): one of slam-sim's scenarios, or `replay:<map>`
+/// whose map path is checked when the scenario is built. Clap lists the names, suggests
+/// the nearest for a typo and completes them.
+#[derive(Debug, Clone, Copy)]
+struct ScenarioName;
+
+impl ScenarioName {
+    /// The scenario names; `replay` is shown as the form it takes, `replay:<map.yaml>`.
+    fn values() -> impl Iterator<Item = PossibleValue> {
+        slam_sim::scenario::list().into_iter().map(|s| {
+            if s.name == "replay" {
+                PossibleValue::new("replay:<map.yaml>")
+            } else {
+                PossibleValue::new(s.name)
+            }
+        })
+    }
+}
+
+impl TypedValueParser for ScenarioName {
+    type Value = String;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &OsStr,
+    ) -> Result<String, clap::Error> {
+        match value.to_str() {
+            Some(s) if s.starts_with("replay:") => Ok(s.to_string()),
+            _ => PossibleValuesParser::new(Self::values()).parse_ref(cmd, arg, value),
+        }
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(Self::values()))
     }
 }

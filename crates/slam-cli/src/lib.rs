@@ -11,6 +11,7 @@
 //! slam optimize <graph.g2o> --out <dir> [--config <file.toml>] [--kernel <name:param>]
 //! slam list
 //! slam info <path>
+//! slam completions <bash|zsh|fish|elvish|powershell>
 //! ```
 //!
 //! The program is this library plus a thin `main`: [`main_with_args`] parses a command line,
@@ -55,7 +56,7 @@ pub use sim::SimReport;
 pub use slam_eval::Metrics;
 
 use clap::error::ErrorKind;
-use clap::Parser;
+use clap::{CommandFactory, Parser};
 use std::ffi::OsString;
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -91,6 +92,8 @@ pub enum Outcome {
     Optimized(Box<OptimizeOutput>),
     /// `slam info` described a dataset.
     Described,
+    /// `slam completions` printed a shell completion script.
+    Completions,
 }
 
 /// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
@@ -120,6 +123,14 @@ where
             optimize::optimize(&a, out).map(|r| Outcome::Optimized(Box::new(r)))
         }
         cli::Command::Info(a) => info::info(&a, out).map(|_| Outcome::Described),
+        cli::Command::Completions(a) => {
+            // Into a buffer first: clap_complete panics on a write error (a closed pipe,
+            // `slam completions bash | head`); like the other outputs, ours ignores it.
+            let mut script = Vec::new();
+            clap_complete::generate(a.shell, &mut cli::Cli::command(), "slam", &mut script);
+            let _ = out.write_all(&script);
+            Ok(Outcome::Completions)
+        }
         cli::Command::List => {
             list::list(out);
             Ok(Outcome::Listed)
@@ -127,11 +138,12 @@ where
     }
 }
 
-/// Clap's error as one line: its first paragraph, whitespace collapsed, without the
-/// `error:` prefix, plus a pointer to `--help`.
+/// Clap's error as one line: its first paragraph (with the possible values when it lists
+/// them) and its `tip:` lines (clap's "a similar subcommand/value/argument exists"
+/// suggestions), whitespace collapsed, without the `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval, optimize, info or list (see `slam --help`)"
+        return "missing subcommand: run, sim, eval, optimize, info, list or completions (see `slam --help`)"
             .into();
     }
     let text = e.render().to_string();
@@ -140,7 +152,11 @@ fn usage_message(e: &clap::Error) -> String {
         .take_while(|l| !l.trim().is_empty())
         .map(str::trim)
         .collect();
-    let line = first.join(" ");
+    let tips = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| l.starts_with("tip:"));
+    let line = first.into_iter().chain(tips).collect::<Vec<_>>().join(" ");
     let line = line.strip_prefix("error:").unwrap_or(&line).trim();
     format!("{line} (see `slam --help`)")
 }

@@ -465,6 +465,77 @@ fn usage_mistakes_exit_2_with_one_line() {
     assert!(stdout.contains("run") && stdout.contains("eval"));
 }
 
+/// Clap's "did you mean" survives the one-line error: a mistyped subcommand, filter or
+/// scenario names the intended one, still on one line with exit code 2.
+#[test]
+fn typos_get_a_suggestion_on_one_line() {
+    for (args, meant) in [
+        (vec!["lst"], "'list'"),
+        (
+            vec!["run", "--filter", "fastslam3", "--sim", "loop"],
+            "'fastslam2'",
+        ),
+        (
+            vec!["run", "--filter", "ekf", "--sim", "figure9"],
+            "'figure8'",
+        ),
+        (vec!["sim", "offise", "--out", "x"], "'office'"),
+    ] {
+        let (code, _, stderr) = slam_bin(&args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{args:?}: {stderr}");
+        assert!(stderr.contains("similar"), "{args:?}: {stderr}");
+        assert!(stderr.contains(meant), "{args:?}: {stderr}");
+    }
+    // A replay map is not a listed name but is accepted (and fails later, on the file).
+    let out = scratch("replay-missing-map").join("out");
+    let out = out.to_str().unwrap();
+    let (code, _, stderr) = slam_bin(&["sim", "replay:/nonexistent/map.yaml", "--out", out]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("map.yaml"), "{stderr}");
+}
+
+/// `slam completions bash` prints a bash completion script for `slam` that knows the
+/// subcommands and the filter names; an unknown shell is a usage error.
+#[test]
+fn completions_print_a_script() {
+    let (code, stdout, stderr) = slam_bin(&["completions", "bash"]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stdout.contains("complete ") && stdout.contains("slam"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("completions") && stdout.contains("optimize"));
+    assert!(stdout.contains("fastslam2") && stdout.contains("figure8"));
+    for shell in ["zsh", "fish"] {
+        let (code, stdout, _) = slam_bin(&["completions", shell]);
+        assert_eq!(code, 0, "{shell}");
+        assert!(stdout.contains("slam"), "{shell}: {stdout}");
+    }
+    let (code, _, _) = slam_bin(&["completions", "tcsh"]);
+    assert_eq!(code, 2);
+}
+
+/// `slam --version` names the package version and a commit (a hex hash in a git checkout,
+/// "unknown" outside one).
+#[test]
+fn version_names_package_version_and_commit() {
+    let (code, stdout, _) = slam_bin(&["--version"]);
+    assert_eq!(code, 0);
+    let line = stdout.trim();
+    assert!(line.starts_with("slam 0."), "{line}");
+    assert!(line.contains(env!("CARGO_PKG_VERSION")), "{line}");
+    let commit = line
+        .split("(commit ")
+        .nth(1)
+        .and_then(|r| r.strip_suffix(')'))
+        .unwrap_or_else(|| panic!("no commit in {line:?}"));
+    assert!(
+        commit == "unknown" || (commit.len() >= 7 && commit.chars().all(|c| c.is_ascii_hexdigit())),
+        "{line}"
+    );
+}
+
 #[test]
 fn unknown_filter_and_scenario_are_clear_errors() {
     let (r, _) = slam(&["run", "--filter", "ukf", "--sim", "loop"]);

@@ -53,8 +53,8 @@ pub use scanmatch::{ScanMatchConfig, ScanMatchOdometry};
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// the occupancy grid and scan matchers compiles with this crate alone (sophus-rs style).
 pub use slam_models::{
-    ConfigError, FilterError, FromConfig, GridMap, LaserScan, Pose2, ScanDataset, ScanRecord,
-    ScanSlam, ScanUpdateInfo, TimedPose,
+    ConfigError, FilterError, FromConfig, GridMap, LaserScan, Point2, Pose2, ScanDataset,
+    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
 };
 
 /// Traits only, for glob import: `use slam_grid::prelude::*;` (re-exports
