@@ -223,6 +223,10 @@ mod tests {
                 "gridfast" => {
                     example_is_complete_and_default::<slam_gridfast::GridFastConfig>(f.name, |_| ())
                 }
+                "graph" => example_is_complete_and_default::<slam_graph::laser::LaserGraphConfig>(
+                    "graph-laser",
+                    |_| (),
+                ),
                 other => panic!("no example-config check for {other}"),
             }
         }

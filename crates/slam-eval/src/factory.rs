@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
 use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
+use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
@@ -99,6 +100,14 @@ pub fn filters() -> Vec<FilterInfo> {
             kind: DataKind::Laser,
             description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
             particle_filter: true,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "graph",
+            kind: DataKind::Laser,
+            description:
+                "pose-graph SLAM: submap matching, branch-and-bound loop closures, smoothed odometry",
+            particle_filter: false,
             unavailable: None,
         },
     ]
@@ -212,6 +221,9 @@ pub enum FilterConfig {
     Scanmatch(ScanMatchConfig),
     /// Grid-based FastSLAM.
     Gridfast(GridFastConfig),
+    /// The laser front end of slam-graph (pose-graph SLAM); its example file is
+    /// `configs/graph-laser.toml` (`configs/graph.toml` is `slam optimize`'s).
+    Graph(LaserGraphConfig),
 }
 
 /// A configuration parsed from text, with the top-level keys the text set explicitly (a
@@ -240,7 +252,9 @@ impl ParsedConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor)
             }
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => NoiseApplied::default(),
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) | FilterConfig::Graph(_) => {
+                NoiseApplied::default()
+            }
         }
     }
 }
@@ -260,6 +274,7 @@ impl FilterConfig {
             }),
             "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
             "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
+            "graph" => FilterConfig::Graph(LaserGraphConfig::default()),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -337,6 +352,7 @@ impl FilterConfig {
             }
             "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
             "gridfast" => FilterConfig::Gridfast(de(&body)?),
+            "graph" => FilterConfig::Graph(de(&body)?),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -355,6 +371,7 @@ impl FilterConfig {
             FilterConfig::Fastslam2(_) => "fastslam2",
             FilterConfig::Scanmatch(_) => "scanmatch",
             FilterConfig::Gridfast(_) => "gridfast",
+            FilterConfig::Graph(_) => "graph",
         }
     }
 
@@ -364,7 +381,9 @@ impl FilterConfig {
             FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
                 DataKind::Landmark
             }
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => DataKind::Laser,
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) | FilterConfig::Graph(_) => {
+                DataKind::Laser
+            }
         }
     }
 
@@ -373,7 +392,7 @@ impl FilterConfig {
         match self {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => c.particles = n,
             FilterConfig::Gridfast(c) => c.particles = n,
-            FilterConfig::Ekf(_) | FilterConfig::Scanmatch(_) => {
+            FilterConfig::Ekf(_) | FilterConfig::Scanmatch(_) | FilterConfig::Graph(_) => {
                 return Err(FactoryError::NotAParticleFilter {
                     filter: self.name(),
                 })
@@ -390,6 +409,7 @@ impl FilterConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => toml::to_string_pretty(c),
             FilterConfig::Scanmatch(c) => toml::to_string_pretty(c),
             FilterConfig::Gridfast(c) => toml::to_string_pretty(c),
+            FilterConfig::Graph(c) => toml::to_string_pretty(c),
         };
         text.unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
     }
@@ -412,7 +432,7 @@ impl FilterConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
             }
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => {
+            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) | FilterConfig::Graph(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
                     kind: DataKind::Laser.as_str(),
@@ -437,6 +457,9 @@ impl FilterConfig {
             FilterConfig::Gridfast(c) => Box::new(
                 GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
             ),
+            FilterConfig::Graph(c) => {
+                Box::new(LaserGraphSlam::new(c.clone()).map_err(|e| invalid(&e))?)
+            }
             FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),

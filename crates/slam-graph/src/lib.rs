@@ -15,6 +15,10 @@
 //!   ([`RobustKernel`]: Huber, Cauchy, DCS) by IRLS, the gauge fixed at the first pose, an
 //!   [`IterationInfo`] per iteration and a documented stopping rule.
 //!
+//! * [`laser`]: the laser front end ([`laser::LaserGraphSlam`], `ScanSlam` name `"graph"`):
+//!   keyframes, scan-to-submap odometry edges, branch-and-bound loop closures, a smoothed
+//!   trajectory with one node per record.
+//!
 //! The χ² reported everywhere is g2o's: Σ eᵀΩe over the edges (GTSAM reports half of it).
 //! File input and output (g2o format) live in `slam-io`.
 
@@ -24,6 +28,7 @@ pub mod error;
 pub mod factor;
 pub mod graph;
 pub mod kernel;
+pub mod laser;
 pub mod linear;
 pub mod optimizer;
 
