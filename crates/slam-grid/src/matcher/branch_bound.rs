@@ -330,7 +330,7 @@ impl BranchBoundMatcher {
     /// submap, reused for many scans); see the type documentation. `Ok(None)` when no pose
     /// scores at least `min_score`.
     ///
-    /// The covariance is [`super::covariance_by_sampling`]'s fit of the scan likelihood
+    /// The covariance is the crate's sampled fit of the scan likelihood
     /// (PR table 6.3) on the 3×3×3 lattice around the optimum with spacings (r, r, δθ).
     pub fn match_in(
         &self,
