@@ -97,15 +97,15 @@ pub struct LaserGraphConfig {
     /// Loop closure: the search radius (the branch-and-bound translation window) around the
     /// predicted pose before any uncertainty, metres. Default 0.5.
     pub loop_radius: f64,
-    /// Loop closure: metres added to the radius per metre travelled since the last closure
-    /// (the path's uncertainty grows with it). Default 0.05.
+    /// Loop closure: metres added to the radius per metre of path between the submap's last
+    /// keyframe and the searching one (their relative uncertainty grows with it). Default 0.05.
     pub loop_radius_growth: f64,
     /// Loop closure: the largest radius, metres. Default 3.
     pub loop_max_radius: f64,
     /// Loop closure: the rotation window before any uncertainty, radians. Default 0.2.
     pub loop_angle: f64,
-    /// Loop closure: radians added to the rotation window per metre travelled since the
-    /// last closure. Default 0.02.
+    /// Loop closure: radians added to the rotation window per metre of path between the
+    /// submap and the searching keyframe. Default 0.02.
     pub loop_angle_growth: f64,
     /// Loop closure: the largest rotation window, radians (≤ π). Default 0.6.
     pub loop_max_angle: f64,

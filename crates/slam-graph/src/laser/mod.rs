@@ -15,8 +15,8 @@
 //!   keyframes old) whose scans lie within the search radius of the keyframe's global
 //!   position is searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the
 //!   submap, around the pose the current graph predicts; the radius and the rotation window
-//!   grow linearly with the distance travelled since the last accepted closure (the path's
-//!   uncertainty), up to their caps. A match scoring at least `loop-min-score` is refined by
+//!   grow linearly with the path length between the submap and the keyframe (the
+//!   uncertainty of their relative pose before the closure), up to their caps. A match scoring at least `loop-min-score` is refined by
 //!   Gauss-Newton and becomes an edge from the submap's keyframe nearest to the match. After every
 //!   keyframe that added a closure the keyframe graph is optimised (Levenberg-Marquardt with
 //!   the configured robust kernel, DCS by default, against false closures).
@@ -68,8 +68,8 @@ struct Keyframe {
     local: Pose2,
     /// Current estimate in the world frame (the optimised keyframe graph).
     global: Pose2,
-    /// Distance travelled since the last accepted loop closure, metres (by local poses).
-    since_closure: f64,
+    /// Distance travelled from the first keyframe, metres (along the local poses).
+    path: f64,
 }
 
 /// One relative-pose constraint between two keyframes (indices), with its information.
@@ -274,7 +274,7 @@ impl LaserGraphSlam {
         let previous = self
             .keyframes
             .last()
-            .map(|p| (p.record, p.local, p.global, p.since_closure));
+            .map(|p| (p.record, p.local, p.global, p.path));
         let (local, global, since, edge) = match previous {
             None => (odometry, odometry, 0.0, None),
             Some((prev_record, prev_local, prev_global, prev_since)) => {
@@ -313,7 +313,7 @@ impl LaserGraphSlam {
             scan,
             local,
             global,
-            since_closure: since,
+            path: since,
         });
         if let Some(c) = edge {
             self.constraints.push(c);
@@ -430,9 +430,6 @@ impl LaserGraphSlam {
     fn search_loops(&mut self, k: usize) -> Result<bool, GraphError> {
         let c = &self.config;
         let kf = &self.keyframes[k];
-        let travelled = kf.since_closure;
-        let radius = (c.loop_radius + c.loop_radius_growth * travelled).min(c.loop_max_radius);
-        let angle = (c.loop_angle + c.loop_angle_growth * travelled).min(c.loop_max_angle);
         let position = kf.global.translation();
         // Candidates: finished submaps old enough, by their nearest keyframe's distance.
         let mut candidates: Vec<(f64, usize)> = Vec::new();
@@ -449,23 +446,33 @@ impl LaserGraphSlam {
                 .map(|&j| (self.keyframes[j].global.translation() - position).norm())
                 .fold(f64::INFINITY, f64::min);
             // The scan overlaps the submap when some of its keyframes is within the
-            // matching range (plus the search radius) of the predicted position.
-            if nearest <= radius + 0.5 * c.match_max_range {
+            // matching range (plus the largest search radius) of the predicted position.
+            if nearest <= c.loop_max_radius + 0.5 * c.match_max_range {
                 candidates.push((nearest, s));
             }
         }
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         candidates.truncate(c.loop_max_candidates);
-        let matcher = BranchBoundMatcher {
-            linear_window: radius,
-            angular_window: angle,
-            angular_step: 0.0,
-            depth: c.loop_depth,
-            min_score: c.loop_min_score,
-            min_points: c.local_matcher.correlative.min_points,
-        };
         let mut found = false;
         for (_, s) in candidates {
+            // The window grows with the path travelled between the submap and keyframe k:
+            // the uncertainty of their relative pose before this closure.
+            let c = &self.config;
+            let last = *self.submaps[s]
+                .keyframes
+                .last()
+                .expect("candidates are not empty");
+            let travelled = self.keyframes[k].path - self.keyframes[last].path;
+            let radius = (c.loop_radius + c.loop_radius_growth * travelled).min(c.loop_max_radius);
+            let angle = (c.loop_angle + c.loop_angle_growth * travelled).min(c.loop_max_angle);
+            let matcher = BranchBoundMatcher {
+                linear_window: radius,
+                angular_window: angle,
+                angular_step: 0.0,
+                depth: c.loop_depth,
+                min_score: c.loop_min_score,
+                min_points: c.local_matcher.correlative.min_points,
+            };
             let anchor = self.submaps[s].keyframes[0];
             let (a_local, a_global) = (self.keyframes[anchor].local, self.keyframes[anchor].global);
             // Keyframe k in the submap's (local) frame, as the current graph predicts it.
@@ -518,9 +525,6 @@ impl LaserGraphSlam {
             });
             self.stats.loop_closures += 1;
             found = true;
-        }
-        if found {
-            self.keyframes[k].since_closure = 0.0;
         }
         Ok(found)
     }
@@ -614,7 +618,7 @@ impl LaserGraphSlam {
     }
 
     /// The smoothed pose of every record: the graph of one node per record described in the
-    /// module documentation, optimised from [`Self::composed_poses`]. Falls back to the
+    /// module documentation, optimised from the composed poses. Falls back to the
     /// composed poses if the optimiser fails (it cannot on a connected chain with positive
     /// definite information, but the trait's accessors cannot return errors).
     pub fn smoothed_poses(&self) -> Vec<Pose2> {
