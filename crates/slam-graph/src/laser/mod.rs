@@ -12,23 +12,25 @@
 //!   relative pose and the inverse of the matcher's covariance (rotated into the earlier
 //!   keyframe's frame, floored by `match-min-std`) as information.
 //! * **Loop closure**: a finished submap (its last scan at least `loop-min-scan-gap`
-//!   keyframes old) whose scans lie within the search radius of the keyframe's global
-//!   position is searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the
-//!   submap, around the pose the current graph predicts; the radius and the rotation window
-//!   grow linearly with the path length between the submap and the keyframe (the
-//!   uncertainty of their relative pose before the closure), up to their caps. A match scoring at least `loop-min-score` is refined by
-//!   Gauss-Newton and becomes an edge from the submap's keyframe nearest to the match. After every
-//!   keyframe that added a closure the keyframe graph is optimised (Levenberg-Marquardt with
-//!   the configured robust kernel, DCS by default, against false closures).
+//!   keyframes old) whose keyframes lie within reach of the keyframe's global position is
+//!   searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the submap,
+//!   around the pose the current graph predicts; the radius and the rotation window grow
+//!   linearly with the path length between the submap and the keyframe (the uncertainty
+//!   of their relative pose before the closure), up to their caps. A match scoring at
+//!   least `loop-min-score`, and not matched almost as well 0.25–1 m away
+//!   (`loop-ambiguity-ratio`), is refined by Gauss-Newton and becomes an edge from the
+//!   submap's keyframe nearest to the match. After every keyframe that added a closure the
+//!   keyframe graph is optimised (Levenberg-Marquardt with the configured robust kernel,
+//!   DCS by default, against false closures).
 //! * **Poses at every record**: the odometry is a measurement, not only a prediction. The
 //!   trajectory comes from a second graph with **one node per record**: consecutive records
 //!   are joined by odometry edges (increment o_{i−1}⁻¹ ⊕ o_i, covariance from
 //!   [`OdometryNoise`]), keyframes additionally by the scan-matching and loop-closure
 //!   edges above. It is initialised from the optimised keyframes and the odometry between
 //!   them and optimised as a whole (without a robust kernel; loop closures the keyframe
-//!   graph's kernel rejected are left out), so the correction a scan match makes is distributed
-//!   over the records before it in proportion to their odometry uncertainty (a smoother),
-//!   instead of being applied at the keyframe only.
+//!   graph's kernel rejected are left out), so the correction a scan match makes is
+//!   distributed over the records before it in proportion to their odometry uncertainty
+//!   (a smoother), instead of being applied at the keyframe only.
 //! * **The map** is rendered from the keyframes' scans at their smoothed poses.
 //!
 //! The world frame is the odometry frame of the first record (its pose is the first
