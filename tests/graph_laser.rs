@@ -137,11 +137,11 @@ fn intel_prefix_relations_error() {
         .cloned()
         .collect();
     assert!(inside.len() > 300, "{} relations", inside.len());
-    let odo = slam::io::eval::relations_error(&dead_reckoning(records), &inside);
+    let odo = slam::eval::metrics::relations_error(&dead_reckoning(records), &inside);
     let slam = run(records, LaserGraphConfig::default());
     let traj = slam.trajectory();
     assert_eq!(traj.len(), records.len());
-    let e = slam::io::eval::relations_error(&traj, &inside);
+    let e = slam::eval::metrics::relations_error(&traj, &inside);
     eprintln!(
         "intel prefix: {} relations; odometry {:.3} m / {:.2} deg; graph {:.4} m / {:.3} deg; {:?}",
         e.used,
@@ -171,7 +171,7 @@ fn intel_whole_log() {
     let records = slam::io::carmen::read_carmen(&log).unwrap().dataset.records;
     let relations = slam::io::relations::read_relations(&rel).unwrap();
     let slam = run(&records, LaserGraphConfig::default());
-    let e = slam::io::eval::relations_error(&slam.trajectory(), &relations);
+    let e = slam::eval::metrics::relations_error(&slam.trajectory(), &relations);
     eprintln!(
         "intel whole log: {} relations, {:.4} m / {:.3} deg; {:?}",
         e.used,

@@ -67,7 +67,14 @@ fn num(v: &serde_json::Value, key: &str) -> f64 {
 fn list_names_every_filter_and_scenario() {
     let (r, out) = slam(&["list"]);
     assert!(matches!(r, Ok(Outcome::Listed)));
-    for f in ["ekf", "fastslam1", "fastslam2", "scanmatch", "gridfast"] {
+    for f in [
+        "ekf",
+        "fastslam1",
+        "fastslam2",
+        "scanmatch",
+        "gridfast",
+        "graph",
+    ] {
         assert!(out.contains(f), "{f} missing from:\n{out}");
     }
     for s in ["loop", "figure8", "city", "clutter", "office", "replay"] {
@@ -292,8 +299,8 @@ fn every_laser_filter_runs_on_the_simulated_office() {
             "--out",
             dir.to_str().unwrap(),
         ]);
-        let r = if name == "scanmatch" {
-            // scanmatch is no particle filter: --particles must be refused...
+        let r = if name == "scanmatch" || name == "graph" {
+            // scanmatch and graph are no particle filters: --particles must be refused...
             assert!(matches!(r, Err(CliError::InvalidArgument(_))), "{r:?}");
             // ...and it runs without.
             slam(&[

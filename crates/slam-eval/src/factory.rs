@@ -20,8 +20,8 @@
 use serde::{Deserialize, Serialize};
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
-use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
 use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
+use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
@@ -223,7 +223,7 @@ pub enum FilterConfig {
     Gridfast(GridFastConfig),
     /// The laser front end of slam-graph (pose-graph SLAM); its example file is
     /// `configs/graph-laser.toml` (`configs/graph.toml` is `slam optimize`'s).
-    Graph(LaserGraphConfig),
+    Graph(Box<LaserGraphConfig>),
 }
 
 /// A configuration parsed from text, with the top-level keys the text set explicitly (a
@@ -274,7 +274,7 @@ impl FilterConfig {
             }),
             "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
             "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
-            "graph" => FilterConfig::Graph(LaserGraphConfig::default()),
+            "graph" => FilterConfig::Graph(Box::default()),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -352,7 +352,7 @@ impl FilterConfig {
             }
             "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
             "gridfast" => FilterConfig::Gridfast(de(&body)?),
-            "graph" => FilterConfig::Graph(de(&body)?),
+            "graph" => FilterConfig::Graph(Box::new(de(&body)?)),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -458,7 +458,7 @@ impl FilterConfig {
                 GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
             ),
             FilterConfig::Graph(c) => {
-                Box::new(LaserGraphSlam::new(c.clone()).map_err(|e| invalid(&e))?)
+                Box::new(LaserGraphSlam::new((**c).clone()).map_err(|e| invalid(&e))?)
             }
             FilterConfig::Ekf(_) | FilterConfig::Fastslam1(_) | FilterConfig::Fastslam2(_) => {
                 return Err(FactoryError::WrongKind {
