@@ -705,8 +705,7 @@ impl ScanSlam for LaserGraphSlam {
     }
 
     fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
-        self.step(record)
-            .map_err(|e| FilterError::Other(Box::new(e)))
+        self.step(record).map_err(FilterError::other)
     }
 
     fn pose(&self) -> Pose2 {

@@ -74,18 +74,20 @@ impl MaxPyramid {
         let w = max.x as i64 - min.x as i64 + 1 + pad;
         let h = max.y as i64 - min.y as i64 + 1 + pad;
         if w <= pad || h <= pad {
-            return Err(GridError::InvalidConfig {
-                name: "pyramid rectangle (cells)",
-                value: 0.0,
-                expected: "max ≥ min in x and y",
-            });
+            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
+                "branch-and-bound matcher",
+                "pyramid rectangle (cells)",
+                0.0,
+                "max ≥ min in x and y",
+            )));
         }
         if w.saturating_mul(h) > MAX_PYRAMID_CELLS as i64 {
-            return Err(GridError::InvalidConfig {
-                name: "pyramid level (cells)",
-                value: w as f64 * h as f64,
-                expected: "at most 16e6 cells: a smaller region or a coarser grid",
-            });
+            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
+                "branch-and-bound matcher",
+                "pyramid level (cells)",
+                w as f64 * h as f64,
+                "at most 16e6 cells: a smaller region or a coarser grid",
+            )));
         }
         let (w, h) = (w as usize, h as usize);
         let origin = CellIndex::new(min.x - pad as i32, min.y - pad as i32);
@@ -198,7 +200,7 @@ impl MaxPyramid {
 /// and a block is pruned as soon as its bound cannot beat the best exact score found so far,
 /// or `min_score`·n. The result is exact because every bound is an upper bound.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct BranchBoundMatcher {
     /// Half-width of the translation window in x and y, metres. Default 1 m.
     pub linear_window: f64,
@@ -304,11 +306,12 @@ impl BranchBoundMatcher {
         };
         let k_max = (self.angular_window / dtheta).floor();
         if k_max > MAX_ROTATIONS as f64 {
-            return Err(GridError::InvalidConfig {
-                name: "branch-and-bound rotations per side (angular_window / angular_step)",
-                value: k_max,
-                expected: "at most 100000: a larger angular_step or a smaller angular_window",
-            });
+            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
+                "branch-and-bound matcher",
+                "branch-and-bound rotations per side (angular_window / angular_step)",
+                k_max,
+                "at most 100000: a larger angular_step or a smaller angular_window",
+            )));
         }
         let k_max = k_max as i32;
         let n = scan.points.len();
@@ -340,11 +343,12 @@ impl BranchBoundMatcher {
     ) -> Result<Option<MatchResult>, GridError> {
         self.validate()?;
         if self.depth > pyramid.depth() {
-            return Err(GridError::InvalidConfig {
-                name: "depth",
-                value: self.depth as f64,
-                expected: "at most the pyramid's depth",
-            });
+            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
+                "branch-and-bound matcher",
+                "depth",
+                self.depth as f64,
+                "at most the pyramid's depth",
+            )));
         }
         if !initial.is_finite() {
             return Err(GridError::NonFinite {
