@@ -109,11 +109,12 @@ fn configure(
                 path: path.to_path_buf(),
                 source: e,
             })?;
-            FilterConfig::from_toml_for(info.name, &text)
+            FilterConfig::from_toml_for_kind(info.name, info.kind, &text)
                 .map_err(|e| factory_error(e, Some(path)))?
         }
         None => ParsedConfig {
-            config: FilterConfig::default_for(info.name).map_err(|e| factory_error(e, None))?,
+            config: FilterConfig::default_for_kind(info.name, info.kind)
+                .map_err(|e| factory_error(e, None))?,
             keys: Vec::new(),
         },
     };
@@ -287,6 +288,10 @@ mod tests {
                 "gridfast" => {
                     example_is_complete_and_default::<slam_gridfast::GridFastConfig>(f.name, |_| ())
                 }
+                "graph" => example_is_complete_and_default::<slam_graph::laser::LaserGraphConfig>(
+                    "graph-laser",
+                    |_| (),
+                ),
                 other => panic!("no example-config check for {other}"),
             }
         }

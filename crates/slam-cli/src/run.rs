@@ -103,19 +103,22 @@ impl Input {
 /// Runs `slam run` with `args`, printing a short summary to `out`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let info = filters::find(&args.filter)?;
+    // A name that serves both kinds of data (`graph`): the kind-specific checks run once
+    // the data has picked the filter.
+    let both = slam_eval::factory::serves_both_kinds(&args.filter);
     if let Some(why) = info.unavailable {
         return Err(CliError::FilterUnavailable {
             name: info.name.to_string(),
             reason: why.to_string(),
         });
     }
-    if args.frames.is_some() && info.kind != DataKind::Landmark {
+    if args.frames.is_some() && info.kind != DataKind::Landmark && !both {
         return Err(CliError::InvalidArgument(format!(
             "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
             info.name
         )));
     }
-    if args.map_resolution.is_some() && info.kind != DataKind::Laser {
+    if args.map_resolution.is_some() && info.kind != DataKind::Laser && !both {
         return Err(CliError::InvalidArgument(format!(
             "--map-resolution applies to laser filters (gridfast); `{}` maps landmarks",
             info.name
@@ -145,6 +148,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         verbose: false,
     };
     match info.kind {
+        _ if both => {}
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
         DataKind::Laser => drop(filters::build_scan(&info, &placeholder)?),
     }
@@ -180,6 +184,22 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let mut input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);
+    let info = slam_eval::factory::find_for(info.name, input.kind()).unwrap_or(info);
+    if both {
+        let wrong = |option: &str| {
+            CliError::InvalidArgument(format!(
+                "{option} does not apply to `{}` on {} data",
+                info.name,
+                info.kind.as_str()
+            ))
+        };
+        if args.frames.is_some() && info.kind != DataKind::Landmark {
+            return Err(wrong("--frames"));
+        }
+        if args.map_resolution.is_some() && info.kind != DataKind::Laser {
+            return Err(wrong("--map-resolution"));
+        }
+    }
     if input.kind() != info.kind {
         return Err(CliError::WrongDataKind {
             filter: info.name.to_string(),

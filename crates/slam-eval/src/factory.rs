@@ -21,6 +21,7 @@ use serde::{Deserialize, Serialize};
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
 use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
+use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
 use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{LandmarkSlam, Pose2, ScanSlam};
@@ -110,6 +111,14 @@ pub fn filters() -> Vec<FilterInfo> {
             particle_filter: true,
             unavailable: None,
         },
+        FilterInfo {
+            name: "graph",
+            kind: DataKind::Laser,
+            description:
+                "pose-graph SLAM: submap matching, branch-and-bound loop closures, smoothed odometry",
+            particle_filter: false,
+            unavailable: None,
+        },
     ]
 }
 
@@ -122,6 +131,19 @@ pub fn find(name: &str) -> Result<FilterInfo, FactoryError> {
             name: name.to_string(),
             known: known_names(),
         })
+}
+
+/// The filter called `name` for data of `kind`: one name may serve both kinds of data
+/// (`graph`), and the data picks which.
+pub fn find_for(name: &str, kind: DataKind) -> Option<FilterInfo> {
+    filters()
+        .into_iter()
+        .find(|f| f.name == name && f.kind == kind)
+}
+
+/// True when filters of both kinds go by `name` (`graph`): the data decides which runs.
+pub fn serves_both_kinds(name: &str) -> bool {
+    find_for(name, DataKind::Landmark).is_some() && find_for(name, DataKind::Laser).is_some()
 }
 
 /// Names of the filters of one kind, comma separated.
@@ -217,12 +239,20 @@ pub enum FilterConfig {
     Fastslam1(FastSlamConfig),
     /// FastSLAM 2.0 (the table's `variant` is set to match).
     Fastslam2(FastSlamConfig),
-    /// Pose-graph SLAM with range-bearing landmark edges.
-    Graph(GraphLandmarkConfig),
+    /// Pose-graph SLAM with range-bearing landmark edges (`filter = "graph"` on landmark
+    /// data; its example file is `configs/graph-landmark.toml`). The tag `graph-landmark`
+    /// in serde's own form, since one tag cannot name two variants.
+    #[serde(rename = "graph-landmark")]
+    GraphLandmark(GraphLandmarkConfig),
     /// Scan-matching odometry.
     Scanmatch(ScanMatchConfig),
     /// Grid-based FastSLAM.
     Gridfast(GridFastConfig),
+    /// The laser front end of slam-graph (pose-graph SLAM); its example file is
+    /// `configs/graph-laser.toml` (`configs/graph.toml` is `slam optimize`'s); `filter =
+    /// "graph"` on laser data, the tag `graph-laser` in serde's own form.
+    #[serde(rename = "graph-laser")]
+    GraphLaser(Box<LaserGraphConfig>),
 }
 
 /// A configuration parsed from text, with the top-level keys the text set explicitly (a
@@ -251,8 +281,12 @@ impl ParsedConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor)
             }
-            FilterConfig::Graph(c) => noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor),
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => NoiseApplied::default(),
+            FilterConfig::GraphLandmark(c) => {
+                noise.apply_to(&mut c.motion, &mut c.sensor, motion, sensor)
+            }
+            FilterConfig::Scanmatch(_)
+            | FilterConfig::Gridfast(_)
+            | FilterConfig::GraphLaser(_) => NoiseApplied::default(),
         }
     }
 }
@@ -260,7 +294,15 @@ impl ParsedConfig {
 impl FilterConfig {
     /// The filter called `name` with its default configuration.
     pub fn default_for(name: &str) -> Result<Self, FactoryError> {
-        Ok(match find(name)?.name {
+        Self::default_for_kind(name, find(name)?.kind)
+    }
+
+    /// The filter called `name` for data of `kind` with its default configuration (a name
+    /// may serve both kinds: `graph`).
+    pub fn default_for_kind(name: &str, kind: DataKind) -> Result<Self, FactoryError> {
+        let info = find_for(name, kind).map_or_else(|| find(name), Ok)?;
+        let kind = info.kind;
+        Ok(match info.name {
             "ekf" => FilterConfig::Ekf(EkfConfig::default()),
             "fastslam1" => FilterConfig::Fastslam1(FastSlamConfig {
                 variant: Variant::FastSlam1,
@@ -270,9 +312,12 @@ impl FilterConfig {
                 variant: Variant::FastSlam2,
                 ..FastSlamConfig::default()
             }),
-            "graph" => FilterConfig::Graph(GraphLandmarkConfig::default()),
             "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
             "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
+            "graph" if kind == DataKind::Landmark => {
+                FilterConfig::GraphLandmark(GraphLandmarkConfig::default())
+            }
+            "graph" => FilterConfig::GraphLaser(Box::default()),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -283,6 +328,8 @@ impl FilterConfig {
     }
 
     /// Parses a tagged TOML configuration: `filter = "<name>"` and the filter's keys
+    /// (`graph`, which serves both kinds of data, is the landmark front end here; give the
+    /// kind with [`from_toml_for_kind`](Self::from_toml_for_kind) for the laser one)
     /// (any subset; the rest keep their defaults). An unknown tag, a missing tag, an unknown
     /// key or a wrong type is a [`FactoryError`] naming it.
     pub fn from_toml(text: &str) -> Result<ParsedConfig, FactoryError> {
@@ -312,7 +359,17 @@ impl FilterConfig {
     /// `--config` of `slam run`): the filter's keys over its defaults. A `filter` key, if
     /// present, must name the same filter.
     pub fn from_toml_for(name: &str, text: &str) -> Result<ParsedConfig, FactoryError> {
-        let info = find(name)?;
+        Self::from_toml_for_kind(name, find(name)?.kind, text)
+    }
+
+    /// [`from_toml_for`](Self::from_toml_for) for data of `kind` (a name may serve both
+    /// kinds: `graph`).
+    pub fn from_toml_for_kind(
+        name: &str,
+        kind: DataKind,
+        text: &str,
+    ) -> Result<ParsedConfig, FactoryError> {
+        let info = find_for(name, kind).map_or_else(|| find(name), Ok)?;
         let mut table = parse_table(text)?;
         if let Some(tag) = table.remove("filter") {
             if tag.as_str() != Some(info.name) {
@@ -348,9 +405,10 @@ impl FilterConfig {
                     FilterConfig::Fastslam2(c)
                 }
             }
-            "graph" => FilterConfig::Graph(de(&body)?),
             "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
             "gridfast" => FilterConfig::Gridfast(de(&body)?),
+            "graph" if info.kind == DataKind::Landmark => FilterConfig::GraphLandmark(de(&body)?),
+            "graph" => FilterConfig::GraphLaser(Box::new(de(&body)?)),
             other => {
                 return Err(FactoryError::UnknownFilter {
                     name: other.to_string(),
@@ -367,7 +425,7 @@ impl FilterConfig {
             FilterConfig::Ekf(_) => "ekf",
             FilterConfig::Fastslam1(_) => "fastslam1",
             FilterConfig::Fastslam2(_) => "fastslam2",
-            FilterConfig::Graph(_) => "graph",
+            FilterConfig::GraphLandmark(_) | FilterConfig::GraphLaser(_) => "graph",
             FilterConfig::Scanmatch(_) => "scanmatch",
             FilterConfig::Gridfast(_) => "gridfast",
         }
@@ -379,8 +437,10 @@ impl FilterConfig {
             FilterConfig::Ekf(_)
             | FilterConfig::Fastslam1(_)
             | FilterConfig::Fastslam2(_)
-            | FilterConfig::Graph(_) => DataKind::Landmark,
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => DataKind::Laser,
+            | FilterConfig::GraphLandmark(_) => DataKind::Landmark,
+            FilterConfig::Scanmatch(_)
+            | FilterConfig::Gridfast(_)
+            | FilterConfig::GraphLaser(_) => DataKind::Laser,
         }
     }
 
@@ -389,7 +449,10 @@ impl FilterConfig {
         match self {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => c.particles = n,
             FilterConfig::Gridfast(c) => c.particles = n,
-            FilterConfig::Ekf(_) | FilterConfig::Graph(_) | FilterConfig::Scanmatch(_) => {
+            FilterConfig::Ekf(_)
+            | FilterConfig::GraphLandmark(_)
+            | FilterConfig::GraphLaser(_)
+            | FilterConfig::Scanmatch(_) => {
                 return Err(FactoryError::NotAParticleFilter {
                     filter: self.name(),
                 })
@@ -404,7 +467,8 @@ impl FilterConfig {
         let text = match self {
             FilterConfig::Ekf(c) => toml::to_string_pretty(c),
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => toml::to_string_pretty(c),
-            FilterConfig::Graph(c) => toml::to_string_pretty(c),
+            FilterConfig::GraphLandmark(c) => toml::to_string_pretty(c),
+            FilterConfig::GraphLaser(c) => toml::to_string_pretty(c),
             FilterConfig::Scanmatch(c) => toml::to_string_pretty(c),
             FilterConfig::Gridfast(c) => toml::to_string_pretty(c),
         };
@@ -429,10 +493,12 @@ impl FilterConfig {
             FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
                 Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
             }
-            FilterConfig::Graph(c) => Box::new(
+            FilterConfig::GraphLandmark(c) => Box::new(
                 GraphLandmarkSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?,
             ),
-            FilterConfig::Scanmatch(_) | FilterConfig::Gridfast(_) => {
+            FilterConfig::Scanmatch(_)
+            | FilterConfig::Gridfast(_)
+            | FilterConfig::GraphLaser(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
                     kind: DataKind::Laser.as_str(),
@@ -457,10 +523,13 @@ impl FilterConfig {
             FilterConfig::Gridfast(c) => Box::new(
                 GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
             ),
+            FilterConfig::GraphLaser(c) => {
+                Box::new(LaserGraphSlam::new((**c).clone()).map_err(|e| invalid(&e))?)
+            }
             FilterConfig::Ekf(_)
             | FilterConfig::Fastslam1(_)
             | FilterConfig::Fastslam2(_)
-            | FilterConfig::Graph(_) => {
+            | FilterConfig::GraphLandmark(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
                     kind: DataKind::Landmark.as_str(),

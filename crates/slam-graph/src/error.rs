@@ -84,6 +84,24 @@ pub enum GraphError {
     /// non-finite prediction.
     #[error("invalid input: {0}")]
     InvalidInput(String),
+    /// A laser front-end configuration value ([`crate::laser::LaserGraphConfig`]) was
+    /// outside its documented range.
+    #[error("invalid laser front-end configuration: {field} = {value}, expected {expected}")]
+    FrontEndConfig {
+        /// The kebab-case key.
+        field: &'static str,
+        /// The value given.
+        value: f64,
+        /// What was expected, in words.
+        expected: &'static str,
+    },
+    /// A grid, scan-preparation or matcher check of the laser front end failed (bad scan
+    /// readings, a map beyond its maximum extent, ...).
+    #[error(transparent)]
+    Grid(#[from] slam_grid::GridError),
+    /// A model-layer check of the laser front end failed (an odometry jump beyond its limit).
+    #[error(transparent)]
+    Model(#[from] slam_models::ModelError),
     /// The sparse factorisation's symbolic analysis failed (out of memory or index overflow).
     #[error("sparse Cholesky analysis failed: {0}")]
     Sparse(String),

@@ -17,6 +17,9 @@
 //!
 //! * [`landmark`]: the landmark front end, [`landmark::GraphLandmarkSlam`], full SLAM with
 //!   range-bearing landmark edges and the EKF's data association behind `LandmarkSlam`.
+//! * [`laser`]: the laser front end ([`laser::LaserGraphSlam`], `ScanSlam` name `"graph"`):
+//!   keyframes, scan-to-submap odometry edges, branch-and-bound loop closures, a smoothed
+//!   trajectory with one node per record.
 //!
 //! The χ² reported everywhere is g2o's: Σ eᵀΩe over the edges (GTSAM reports half of it).
 //! File input and output (g2o format) live in `slam-io`.
@@ -28,6 +31,7 @@ pub mod factor;
 pub mod graph;
 pub mod kernel;
 pub mod landmark;
+pub mod laser;
 pub mod linear;
 pub mod optimizer;
 

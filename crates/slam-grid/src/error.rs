@@ -61,6 +61,13 @@ pub enum GridError {
         /// Its distance from the origin, cells (largest coordinate).
         cells: f64,
     },
+    /// A thresholded search (branch and bound) found no pose scoring at least its
+    /// threshold.
+    #[error("no pose in the search window scores at least min_score = {min_score} (mean field value per end point)")]
+    NoMatch {
+        /// The threshold, mean field value per end point in [0, 1].
+        min_score: f64,
+    },
     /// A model-layer check failed (invalid scan readings, pose).
     #[error(transparent)]
     Model(#[from] ModelError),

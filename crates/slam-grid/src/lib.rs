@@ -14,7 +14,8 @@
 //!   flipped, in copy-on-write tiles like the occupancy (grid FastSLAM's likelihood field).
 //! * [`matcher`]: scan matchers returning pose, score and covariance: GMapping-style hill
 //!   climbing, correlative multi-resolution search (Olson 2009) and Gauss-Newton on the
-//!   bilinearly interpolated field (Hector SLAM).
+//!   bilinearly interpolated field (Hector SLAM), and a branch-and-bound search over a
+//!   reusable max-pyramid (Cartographer's fast correlative matcher) for loop closures.
 //! * [`ScanMatchOdometry`]: each scan matched against the map built so far (`ScanSlam`,
 //!   name `"scanmatch"`).
 //!
@@ -44,8 +45,8 @@ pub mod matcher;
 pub(crate) mod testutil;
 
 pub use matcher::{
-    CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, MatchResult,
-    RefinedCorrelativeMatcher, ScanMatcher,
+    BranchBoundMatcher, CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, MatchResult,
+    MaxPyramid, RefinedCorrelativeMatcher, ScanMatcher,
 };
 pub mod scanmatch;
 pub use scanmatch::{ScanMatchConfig, ScanMatchOdometry};

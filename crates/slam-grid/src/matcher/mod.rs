@@ -8,16 +8,21 @@
 //!   search with branch and bound (Olson, ICRA 2009), for large initial errors;
 //! * [`GaussNewtonMatcher`]: Gauss-Newton on the bilinearly interpolated field (Hector SLAM,
 //!   Kohlbrecher et al. 2011), for sub-cell accuracy;
-//! * [`RefinedCorrelativeMatcher`]: correlative search, then Gauss-Newton refinement.
+//! * [`RefinedCorrelativeMatcher`]: correlative search, then Gauss-Newton refinement;
+//! * [`BranchBoundMatcher`]: depth-first branch and bound over a [`MaxPyramid`] of many
+//!   levels (Olson 2009, §IV-C; Cartographer's fast correlative matcher, Hess et al. 2016,
+//!   §V), with a reusable pyramid and a score threshold, for loop closures.
 //!
 //! Scores are the mean field value s̄ = (1/n)·Σ s(pᵢ) ∈ (0, 1] over the n end points
 //! (1: every end point on an obstacle).
 
+mod branch_bound;
 mod correlative;
 mod gauss_newton;
 mod hill_climb;
 mod refined;
 
+pub use branch_bound::{BranchBoundMatcher, MaxPyramid, MAX_PYRAMID_CELLS, MAX_PYRAMID_DEPTH};
 pub use correlative::CorrelativeMatcher;
 pub use gauss_newton::{GaussNewtonMatcher, Interpolation};
 pub use hill_climb::HillClimbMatcher;
@@ -157,6 +162,16 @@ pub(crate) fn covariance_by_sampling(
     mode: &Pose2,
     steps: [f64; 3],
 ) -> Matrix3 {
+    covariance_from_log_likelihood(mode, steps, |p| scan_log_likelihood(grid, scan, p))
+}
+
+/// [`covariance_by_sampling`] with the scan log-likelihood given as a function of the pose
+/// (for matchers that score on their own copy of the field).
+pub(crate) fn covariance_from_log_likelihood(
+    mode: &Pose2,
+    steps: [f64; 3],
+    log_likelihood: impl Fn(&Pose2) -> f64,
+) -> Matrix3 {
     let mut samples = Vec::with_capacity(27);
     for i in -1..=1 {
         for j in -1..=1 {
@@ -167,7 +182,7 @@ pub(crate) fn covariance_by_sampling(
                     k as f64 * steps[2],
                 ];
                 let pose = Pose2::new(mode.x + d[0], mode.y + d[1], mode.theta + d[2]);
-                samples.push((d, scan_log_likelihood(grid, scan, &pose)));
+                samples.push((d, log_likelihood(&pose)));
             }
         }
     }

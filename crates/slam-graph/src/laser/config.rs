@@ -1,0 +1,412 @@
+//! The configuration of [`super::LaserGraphSlam`].
+
+use crate::error::GraphError;
+use crate::kernel::RobustKernel;
+use crate::optimizer::OptimizerConfig;
+use serde::{Deserialize, Serialize};
+use slam_grid::{InverseSensorModel, LikelihoodParams, RefinedCorrelativeMatcher};
+use slam_models::OdometryJumpLimit;
+
+/// Most scans per submap: a submap's grid and its loop-closure pyramid grow with it.
+pub const MAX_SUBMAP_SCANS: usize = 10_000;
+
+/// Standard deviations of one odometry increment Δ = o_{i−1}⁻¹ ⊕ o_i between consecutive
+/// records, by the usual linear growth with the motion (Probabilistic Robotics §5.4's
+/// α-model reduced to one translation and one rotation term each):
+///
+/// σ_xy = `translation_per_metre`·|Δt| + `translation_per_radian`·|Δθ| + `min_translation`,
+/// σ_θ = `rotation_per_radian`·|Δθ| + `rotation_per_metre`·|Δt| + `min_rotation`,
+///
+/// with |Δt| the distance and |Δθ| the absolute heading change of the increment; the
+/// covariance is diag(σ_xy², σ_xy², σ_θ²) in the frame of the earlier record.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default, rename_all = "kebab-case")]
+pub struct OdometryNoise {
+    /// Metres of position noise per metre travelled. Default 0.1.
+    pub translation_per_metre: f64,
+    /// Metres of position noise per radian turned. Default 0.01.
+    pub translation_per_radian: f64,
+    /// Radians of heading noise per radian turned. Default 0.1.
+    pub rotation_per_radian: f64,
+    /// Radians of heading noise per metre travelled. Default 0.05.
+    pub rotation_per_metre: f64,
+    /// Position noise floor per increment, metres (> 0, so that a record without motion
+    /// is held to its neighbour, not left free). Default 0.002.
+    pub min_translation: f64,
+    /// Heading noise floor per increment, radians (> 0). Default 0.001.
+    pub min_rotation: f64,
+}
+
+impl Default for OdometryNoise {
+    fn default() -> Self {
+        Self {
+            translation_per_metre: 0.1,
+            translation_per_radian: 0.01,
+            rotation_per_radian: 0.1,
+            rotation_per_metre: 0.05,
+            min_translation: 0.002,
+            min_rotation: 0.001,
+        }
+    }
+}
+
+/// Configuration of [`super::LaserGraphSlam`]. Lengths in metres, angles in radians; the
+/// keys are kebab-case in TOML (`submap-scans = 20`), the nested slam-grid structs keep
+/// their own names.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default, rename_all = "kebab-case")]
+pub struct LaserGraphConfig {
+    /// Cell edge of the submaps and of the rendered map, metres. Default 0.05.
+    pub resolution: f64,
+    /// Inverse sensor model of the submaps (slam-grid's defaults).
+    pub sensor_model: InverseSensorModel,
+    /// Likelihood field the matchers score against (slam-grid's defaults: σ = 5 cm,
+    /// truncated at 0.3 m).
+    pub likelihood: LikelihoodParams,
+    /// End points farther than this from the sensor are not matched, metres. Default 20.
+    pub match_max_range: f64,
+    /// A scan becomes a keyframe (matched, inserted, a node of the online graph) once the
+    /// odometry moved this far since the last keyframe, metres. Default 0.2. The first
+    /// scan is always one.
+    pub keyframe_distance: f64,
+    /// … or turned this much, radians. Default 0.15.
+    pub keyframe_angle: f64,
+    /// Scan-to-submap matcher for the odometry edges: correlative search around the
+    /// odometry prediction, then Gauss-Newton (slam-grid). Default: ±0.3 m, ±0.3 rad.
+    pub local_matcher: RefinedCorrelativeMatcher,
+    /// A local match scoring below this mean field value per end point is rejected and the
+    /// odometry increment used instead. Default 0.25.
+    pub local_min_score: f64,
+    /// Factor on the matchers' covariances before they become information: the
+    /// independent-beam model makes them overconfident by about this much (Gauss-Newton's
+    /// σ̂²H⁻¹ keeps its shape, so a corridor stays weak along its axis). Default 1.
+    pub match_covariance_scale: f64,
+    /// Standard deviations (m, rad) added in quadrature to the matcher's covariance before
+    /// it becomes an edge's information: the matcher's lattice fit is a lower bound on the
+    /// error (it knows nothing of map errors). Default (0.02, 0.01).
+    pub match_min_std: [f64; 2],
+    /// Scans per submap (≥ 2, ≤ [`MAX_SUBMAP_SCANS`]); a new submap starts every half of
+    /// this, so two overlap and the older (fuller) one is matched against (Hess et al.
+    /// 2016 §IV). Default 20.
+    pub submap_scans: usize,
+    /// The odometry edges' noise (every record is a node of the smoothed trajectory).
+    pub odometry_noise: OdometryNoise,
+    /// Loop closure: a branch-and-bound match is accepted at this mean field value per end
+    /// point or above, in [0, 1]. Default 0.55.
+    pub loop_min_score: f64,
+    /// Loop closure: the search radius (the branch-and-bound translation window) around the
+    /// predicted pose before any uncertainty, metres. Default 0.5.
+    pub loop_radius: f64,
+    /// Loop closure: metres added to the radius per metre of path between the submap's last
+    /// keyframe and the searching one (their relative uncertainty grows with it). Default 0.05.
+    pub loop_radius_growth: f64,
+    /// Loop closure: the largest radius, metres. Default 3.
+    pub loop_max_radius: f64,
+    /// Loop closure: the rotation window before any uncertainty, radians. Default 0.2.
+    pub loop_angle: f64,
+    /// Loop closure: radians added to the rotation window per metre of path between the
+    /// submap and the searching keyframe. Default 0.02.
+    pub loop_angle_growth: f64,
+    /// Loop closure: the largest rotation window, radians (≤ π). Default 0.6.
+    pub loop_max_angle: f64,
+    /// Loop closure: a match is rejected as ambiguous (a corridor, a repeated room) when
+    /// the best score found near any of 24 poses shifted from it by 0.25, 0.5 or 1 m in 8
+    /// directions (a small search around each) reaches this fraction of its own score
+    /// (Olson 2009 §V's uniqueness test, in a cheap form), in (0, 1]; 1 switches the test
+    /// off. Default 0.9.
+    pub loop_ambiguity_ratio: f64,
+    /// Loop closure: levels of the max-pyramid (slam-grid's `MaxPyramid`). Default 6.
+    pub loop_depth: u32,
+    /// Loop closure: a submap is searched only once its last scan is this many keyframes
+    /// old (the overlapping local submaps are not loops). Default 30.
+    pub loop_min_scan_gap: usize,
+    /// Loop closure: at most this many submaps (the nearest) are searched per keyframe.
+    /// Default 3.
+    pub loop_max_candidates: usize,
+    /// Loop closure: pyramids kept for reuse (least recently used dropped). Default 6.
+    pub loop_pyramid_cache: usize,
+    /// The optimiser (slam-graph's Levenberg-Marquardt), run after every keyframe that
+    /// added a loop closure and once more over every record for the trajectory. Default:
+    /// LM with Dynamic Covariance Scaling Φ = 5 against false closures, at most 20
+    /// iterations.
+    pub optimizer: OptimizerConfig,
+    /// The optimiser of the trajectory graph (one node per record). Default: LM without a
+    /// robust kernel, at most 20 iterations: a kernel on every edge would down-weight the
+    /// odometry edges that disagree most with the scan matches, which are exactly the
+    /// ones the smoother must correct (on Intel, DCS there costs 0.9° of relations error);
+    /// false closures are kept out by `smoother-max-closure-chi2` instead.
+    pub smoother: OptimizerConfig,
+    /// A loop closure whose squared error eᵀΩe in the optimised keyframe graph exceeds
+    /// this is treated as false (the robust kernel rejected it) and left out of the
+    /// trajectory graph. Default 16.27, the χ²(3) 99.9 % quantile.
+    pub smoother_max_closure_chi2: f64,
+    /// The largest odometry jump between two consecutive records, and whether a larger
+    /// one is an error (default: beyond 5 m) or skipped.
+    pub odometry_jump: OdometryJumpLimit,
+}
+
+impl Default for LaserGraphConfig {
+    fn default() -> Self {
+        let mut local_matcher = RefinedCorrelativeMatcher::default();
+        local_matcher.correlative.linear_window = 0.3;
+        local_matcher.correlative.angular_window = 0.3;
+        Self {
+            resolution: 0.05,
+            sensor_model: InverseSensorModel::default(),
+            likelihood: LikelihoodParams::default(),
+            match_max_range: 20.0,
+            keyframe_distance: 0.2,
+            keyframe_angle: 0.15,
+            local_matcher,
+            local_min_score: 0.25,
+            match_covariance_scale: 1.0,
+            match_min_std: [0.02, 0.01],
+            submap_scans: 20,
+            odometry_noise: OdometryNoise::default(),
+            loop_min_score: 0.55,
+            loop_radius: 0.5,
+            loop_radius_growth: 0.05,
+            loop_max_radius: 3.0,
+            loop_angle: 0.2,
+            loop_angle_growth: 0.02,
+            loop_max_angle: 0.6,
+            loop_ambiguity_ratio: 0.9,
+            loop_depth: 6,
+            loop_min_scan_gap: 30,
+            loop_max_candidates: 3,
+            loop_pyramid_cache: 6,
+            optimizer: OptimizerConfig {
+                kernel: RobustKernel::Dcs { phi: 5.0 },
+                max_iterations: 20,
+                ..OptimizerConfig::default()
+            },
+            smoother: OptimizerConfig {
+                max_iterations: 20,
+                ..OptimizerConfig::default()
+            },
+            smoother_max_closure_chi2: 16.27,
+            odometry_jump: OdometryJumpLimit::default(),
+        }
+    }
+}
+
+/// `Err(GraphError::FrontEndConfig)` unless `ok` (and `value` finite).
+fn ensure(
+    ok: bool,
+    field: &'static str,
+    value: f64,
+    expected: &'static str,
+) -> Result<(), GraphError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(GraphError::FrontEndConfig {
+            field,
+            value,
+            expected,
+        })
+    }
+}
+
+impl LaserGraphConfig {
+    /// Checks every field against its documented range; the error names the field, the
+    /// value and the bound.
+    pub fn validate(&self) -> Result<(), GraphError> {
+        let r = self.resolution;
+        ensure(r > 0.0 && r <= 10.0, "resolution", r, "in (0, 10] m")?;
+        self.sensor_model.validate()?;
+        self.likelihood.validate()?;
+        let m = self.match_max_range;
+        ensure(m > 0.0, "match-max-range", m, "> 0 m")?;
+        let d = self.keyframe_distance;
+        ensure(d >= 0.0, "keyframe-distance", d, ">= 0 m")?;
+        let a = self.keyframe_angle;
+        ensure(a >= 0.0, "keyframe-angle", a, ">= 0 rad")?;
+        self.local_matcher.correlative.validate()?;
+        self.local_matcher.refine.validate()?;
+        let s = self.local_min_score;
+        ensure((0.0..=1.0).contains(&s), "local-min-score", s, "in [0, 1]")?;
+        let k = self.match_covariance_scale;
+        ensure(k > 0.0, "match-covariance-scale", k, "> 0")?;
+        for (i, &v) in self.match_min_std.iter().enumerate() {
+            let f = ["match-min-std[0]", "match-min-std[1]"][i];
+            ensure(v > 0.0, f, v, "> 0 (m, rad)")?;
+        }
+        let n = self.submap_scans;
+        ensure(
+            (2..=MAX_SUBMAP_SCANS).contains(&n),
+            "submap-scans",
+            n as f64,
+            "in 2..=10000",
+        )?;
+        let o = &self.odometry_noise;
+        for (f, v) in [
+            (
+                "odometry-noise.translation-per-metre",
+                o.translation_per_metre,
+            ),
+            (
+                "odometry-noise.translation-per-radian",
+                o.translation_per_radian,
+            ),
+            ("odometry-noise.rotation-per-radian", o.rotation_per_radian),
+            ("odometry-noise.rotation-per-metre", o.rotation_per_metre),
+        ] {
+            ensure(v >= 0.0, f, v, ">= 0")?;
+        }
+        ensure(
+            o.min_translation > 0.0,
+            "odometry-noise.min-translation",
+            o.min_translation,
+            "> 0 m",
+        )?;
+        ensure(
+            o.min_rotation > 0.0,
+            "odometry-noise.min-rotation",
+            o.min_rotation,
+            "> 0 rad",
+        )?;
+        let s = self.loop_min_score;
+        ensure((0.0..=1.0).contains(&s), "loop-min-score", s, "in [0, 1]")?;
+        ensure(
+            self.loop_radius >= 0.0,
+            "loop-radius",
+            self.loop_radius,
+            ">= 0 m",
+        )?;
+        let g = self.loop_radius_growth;
+        ensure(g >= 0.0, "loop-radius-growth", g, ">= 0 m per m")?;
+        ensure(
+            self.loop_max_radius >= self.loop_radius && self.loop_max_radius <= 50.0,
+            "loop-max-radius",
+            self.loop_max_radius,
+            "in [loop-radius, 50] m",
+        )?;
+        ensure(
+            self.loop_angle >= 0.0,
+            "loop-angle",
+            self.loop_angle,
+            ">= 0 rad",
+        )?;
+        let g = self.loop_angle_growth;
+        ensure(g >= 0.0, "loop-angle-growth", g, ">= 0 rad per m")?;
+        ensure(
+            self.loop_max_angle >= self.loop_angle && self.loop_max_angle <= std::f64::consts::PI,
+            "loop-max-angle",
+            self.loop_max_angle,
+            "in [loop-angle, π] rad",
+        )?;
+        let r = self.loop_ambiguity_ratio;
+        ensure(r > 0.0 && r <= 1.0, "loop-ambiguity-ratio", r, "in (0, 1]")?;
+        ensure(
+            (1..=slam_grid::matcher::MAX_PYRAMID_DEPTH).contains(&self.loop_depth),
+            "loop-depth",
+            self.loop_depth as f64,
+            "in 1..=12",
+        )?;
+        ensure(
+            self.loop_min_scan_gap >= self.submap_scans,
+            "loop-min-scan-gap",
+            self.loop_min_scan_gap as f64,
+            ">= submap-scans (a submap still being built is no loop)",
+        )?;
+        ensure(
+            self.loop_max_candidates <= 100,
+            "loop-max-candidates",
+            self.loop_max_candidates as f64,
+            "in 0..=100 (0 switches loop closure off)",
+        )?;
+        ensure(
+            (1..=1000).contains(&self.loop_pyramid_cache),
+            "loop-pyramid-cache",
+            self.loop_pyramid_cache as f64,
+            "in 1..=1000",
+        )?;
+        self.optimizer.validate()?;
+        self.smoother.validate()?;
+        let c = self.smoother_max_closure_chi2;
+        ensure(c > 0.0, "smoother-max-closure-chi2", c, "> 0")?;
+        self.odometry_jump.validate()?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Defaults validate; each documented bound is enforced with the field's name.
+    #[test]
+    fn validation_names_the_field() {
+        LaserGraphConfig::default().validate().unwrap();
+        let cases: Vec<(LaserGraphConfig, &str)> = vec![
+            (
+                LaserGraphConfig {
+                    resolution: 0.0,
+                    ..Default::default()
+                },
+                "resolution",
+            ),
+            (
+                LaserGraphConfig {
+                    submap_scans: 1,
+                    ..Default::default()
+                },
+                "submap-scans",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_min_score: 1.5,
+                    ..Default::default()
+                },
+                "loop-min-score",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_max_radius: 0.1,
+                    ..Default::default()
+                },
+                "loop-max-radius",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_min_scan_gap: 3,
+                    ..Default::default()
+                },
+                "loop-min-scan-gap",
+            ),
+            (
+                LaserGraphConfig {
+                    match_min_std: [0.0, 0.01],
+                    ..Default::default()
+                },
+                "match-min-std[0]",
+            ),
+            (
+                LaserGraphConfig {
+                    odometry_noise: OdometryNoise {
+                        min_rotation: 0.0,
+                        ..Default::default()
+                    },
+                    ..Default::default()
+                },
+                "odometry-noise.min-rotation",
+            ),
+        ];
+        for (c, field) in cases {
+            let e = c.validate().unwrap_err();
+            assert!(e.to_string().contains(field), "{e} should name {field}");
+        }
+    }
+
+    /// Kebab-case keys in TOML-like JSON round trip; unknown keys are refused.
+    #[test]
+    fn serde_uses_kebab_case_and_refuses_unknown_keys() {
+        let c: LaserGraphConfig =
+            serde_json::from_str(r#"{"submap-scans": 10, "loop-min-score": 0.7}"#).unwrap();
+        assert_eq!(c.submap_scans, 10);
+        assert_eq!(c.loop_min_score, 0.7);
+        assert_eq!(c.resolution, 0.05);
+        assert!(serde_json::from_str::<LaserGraphConfig>(r#"{"submap_scans": 10}"#).is_err());
+    }
+}
