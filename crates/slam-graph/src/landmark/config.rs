@@ -17,7 +17,7 @@ pub const MAX_LANDMARKS: usize = 10_000;
 /// set's settings carry over between the two.
 ///
 /// ```
-/// let c: slam_graph::landmark::GraphLandmarkConfig = toml::from_str("optimize_every = 5").unwrap();
+/// let c: slam_graph::landmark::GraphLandmarkConfig = toml::from_str("optimize-every = 5").unwrap();
 /// assert_eq!(c.optimize_every, 5);
 /// c.validate().unwrap();
 /// ```
