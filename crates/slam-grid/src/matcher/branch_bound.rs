@@ -7,7 +7,9 @@
 //! initial guess can be metres and tens of degrees off: a [`MaxPyramid`] of a map region is
 //! built once and reused for every scan searched against that region.
 
-use super::{check_input, covariance_from_log_likelihood, transform_points, MatchResult};
+use super::{
+    check_input, covariance_from_log_likelihood, transform_points, validate_window, MatchResult,
+};
 use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
@@ -255,24 +257,7 @@ struct Lattice {
 impl BranchBoundMatcher {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), GridError> {
-        ensure_config(
-            self.linear_window >= 0.0,
-            "linear_window",
-            self.linear_window,
-            ">= 0 m",
-        )?;
-        ensure_config(
-            (0.0..=std::f64::consts::PI).contains(&self.angular_window),
-            "angular_window",
-            self.angular_window,
-            "in [0, π] rad",
-        )?;
-        ensure_config(
-            self.angular_step >= 0.0,
-            "angular_step",
-            self.angular_step,
-            ">= 0 rad (0: automatic)",
-        )?;
+        validate_window(self.linear_window, self.angular_window, self.angular_step)?;
         ensure_config(
             (1..=MAX_PYRAMID_DEPTH).contains(&self.depth),
             "depth",

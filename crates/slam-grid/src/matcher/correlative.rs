@@ -1,7 +1,7 @@
 //! Correlative multi-resolution scan matching (Olson, "Real-time correlative scan
 //! matching", ICRA 2009).
 
-use super::{check_input, covariance_by_sampling, MatchResult, ScanMatcher};
+use super::{check_input, covariance_by_sampling, validate_window, MatchResult, ScanMatcher};
 use crate::cell::CellIndex;
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
@@ -58,24 +58,7 @@ impl Default for CorrelativeMatcher {
 impl CorrelativeMatcher {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), GridError> {
-        ensure_config(
-            self.linear_window >= 0.0,
-            "linear_window",
-            self.linear_window,
-            ">= 0 m",
-        )?;
-        ensure_config(
-            (0.0..=std::f64::consts::PI).contains(&self.angular_window),
-            "angular_window",
-            self.angular_window,
-            "in [0, π] rad",
-        )?;
-        ensure_config(
-            self.angular_step >= 0.0,
-            "angular_step",
-            self.angular_step,
-            ">= 0 rad (0: automatic)",
-        )?;
+        validate_window(self.linear_window, self.angular_window, self.angular_step)?;
         ensure_config(
             self.coarse_factor >= 1 && self.coarse_factor <= 64,
             "coarse_factor",

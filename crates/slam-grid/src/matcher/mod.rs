@@ -228,3 +228,32 @@ pub(crate) fn default_steps(grid: &OccupancyGrid, scan: &PreparedScan) -> [f64; 
 
 #[cfg(test)]
 mod tests;
+
+/// The search-window checks shared by the correlative and branch-and-bound matchers: a
+/// linear window ≥ 0 m, an angular window in [0, π] rad, an angular step ≥ 0 rad (0:
+/// automatic).
+pub(crate) fn validate_window(
+    linear_window: f64,
+    angular_window: f64,
+    angular_step: f64,
+) -> Result<(), crate::error::GridError> {
+    use crate::error::ensure_config;
+    ensure_config(
+        linear_window >= 0.0,
+        "linear_window",
+        linear_window,
+        ">= 0 m",
+    )?;
+    ensure_config(
+        (0.0..=std::f64::consts::PI).contains(&angular_window),
+        "angular_window",
+        angular_window,
+        "in [0, π] rad",
+    )?;
+    ensure_config(
+        angular_step >= 0.0,
+        "angular_step",
+        angular_step,
+        ">= 0 rad (0: automatic)",
+    )
+}
