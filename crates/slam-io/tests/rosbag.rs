@@ -11,8 +11,9 @@ use slam_io::{IoError, Pose2, ScanRecord};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Lines of intel.log the fixtures were made from (up to its 40th FLASER line).
-const SOURCE_LINES: usize = 875;
+/// The FLASER lines of intel.log the fixtures were made from (make_fixtures.py's `SCANS`):
+/// the log's lines up to its 200th FLASER line.
+const SCANS: usize = 200;
 /// The laser mounting written to `/tf_static` by make_fixtures.py (`MOUNT`).
 const MOUNT: (f64, f64, f64) = (0.12, -0.03, 0.05);
 
@@ -45,15 +46,22 @@ fn temp(name: &str) -> PathBuf {
     d.join(name)
 }
 
-/// The CARMEN records of the lines the fixtures were made from.
+/// The CARMEN records of the lines the fixtures were made from: the log up to and with its
+/// `SCANS`-th FLASER line.
 fn source() -> Option<Vec<ScanRecord>> {
     let log = dataset("bench/intel.log")?;
     let text = std::fs::read_to_string(log).unwrap();
-    let head: String = text
-        .lines()
-        .take(SOURCE_LINES)
-        .map(|l| format!("{l}\n"))
-        .collect();
+    let mut head = String::new();
+    let mut flasers = 0;
+    for l in text.lines() {
+        head.push_str(l);
+        head.push('\n');
+        flasers += usize::from(l.starts_with("FLASER "));
+        if flasers == SCANS {
+            break;
+        }
+    }
+    assert_eq!(flasers, SCANS, "intel.log has fewer FLASER lines");
     let p = temp("intel-head.log");
     std::fs::write(&p, head).unwrap();
     Some(read_carmen(&p).unwrap().dataset.records)
@@ -81,8 +89,8 @@ fn check_against_carmen(bag: &[ScanRecord], carmen: &[ScanRecord]) {
         by_stamp.entry(ns(r.t)).or_default().push(r);
     }
     let flasers: Vec<&ScanRecord> = carmen.iter().filter(|r| r.scan.is_some()).collect();
-    assert_eq!(flasers.len(), 40);
-    assert_eq!(bag.iter().filter(|r| r.scan.is_some()).count(), 40);
+    assert_eq!(flasers.len(), SCANS);
+    assert_eq!(bag.iter().filter(|r| r.scan.is_some()).count(), SCANS);
     for c in &flasers {
         let recs = &by_stamp[&ns(c.t)];
         assert_eq!(recs.len(), 1, "one record at {}", c.t);
@@ -152,7 +160,7 @@ fn odometry_bag_gives_the_carmen_scans_and_poses() {
     assert_eq!(r.no_return_readings, no_return);
     let line = r.summary(&fixture("intel-odom.mcap"));
     assert!(
-        line.contains("40 scans") && line.contains("/odom"),
+        line.contains(&format!("{SCANS} scans")) && line.contains("/odom"),
         "{line}"
     );
 }
@@ -409,7 +417,7 @@ fn sqlite_and_ros1_odometry_bags_give_the_carmen_records() {
         assert_eq!(r.dataset.records, mcap.dataset.records, "{name}");
         let line = r.summary(&fixture(name));
         assert!(
-            line.starts_with(format.ros()) && line.contains("40 scans"),
+            line.starts_with(format.ros()) && line.contains(&format!("{SCANS} scans")),
             "{line}"
         );
         if let Some(c) = &carmen {
