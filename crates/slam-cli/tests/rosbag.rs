@@ -293,6 +293,26 @@ fn info_describes_the_other_formats() {
     let (r, text) = slam(&["info", dir.to_str().unwrap()]);
     r.unwrap();
     assert!(text.starts_with("Freiburg course data"), "{text}");
+    // MRCLAM: every robot, each with as many velocity steps as its odometry file has
+    // data lines.
+    let Some(dir) = dataset("utias-mrclam/MRCLAM_Dataset1") else {
+        return;
+    };
+    let (r, text) = slam(&["info", dir.to_str().unwrap()]);
+    r.unwrap();
+    assert!(
+        text.starts_with("MRCLAM folder") && text.contains("5 robots"),
+        "{text}"
+    );
+    for n in 1..=5 {
+        let odometry = std::fs::read_to_string(dir.join(format!("Robot{n}_Odometry.dat"))).unwrap();
+        let lines = odometry
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .count();
+        let want = format!("robot {n}: {lines} velocity steps");
+        assert!(text.contains(&want), "{want:?} missing from\n{text}");
+    }
 }
 
 #[test]

@@ -644,3 +644,94 @@ fn damaged_sqlite_and_ros1_bags_never_panic() {
     assert!(damaged("bad-two-scans.bag", 300, 0x9e37_79b9_7f4a_7c15) > 0);
     assert!(damaged("bad-two-scans.db3", 100, 0x6a09_e667_f3bc_c908) > 0);
 }
+
+/// Values out of bounds, in every container: each broken topic of the bad-bounds bags
+/// (make_fixtures.py's `bounds_bag`, written by rosbags) is an error naming the file, the
+/// topic, the message and the bound, the bounds of every other reader (coordinates within
+/// ±10⁶ m, 0 ≤ range_min < range_max ≤ 1000 m, angles within one turn, a non-zero angle
+/// increment, odometry stamps within 10⁷ s of each other); the valid topics beside them read.
+#[test]
+fn values_out_of_bounds_are_errors_in_every_container() {
+    let o = |scan: &str, odom: &str| BagOptions {
+        scan_topic: Some(scan.into()),
+        odom_topic: Some(odom.into()),
+        laser_pose: Some(Pose2::IDENTITY),
+    };
+    for (name, format) in [
+        ("bad-bounds.mcap", BagFormat::Mcap),
+        ("bad-bounds.db3", BagFormat::Sqlite3),
+        ("bad-bounds.bag", BagFormat::Ros1),
+    ] {
+        let r = read(name, &o("/scan", "/odom"));
+        assert_eq!(r.format, format);
+        let scans = r.dataset.records.iter().filter(|r| r.scan.is_some());
+        assert_eq!(scans.count(), 3, "{name}");
+        for (scan, odom, wants) in [
+            (
+                "/scan_far",
+                "/odom",
+                &[
+                    "topic /scan_far: message 1",
+                    "range_max = 2000 m, expected 0 < range_max ≤ 1000 m",
+                ][..],
+            ),
+            (
+                "/scan_flat",
+                "/odom",
+                &[
+                    "topic /scan_flat: message 1",
+                    "angle_increment = 0 rad",
+                    "expected a non-zero increment",
+                ],
+            ),
+            (
+                "/scan_wide",
+                "/odom",
+                &[
+                    "topic /scan_wide: message 1",
+                    "angle_min = -10 rad is outside ±2π",
+                ],
+            ),
+            (
+                "/scan_short",
+                "/odom",
+                &[
+                    "topic /scan_short: message 1",
+                    "range_min = 81.83",
+                    "expected 0 ≤ range_min < range_max",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_far",
+                &[
+                    "topic /odom_far: message 1",
+                    "odom → base_link x = 2000000 m is outside ±1000000 m",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_nan",
+                &[
+                    "topic /odom_nan: message 1",
+                    "a rotation quaternion of non-zero length, found (0, 0, NaN, NaN)",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_unset",
+                &[
+                    "topic /odom_unset",
+                    "odometry stamps from 0 s",
+                    "expected a span within 10000000 s",
+                ],
+            ),
+        ] {
+            let m = err(name, &o(scan, odom));
+            assert!(
+                m.contains(name) && wants.iter().all(|w| m.contains(w)),
+                "{name} {scan} {odom}: {m}"
+            );
+        }
+    }
+}
