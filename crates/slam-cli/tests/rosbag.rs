@@ -23,8 +23,11 @@ fn fixture(name: &str) -> String {
         .to_string()
 }
 
+/// A trajectory: time in µs → (x, y, yaw).
+type Trajectory = BTreeMap<i64, (f64, f64, f64)>;
+
 /// TUM lines → time in µs → (x, y, yaw), the last line of each time.
-fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
+fn tum(path: &Path) -> Trajectory {
     let text = std::fs::read_to_string(path).unwrap();
     let mut m = BTreeMap::new();
     for l in text
@@ -41,7 +44,7 @@ fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
 /// `slam run --filter gridfast --particles 10` on `dataset` (with `extra` options) into a
 /// new scratch folder; the trajectory and what the run printed. Ten particles keep the
 /// test at a few seconds a run; every input gets the same filter and seed.
-fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (BTreeMap<i64, (f64, f64, f64)>, String) {
+fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (Trajectory, String) {
     let out = scratch(name);
     let o = out.join("out");
     let args = [
@@ -108,11 +111,7 @@ fn carmen_head(name: &str, mount: Option<(f64, f64, f64)>) -> Option<(String, Ve
 }
 
 /// Same seed, same scans (to float32), same odometry: the same estimate at every scan.
-fn assert_same_at_scans(
-    runs: &[(&str, BTreeMap<i64, (f64, f64, f64)>)],
-    carmen: &BTreeMap<i64, (f64, f64, f64)>,
-    scan_times: &[i64],
-) {
+fn assert_same_at_scans(runs: &[(&str, Trajectory)], carmen: &Trajectory, scan_times: &[i64]) {
     for (name, traj) in runs {
         for &t in scan_times {
             let (p, q) = (traj[&t], carmen[&t]);

@@ -645,13 +645,14 @@ fn damaged_sqlite_and_ros1_bags_never_panic() {
     assert!(damaged("bad-two-scans.db3", 100, 0x6a09_e667_f3bc_c908) > 0);
 }
 
-/// Values out of bounds, in every container: each broken topic of the bad-bounds bags
-/// (make_fixtures.py's `bounds_bag`, written by rosbags) is an error naming the file, the
+/// Special readings and values out of bounds, in every container (the bad-bounds bags,
+/// make_fixtures.py's `bounds_bag`, written by rosbags): NaN, ±∞ and out-of-range readings
+/// are read as LaserScan defines them; each broken topic is an error naming the file, the
 /// topic, the message and the bound, the bounds of every other reader (coordinates within
 /// ±10⁶ m, 0 ≤ range_min < range_max ≤ 1000 m, angles within one turn, a non-zero angle
 /// increment, odometry stamps within 10⁷ s of each other); the valid topics beside them read.
 #[test]
-fn values_out_of_bounds_are_errors_in_every_container() {
+fn special_readings_and_values_out_of_bounds_in_every_container() {
     let o = |scan: &str, odom: &str| BagOptions {
         scan_topic: Some(scan.into()),
         odom_topic: Some(odom.into()),
@@ -666,6 +667,27 @@ fn values_out_of_bounds_are_errors_in_every_container() {
         assert_eq!(r.format, format);
         let scans = r.dataset.records.iter().filter(|r| r.scan.is_some());
         assert_eq!(scans.count(), 3, "{name}");
+        // The readings LaserScan defines as special (beams 0–4 of /scan_odd: NaN, −∞, +∞,
+        // range_max + 1, −1): invalid, invalid, no return, no return, invalid; all kept as
+        // no-return beams (range_max), counted apart; every other beam as on /scan.
+        let odd = read(name, &o("/scan_odd", "/odom"));
+        assert_eq!(odd.invalid_readings, 3 * 3, "{name}");
+        let mut no_return = r.no_return_readings;
+        for (a, b) in r.dataset.records.iter().zip(&odd.dataset.records) {
+            assert_eq!(a.t, b.t);
+            let (Some(sa), Some(sb)) = (&a.scan, &b.scan) else {
+                assert_eq!(a, b);
+                continue;
+            };
+            for k in 0..5 {
+                assert!(!sb.is_hit(k), "{name} beam {k}");
+                assert_eq!(sb.ranges[k], sb.max_range);
+                no_return -= usize::from(!sa.is_hit(k));
+            }
+            no_return += 2;
+            assert_eq!(sa.ranges[5..], sb.ranges[5..]);
+        }
+        assert_eq!(odd.no_return_readings, no_return, "{name}");
         for (scan, odom, wants) in [
             (
                 "/scan_far",
