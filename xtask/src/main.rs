@@ -500,7 +500,8 @@ fn eval(extra: &[String]) -> Result<(), String> {
 /// needs (profile `ros2`, a Statistics record matching the messages, `cdr` channels, the
 /// QoS metadata, `/map` and `/tf_static` transient local). Its npm packages, pinned, are
 /// installed on first use into `$CARGO_TARGET_DIR/mcap-check-node` (default
-/// `target/mcap-check-node`).
+/// `target/mcap-check-node`). With `$MCAP_CLI` naming an `mcap` executable (the official
+/// CLI, built by hand: no registry has it), also `mcap doctor --strict-message-order`.
 fn mcap_check() -> Result<(), String> {
     let venv = std::env::var_os("MCAP_VENV")
         .map(std::path::PathBuf::from)
@@ -561,6 +562,9 @@ fn mcap_check() -> Result<(), String> {
     let node_script = node_dir.join("check_mcap_foxglove.mjs");
     std::fs::copy("scripts/check_mcap_foxglove.mjs", &node_script)
         .map_err(|e| format!("scripts/check_mcap_foxglove.mjs: {e}"))?;
+    // The official `mcap` CLI is in no package registry (docs/rosbag.md): run its doctor
+    // when `$MCAP_CLI` names one built by hand.
+    let mcap_cli = std::env::var_os("MCAP_CLI");
     let out = std::path::Path::new("slam-out/mcap");
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let bag = "crates/slam-io/tests/fixtures/rosbag/intel-tf";
@@ -612,6 +616,14 @@ fn mcap_check() -> Result<(), String> {
                 .arg(&dir)
                 .args(["--topics", topics]),
         )?;
+        if let Some(cli) = &mcap_cli {
+            run(
+                &format!("mcap doctor {name}"),
+                Command::new(cli)
+                    .args(["doctor", "--strict-message-order"])
+                    .arg(&file),
+            )?;
+        }
     }
     Ok(())
 }
