@@ -11,8 +11,8 @@
 //!   into `slam-out/eval/`; not part of the test suite.
 //! * `cargo xtask eval robust [--seeds N] [--only NAME,…] [--keep | --no-run]`: grid FastSLAM's
 //!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
-//! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers
-//!   (see [`mcap_check`]), writing into `slam-out/mcap/`.
+//! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
+//!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
@@ -493,7 +493,15 @@ fn eval(extra: &[String]) -> Result<(), String> {
 /// `scripts/check_mcap.py` (every topic present, every message decoded by `mcap-ros2` and by
 /// `rosbags` with its own ROS 2 definitions, the map's dimensions, origin and cells against
 /// map.yaml/map.pgm, the path against trajectory.tum, tf against the poses, the ellipses
-/// against landmarks.csv).
+/// against landmarks.csv); then with `scripts/check_mcap_foxglove.mjs` under Node.js, which
+/// reads each file as Foxglove opens a local file (npm's `@mcap/core` indexed and streaming
+/// readers with CRC validation, `@foxglove/rosmsg2-serialization` decoding every message
+/// with the file's own `ros2msg` schemas, no trailing bytes) and checks what `ros2 bag play`
+/// needs (profile `ros2`, a Statistics record matching the messages, `cdr` channels, the
+/// QoS metadata, `/map` and `/tf_static` transient local). Its npm packages, pinned, are
+/// installed on first use into `$CARGO_TARGET_DIR/mcap-check-node` (default
+/// `target/mcap-check-node`). With `$MCAP_CLI` naming an `mcap` executable (the official
+/// CLI, built by hand: no registry has it), also `mcap doctor --strict-message-order`.
 fn mcap_check() -> Result<(), String> {
     let venv = std::env::var_os("MCAP_VENV")
         .map(std::path::PathBuf::from)
@@ -525,6 +533,38 @@ fn mcap_check() -> Result<(), String> {
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| std::path::PathBuf::from("target"));
     let exe = target.join("release").join("slam");
+    // Foxglove's readers, installed once under the target folder.
+    let node_dir = std::env::current_dir()
+        .map_err(|e| format!("current folder: {e}"))?
+        .join(&target)
+        .join("mcap-check-node");
+    if !node_dir.join("node_modules/@mcap/core").is_dir() {
+        std::fs::create_dir_all(&node_dir).map_err(|e| format!("{}: {e}", node_dir.display()))?;
+        std::fs::write(
+            node_dir.join("package.json"),
+            "{\"name\": \"slam-mcap-check\", \"private\": true, \"type\": \"module\"}\n",
+        )
+        .map_err(|e| format!("{}: {e}", node_dir.display()))?;
+        run(
+            "install @mcap/core, @mcap/support, @foxglove/rosmsg, @foxglove/rosmsg2-serialization",
+            Command::new("npm")
+                .args(["install", "--no-audit", "--no-fund", "--prefix"])
+                .arg(&node_dir)
+                .args([
+                    "@mcap/core@2.2.2",
+                    "@mcap/support@1.1.0",
+                    "@foxglove/rosmsg@5.0.5",
+                    "@foxglove/rosmsg2-serialization@3.1.0",
+                ]),
+        )?;
+    }
+    // Node resolves packages from the script's folder: the script goes beside them.
+    let node_script = node_dir.join("check_mcap_foxglove.mjs");
+    std::fs::copy("scripts/check_mcap_foxglove.mjs", &node_script)
+        .map_err(|e| format!("scripts/check_mcap_foxglove.mjs: {e}"))?;
+    // The official `mcap` CLI is in no package registry (docs/rosbag.md): run its doctor
+    // when `$MCAP_CLI` names one built by hand.
+    let mcap_cli = std::env::var_os("MCAP_CLI");
     let out = std::path::Path::new("slam-out/mcap");
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let bag = "crates/slam-io/tests/fixtures/rosbag/intel-tf";
@@ -567,6 +607,23 @@ fn mcap_check() -> Result<(), String> {
                 .arg(&dir)
                 .args(["--topics", topics]),
         )?;
+        run(
+            &format!("check {name} with Foxglove's readers"),
+            Command::new("node")
+                .arg(&node_script)
+                .arg(&file)
+                .arg("--out")
+                .arg(&dir)
+                .args(["--topics", topics]),
+        )?;
+        if let Some(cli) = &mcap_cli {
+            run(
+                &format!("mcap doctor {name}"),
+                Command::new(cli)
+                    .args(["doctor", "--strict-message-order"])
+                    .arg(&file),
+            )?;
+        }
     }
     Ok(())
 }

@@ -35,6 +35,8 @@ fn a_bag_run_written_as_mcap_reads_back_as_the_same_bag() {
         "run",
         "--filter",
         "gridfast",
+        "--particles",
+        "10",
         "--dataset",
         &bag,
         "--quiet",
@@ -49,7 +51,7 @@ fn a_bag_run_written_as_mcap_reads_back_as_the_same_bag() {
     assert!(text.contains("ROS 2 messages"), "{text}");
     assert!(!dir.join("run.mcap.partial").exists());
 
-    // Topics and counts: one pose, tf and particle cloud per record, the 40 scans, the
+    // Topics and counts: one pose, tf and particle cloud per record, the 200 scans, the
     // mounting once, a snapshot every 100 records plus the end.
     let input = read_rosbag(Path::new(&bag), &BagOptions::default()).unwrap();
     let n = input.dataset.records.len();
@@ -62,7 +64,7 @@ fn a_bag_run_written_as_mcap_reads_back_as_the_same_bag() {
         ("/pose", "geometry_msgs/msg/PoseStamped", n),
         ("/tf", "tf2_msgs/msg/TFMessage", n),
         ("/particles", "geometry_msgs/msg/PoseArray", n),
-        ("/scan", "sensor_msgs/msg/LaserScan", 40),
+        ("/scan", "sensor_msgs/msg/LaserScan", 200),
         ("/tf_static", "tf2_msgs/msg/TFMessage", 1),
         ("/map", "nav_msgs/msg/OccupancyGrid", snaps),
         ("/trajectory", "nav_msgs/msg/Path", snaps),
@@ -106,6 +108,8 @@ fn a_bag_run_written_as_mcap_reads_back_as_the_same_bag() {
         "run",
         "--filter",
         "gridfast",
+        "--particles",
+        "10",
         "--dataset",
         mcap.to_str().unwrap(),
         "--quiet",

@@ -1,6 +1,6 @@
 //! `slam run` and `slam info` on ROS bags (the fixtures of slam-io, written by the Python
-//! `rosbags` package from the first 875 lines of the real Intel log): MCAP, sqlite3 and
-//! ROS 1 containers of the same messages.
+//! `rosbags` package from the real Intel log up to its 200th scan, 3827 lines): MCAP,
+//! sqlite3 and ROS 1 containers of the same messages.
 
 mod common;
 use common::{dataset, scratch, slam};
@@ -10,6 +10,11 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
 
+/// The scans in the fixtures (make_fixtures.py's `SCANS`). Their message counts below
+/// (3616 odometry messages, 3817 messages in a /tf bag) are the log's: one odometry message
+/// per distinct stamp of its first 3827 lines (`awk` over the log gives the same).
+const SCANS: usize = 200;
+
 fn fixture(name: &str) -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../slam-io/tests/fixtures/rosbag")
@@ -18,8 +23,11 @@ fn fixture(name: &str) -> String {
         .to_string()
 }
 
+/// A trajectory: time in µs → (x, y, yaw).
+type Trajectory = BTreeMap<i64, (f64, f64, f64)>;
+
 /// TUM lines → time in µs → (x, y, yaw), the last line of each time.
-fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
+fn tum(path: &Path) -> Trajectory {
     let text = std::fs::read_to_string(path).unwrap();
     let mut m = BTreeMap::new();
     for l in text
@@ -33,13 +41,22 @@ fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
     m
 }
 
-/// `slam run --filter gridfast` on `dataset` (with `extra` options) into a new scratch
-/// folder; the trajectory and what the run printed.
-fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (BTreeMap<i64, (f64, f64, f64)>, String) {
+/// `slam run --filter gridfast --particles 10` on `dataset` (with `extra` options) into a
+/// new scratch folder; the trajectory and what the run printed. Ten particles keep the
+/// test at a few seconds a run; every input gets the same filter and seed.
+fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (Trajectory, String) {
     let out = scratch(name);
     let o = out.join("out");
     let args = [
-        &["run", "--filter", "gridfast", "--dataset", dataset][..],
+        &[
+            "run",
+            "--filter",
+            "gridfast",
+            "--particles",
+            "10",
+            "--dataset",
+            dataset,
+        ][..],
         extra,
         &["--quiet", "--out", o.to_str().unwrap()],
     ]
@@ -49,8 +66,65 @@ fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (BTreeMap<i64, (f64, f
     (tum(&o.join("trajectory.tum")), text)
 }
 
+/// The laser mounting on the tf bags' `/tf_static` (make_fixtures.py's `MOUNT`).
+const MOUNT: (f64, f64, f64) = (0.12, -0.03, 0.05);
+
+/// The CARMEN lines the bags were made from (intel.log up to its `SCANS`-th FLASER line)
+/// as a log file, with every FLASER line's laser pose set to odometry ⊕ `mount` (the
+/// CARMEN reader's laser offset is laser pose ⊖ odometry pose) when one is given; and the
+/// scan times in µs. `None` when the dataset is missing.
+fn carmen_head(name: &str, mount: Option<(f64, f64, f64)>) -> Option<(String, Vec<i64>)> {
+    let log = dataset("bench/intel.log")?;
+    let src = std::fs::read_to_string(log).unwrap();
+    let (mut head, mut times) = (String::new(), Vec::new());
+    for l in src.lines() {
+        let mut f: Vec<String> = l.split_whitespace().map(str::to_string).collect();
+        if f.first().map(String::as_str) == Some("FLASER") {
+            let n: usize = f[1].parse().unwrap();
+            let v: Vec<f64> = f[2 + n..2 + n + 7]
+                .iter()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            if let Some((mx, my, mt)) = mount {
+                let (ox, oy, ot) = (v[3], v[4], v[5]);
+                let laser = [
+                    ox + ot.cos() * mx - ot.sin() * my,
+                    oy + ot.sin() * mx + ot.cos() * my,
+                    ot + mt,
+                ];
+                for (k, x) in laser.iter().enumerate() {
+                    f[2 + n + k] = format!("{x:.12}");
+                }
+            }
+            times.push((v[6] * 1e6).round() as i64);
+        }
+        head.push_str(&f.join(" "));
+        head.push('\n');
+        if times.len() == SCANS {
+            break;
+        }
+    }
+    assert_eq!(times.len(), SCANS, "intel.log has fewer FLASER lines");
+    let path = scratch(name).join("intel-head.log");
+    std::fs::write(&path, head).unwrap();
+    Some((path.to_str().unwrap().to_string(), times))
+}
+
+/// Same seed, same scans (to float32), same odometry: the same estimate at every scan.
+fn assert_same_at_scans(runs: &[(&str, Trajectory)], carmen: &Trajectory, scan_times: &[i64]) {
+    for (name, traj) in runs {
+        for &t in scan_times {
+            let (p, q) = (traj[&t], carmen[&t]);
+            assert!(
+                (p.0 - q.0).abs() < 1e-5 && (p.1 - q.1).abs() < 1e-5 && (p.2 - q.2).abs() < 1e-5,
+                "{name} at {t} µs: bag {p:?}, CARMEN {q:?}"
+            );
+        }
+    }
+}
+
 #[test]
-fn gridfast_on_every_container_follows_the_carmen_run_at_every_scan() {
+fn gridfast_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
     let runs: Vec<_> = [
         ("intel-odom.mcap", "ROS 2 bag", "(MCAP)"),
         ("intel-odom-db3", "ROS 2 bag", "(sqlite3)"),
@@ -62,7 +136,7 @@ fn gridfast_on_every_container_follows_the_carmen_run_at_every_scan() {
         assert!(
             text.contains(ros)
                 && text.contains(storage)
-                && text.contains("scans /scan (40 scans, 180 beams")
+                && text.contains(&format!("scans /scan ({SCANS} scans, 180 beams"))
                 && text.contains("odometry /odom")
                 && text.contains("(--laser-pose)"),
             "{text}"
@@ -70,35 +144,53 @@ fn gridfast_on_every_container_follows_the_carmen_run_at_every_scan() {
         (name, traj)
     })
     .collect();
-    let Some(log) = dataset("bench/intel.log") else {
+    // The lines the bags were made from, as a CARMEN log, through the same filter.
+    let Some((log, scan_times)) = carmen_head("carmen", None) else {
         return;
     };
-    // The lines the bags were made from, as a CARMEN log, through the same filter.
-    let src = std::fs::read_to_string(log).unwrap();
-    let head: String = src.lines().take(875).map(|l| format!("{l}\n")).collect();
-    let dir = scratch("carmen");
-    let log = dir.join("intel-head.log");
-    std::fs::write(&log, &head).unwrap();
-    let (carmen, _) = gridfast("carmen-run", log.to_str().unwrap(), &[]);
-    let scan_times: Vec<i64> = head
-        .lines()
-        .filter(|l| l.starts_with("FLASER"))
-        .map(|l| {
-            let f: Vec<&str> = l.split_whitespace().collect();
-            (f[f.len() - 3].parse::<f64>().unwrap() * 1e6).round() as i64
-        })
-        .collect();
-    assert_eq!(scan_times.len(), 40);
-    // Same seed, same scans (to float32), same odometry: the same estimate at every scan.
-    for (name, traj) in &runs {
-        for &t in &scan_times {
-            let (p, q) = (traj[&t], carmen[&t]);
-            assert!(
-                (p.0 - q.0).abs() < 1e-5 && (p.1 - q.1).abs() < 1e-5 && (p.2 - q.2).abs() < 1e-5,
-                "{name} at {t} µs: bag {p:?}, CARMEN {q:?}"
-            );
-        }
-    }
+    let (carmen, _) = gridfast("carmen-run", &log, &[]);
+    assert_same_at_scans(&runs, &carmen, &scan_times);
+}
+
+/// The `/tf` bags of every container, odometry from `odom → base_link` and the laser
+/// mounted off-centre by `/tf_static`, against the CARMEN lines whose FLASER laser poses
+/// carry the same offset: the mounting and the `/tf` odometry reach the filter as the
+/// CARMEN reader's laser offset and ODOM poses do.
+#[test]
+fn gridfast_on_every_tf_bag_follows_the_carmen_run_with_the_same_laser_offset() {
+    let runs: Vec<_> = [
+        ("intel-tf", "(MCAP)"),
+        ("intel-tf.db3", "(sqlite3)"),
+        ("intel-tf.bag", "(ROS 1 bag)"),
+    ]
+    .into_iter()
+    .map(|(name, storage)| {
+        let (traj, text) = gridfast(name, &fixture(name), &[]);
+        assert!(
+            text.contains(storage)
+                && text.contains(&format!("scans /scan ({SCANS} scans, 180 beams"))
+                && text.contains("odometry /tf odom → base_link")
+                && text.contains("(0.1200 m, -0.0300 m, 0.0500 rad) in base_link (/tf_static)"),
+            "{text}"
+        );
+        (name, traj)
+    })
+    .collect();
+    let Some((log, scan_times)) = carmen_head("carmen-mounted", Some(MOUNT)) else {
+        return;
+    };
+    let (carmen, _) = gridfast("carmen-mounted-run", &log, &[]);
+    assert_same_at_scans(&runs, &carmen, &scan_times);
+    // The offset matters: the centred CARMEN run is another trajectory.
+    let Some((centred, _)) = carmen_head("carmen-centred", None) else {
+        return;
+    };
+    let (other, _) = gridfast("carmen-centred-run", &centred, &[]);
+    let moved = scan_times.iter().any(|t| {
+        let (p, q) = (other[t], carmen[t]);
+        (p.0 - q.0).abs() > 1e-3 || (p.1 - q.1).abs() > 1e-3
+    });
+    assert!(moved, "the laser offset changed nothing");
 }
 
 #[test]
@@ -109,6 +201,8 @@ fn a_bag_folder_runs_and_info_describes_it() {
         "run",
         "--filter",
         "gridfast",
+        "--particles",
+        "10",
         "--dataset",
         &bag,
         "--quiet",
@@ -125,11 +219,11 @@ fn a_bag_folder_runs_and_info_describes_it() {
     let (r, text) = slam(&["info", &bag]);
     assert!(matches!(r, Ok(Outcome::Described)));
     for want in [
-        "3 topic(s), 872 message(s)",
-        "/scan       sensor_msgs/msg/LaserScan  cdr             40",
-        "/tf         tf2_msgs/msg/TFMessage     cdr            831",
+        "3 topic(s), 3817 message(s)",
+        "/scan       sensor_msgs/msg/LaserScan  cdr            200",
+        "/tf         tf2_msgs/msg/TFMessage     cdr           3616",
         "180 beams from -90.00° to 89.00° by 1.000°, range 0 … 81.83 m",
-        "odometry: /tf odom → base_link (831 transforms)",
+        "odometry: /tf odom → base_link (3616 transforms)",
         "/tf_static: base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)",
     ] {
         assert!(text.contains(want), "{want:?} missing from\n{text}");
@@ -147,13 +241,13 @@ fn info_describes_sqlite_and_ros1_bags() {
         (
             "intel-tf.db3",
             "ROS 2 bag",
-            "(1 sqlite3 file(s)): 3 topic(s), 872 message(s)",
+            "(1 sqlite3 file(s)): 3 topic(s), 3817 message(s)",
             "tf2_msgs/msg/TFMessage",
         ),
         (
             "intel-tf.bag",
             "ROS 1 bag",
-            "(1 ROS 1 bag file(s)): 3 topic(s), 872 message(s)",
+            "(1 ROS 1 bag file(s)): 3 topic(s), 3817 message(s)",
             "tf2_msgs/msg/TFMessage",
         ),
     ] {
@@ -165,7 +259,7 @@ fn info_describes_sqlite_and_ros1_bags() {
             format!("/scan       sensor_msgs/msg/LaserScan  {enc}"),
             format!("/tf         {tf}     {enc}"),
             "180 beams from -90.00° to 89.00° by 1.000°, range 0 … 81.83 m".into(),
-            "odometry: /tf odom → base_link (831 transforms)".into(),
+            "odometry: /tf odom → base_link (3616 transforms)".into(),
             "/tf_static: base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)".into(),
         ] {
             assert!(text.contains(&want), "{want:?} missing from\n{text}");
@@ -174,7 +268,7 @@ fn info_describes_sqlite_and_ros1_bags() {
     for name in ["intel-odom-db3", "intel-odom.bag"] {
         let (_, text) = slam(&["info", &fixture(name)]);
         assert!(
-            text.contains("odometry: /odom (odom → base_link)") && text.contains("831"),
+            text.contains("odometry: /odom (odom → base_link)") && text.contains("3616"),
             "{text}"
         );
     }
@@ -198,6 +292,26 @@ fn info_describes_the_other_formats() {
     let (r, text) = slam(&["info", dir.to_str().unwrap()]);
     r.unwrap();
     assert!(text.starts_with("Freiburg course data"), "{text}");
+    // MRCLAM: every robot, each with as many velocity steps as its odometry file has
+    // data lines.
+    let Some(dir) = dataset("utias-mrclam/MRCLAM_Dataset1") else {
+        return;
+    };
+    let (r, text) = slam(&["info", dir.to_str().unwrap()]);
+    r.unwrap();
+    assert!(
+        text.starts_with("MRCLAM folder") && text.contains("5 robots"),
+        "{text}"
+    );
+    for n in 1..=5 {
+        let odometry = std::fs::read_to_string(dir.join(format!("Robot{n}_Odometry.dat"))).unwrap();
+        let lines = odometry
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+            .count();
+        let want = format!("robot {n}: {lines} velocity steps");
+        assert!(text.contains(&want), "{want:?} missing from\n{text}");
+    }
 }
 
 #[test]

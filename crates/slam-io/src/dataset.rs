@@ -216,8 +216,9 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
 
 /// A description of what the dataset at `path` holds, for `slam info`: for a ROS bag its
 /// topics, types, counts, rates, span, laser geometry, odometry sources and static
-/// transforms; for a CARMEN log its record counts and laser geometry; for the landmark
-/// formats the line [`open_dataset`] prints.
+/// transforms; for a CARMEN log its record counts and laser geometry; for a Freiburg folder
+/// the line [`open_dataset`] prints; for an MRCLAM folder that line for every robot whose
+/// `RobotN_Odometry.dat` it holds (N = 1–5), since `slam run` reads one robot at a time.
 pub fn dataset_info(path: &Path) -> Result<String, IoError> {
     if is_bag(path) {
         #[cfg(feature = "rosbag")]
@@ -226,6 +227,26 @@ pub fn dataset_info(path: &Path) -> Result<String, IoError> {
         return open_bag(path, &DatasetOptions::default()).map(|(_, s)| s);
     }
     if path.is_dir() {
+        let robots: Vec<u32> = (1..=5)
+            .filter(|n| path.join(format!("Robot{n}_Odometry.dat")).is_file())
+            .collect();
+        if path.join("Barcodes.dat").is_file() && robots.len() > 1 {
+            let mut s = format!(
+                "MRCLAM folder {}: {} robots ({}; slam run reads one, --robot N)",
+                path.display(),
+                robots.len(),
+                robots
+                    .iter()
+                    .map(|n| n.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            for n in robots {
+                s.push('\n');
+                s.push_str(&open_dataset(path, Some(n))?.1);
+            }
+            return Ok(s);
+        }
         return open_dataset(path, None).map(|(_, s)| s);
     }
     let log = crate::carmen::read_carmen(path)?;

@@ -11,8 +11,9 @@ use slam_io::{IoError, Pose2, ScanRecord};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Lines of intel.log the fixtures were made from (up to its 40th FLASER line).
-const SOURCE_LINES: usize = 875;
+/// The FLASER lines of intel.log the fixtures were made from (make_fixtures.py's `SCANS`):
+/// the log's lines up to its 200th FLASER line.
+const SCANS: usize = 200;
 /// The laser mounting written to `/tf_static` by make_fixtures.py (`MOUNT`).
 const MOUNT: (f64, f64, f64) = (0.12, -0.03, 0.05);
 
@@ -45,15 +46,22 @@ fn temp(name: &str) -> PathBuf {
     d.join(name)
 }
 
-/// The CARMEN records of the lines the fixtures were made from.
+/// The CARMEN records of the lines the fixtures were made from: the log up to and with its
+/// `SCANS`-th FLASER line.
 fn source() -> Option<Vec<ScanRecord>> {
     let log = dataset("bench/intel.log")?;
     let text = std::fs::read_to_string(log).unwrap();
-    let head: String = text
-        .lines()
-        .take(SOURCE_LINES)
-        .map(|l| format!("{l}\n"))
-        .collect();
+    let mut head = String::new();
+    let mut flasers = 0;
+    for l in text.lines() {
+        head.push_str(l);
+        head.push('\n');
+        flasers += usize::from(l.starts_with("FLASER "));
+        if flasers == SCANS {
+            break;
+        }
+    }
+    assert_eq!(flasers, SCANS, "intel.log has fewer FLASER lines");
     let p = temp("intel-head.log");
     std::fs::write(&p, head).unwrap();
     Some(read_carmen(&p).unwrap().dataset.records)
@@ -81,8 +89,8 @@ fn check_against_carmen(bag: &[ScanRecord], carmen: &[ScanRecord]) {
         by_stamp.entry(ns(r.t)).or_default().push(r);
     }
     let flasers: Vec<&ScanRecord> = carmen.iter().filter(|r| r.scan.is_some()).collect();
-    assert_eq!(flasers.len(), 40);
-    assert_eq!(bag.iter().filter(|r| r.scan.is_some()).count(), 40);
+    assert_eq!(flasers.len(), SCANS);
+    assert_eq!(bag.iter().filter(|r| r.scan.is_some()).count(), SCANS);
     for c in &flasers {
         let recs = &by_stamp[&ns(c.t)];
         assert_eq!(recs.len(), 1, "one record at {}", c.t);
@@ -152,7 +160,7 @@ fn odometry_bag_gives_the_carmen_scans_and_poses() {
     assert_eq!(r.no_return_readings, no_return);
     let line = r.summary(&fixture("intel-odom.mcap"));
     assert!(
-        line.contains("40 scans") && line.contains("/odom"),
+        line.contains(&format!("{SCANS} scans")) && line.contains("/odom"),
         "{line}"
     );
 }
@@ -409,7 +417,7 @@ fn sqlite_and_ros1_odometry_bags_give_the_carmen_records() {
         assert_eq!(r.dataset.records, mcap.dataset.records, "{name}");
         let line = r.summary(&fixture(name));
         assert!(
-            line.starts_with(format.ros()) && line.contains("40 scans"),
+            line.starts_with(format.ros()) && line.contains(&format!("{SCANS} scans")),
             "{line}"
         );
         if let Some(c) = &carmen {
@@ -635,4 +643,117 @@ fn truncated_sqlite_and_ros1_bags_are_errors_that_say_how_far_reading_got() {
 fn damaged_sqlite_and_ros1_bags_never_panic() {
     assert!(damaged("bad-two-scans.bag", 300, 0x9e37_79b9_7f4a_7c15) > 0);
     assert!(damaged("bad-two-scans.db3", 100, 0x6a09_e667_f3bc_c908) > 0);
+}
+
+/// Special readings and values out of bounds, in every container (the bad-bounds bags,
+/// make_fixtures.py's `bounds_bag`, written by rosbags): NaN, ±∞ and out-of-range readings
+/// are read as LaserScan defines them; each broken topic is an error naming the file, the
+/// topic, the message and the bound, the bounds of every other reader (coordinates within
+/// ±10⁶ m, 0 ≤ range_min < range_max ≤ 1000 m, angles within one turn, a non-zero angle
+/// increment, odometry stamps within 10⁷ s of each other); the valid topics beside them read.
+#[test]
+fn special_readings_and_values_out_of_bounds_in_every_container() {
+    let o = |scan: &str, odom: &str| BagOptions {
+        scan_topic: Some(scan.into()),
+        odom_topic: Some(odom.into()),
+        laser_pose: Some(Pose2::IDENTITY),
+    };
+    for (name, format) in [
+        ("bad-bounds.mcap", BagFormat::Mcap),
+        ("bad-bounds.db3", BagFormat::Sqlite3),
+        ("bad-bounds.bag", BagFormat::Ros1),
+    ] {
+        let r = read(name, &o("/scan", "/odom"));
+        assert_eq!(r.format, format);
+        let scans = r.dataset.records.iter().filter(|r| r.scan.is_some());
+        assert_eq!(scans.count(), 3, "{name}");
+        // The readings LaserScan defines as special (beams 0–4 of /scan_odd: NaN, −∞, +∞,
+        // range_max + 1, −1): invalid, invalid, no return, no return, invalid; all kept as
+        // no-return beams (range_max), counted apart; every other beam as on /scan.
+        let odd = read(name, &o("/scan_odd", "/odom"));
+        assert_eq!(odd.invalid_readings, 3 * 3, "{name}");
+        let mut no_return = r.no_return_readings;
+        for (a, b) in r.dataset.records.iter().zip(&odd.dataset.records) {
+            assert_eq!(a.t, b.t);
+            let (Some(sa), Some(sb)) = (&a.scan, &b.scan) else {
+                assert_eq!(a, b);
+                continue;
+            };
+            for k in 0..5 {
+                assert!(!sb.is_hit(k), "{name} beam {k}");
+                assert_eq!(sb.ranges[k], sb.max_range);
+                no_return -= usize::from(!sa.is_hit(k));
+            }
+            no_return += 2;
+            assert_eq!(sa.ranges[5..], sb.ranges[5..]);
+        }
+        assert_eq!(odd.no_return_readings, no_return, "{name}");
+        for (scan, odom, wants) in [
+            (
+                "/scan_far",
+                "/odom",
+                &[
+                    "topic /scan_far: message 1",
+                    "range_max = 2000 m, expected 0 < range_max ≤ 1000 m",
+                ][..],
+            ),
+            (
+                "/scan_flat",
+                "/odom",
+                &[
+                    "topic /scan_flat: message 1",
+                    "angle_increment = 0 rad",
+                    "expected a non-zero increment",
+                ],
+            ),
+            (
+                "/scan_wide",
+                "/odom",
+                &[
+                    "topic /scan_wide: message 1",
+                    "angle_min = -10 rad is outside ±2π",
+                ],
+            ),
+            (
+                "/scan_short",
+                "/odom",
+                &[
+                    "topic /scan_short: message 1",
+                    "range_min = 81.83",
+                    "expected 0 ≤ range_min < range_max",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_far",
+                &[
+                    "topic /odom_far: message 1",
+                    "odom → base_link x = 2000000 m is outside ±1000000 m",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_nan",
+                &[
+                    "topic /odom_nan: message 1",
+                    "a rotation quaternion of non-zero length, found (0, 0, NaN, NaN)",
+                ],
+            ),
+            (
+                "/scan",
+                "/odom_unset",
+                &[
+                    "topic /odom_unset",
+                    "odometry stamps from 0 s",
+                    "expected a span within 10000000 s",
+                ],
+            ),
+        ] {
+            let m = err(name, &o(scan, odom));
+            assert!(
+                m.contains(name) && wants.iter().all(|w| m.contains(w)),
+                "{name} {scan} {odom}: {m}"
+            );
+        }
+    }
 }

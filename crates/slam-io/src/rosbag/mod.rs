@@ -67,15 +67,11 @@ use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Largest absolute coordinate, metres (the bound of every reader).
-const MAX_COORD: f64 = 1e6;
-/// Largest range, metres (the bound of every reader).
-const MAX_RANGE: f64 = 1000.0;
-/// Longest span of odometry stamps, nanoseconds (10⁷ s, about 116 days: the bound of
-/// every reader); a stamp outside it is a corrupted or unset (zero) stamp.
-const MAX_TIME_SPAN_NS: i64 = 10_000_000 * 1_000_000_000;
-/// Largest absolute beam angle, radians (one turn).
-const MAX_ANGLE: f64 = std::f64::consts::TAU;
+// The bounds of every reader (`crate::bounds`): coordinates, ranges, beam angles.
+use crate::bounds::{MAX_ANGLE, MAX_COORD, MAX_RANGE};
+/// Longest span of odometry stamps, nanoseconds ([`crate::bounds::MAX_TIME_SPAN`], about
+/// 116 days); a stamp outside it is a corrupted or unset (zero) stamp.
+const MAX_TIME_SPAN_NS: i64 = crate::bounds::MAX_TIME_SPAN as i64 * 1_000_000_000;
 /// The `/tf` topics.
 const TF: &str = "/tf";
 const TF_STATIC: &str = "/tf_static";
