@@ -8,7 +8,8 @@
 //!
 //! Defaults read `../shared/datasets/bench/intel.log` and
 //! `../shared/datasets/slam-benchmark-relations/intel.relations` (or under `$SLAM_DATASETS`).
-//! The relations error uses the datasets README's rule (slam-io `relations_error`).
+//! The run is slam-eval's `run_scans`; the relations error uses the datasets README's rule
+//! (slam-eval's `relations_error`).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
 use slam_models::Pose2;

@@ -354,4 +354,31 @@ mod tests {
         assert_eq!(dataset.steps.len(), 15);
         assert!(sim_noise.is_some() && input.simulated && !input.times_are_indices);
     }
+
+    /// A Freiburg course folder has a clock only with the `times.dat` sidecar; the folder
+    /// is found as landmark data and holds the steps written into it.
+    #[test]
+    fn a_freiburg_folder_without_times_has_step_indices() {
+        let InputData::Landmark { dataset, .. } = simulate("loop", 4, Some(12)).unwrap().data
+        else {
+            unreachable!()
+        };
+        let dir = std::env::temp_dir().join(format!("slam-eval-input-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        slam_io::freiburg::write_freiburg(&dir, &dataset).unwrap();
+        let with_clock = open(&dir, &DatasetOptions::default()).unwrap();
+        std::fs::remove_file(dir.join("times.dat")).unwrap();
+        let without = open(&dir, &DatasetOptions::default()).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(!with_clock.times_are_indices && without.times_are_indices);
+        assert!(!with_clock.simulated && with_clock.kind() == DataKind::Landmark);
+        let InputData::Landmark { dataset: read, .. } = &with_clock.data else {
+            unreachable!()
+        };
+        assert_eq!(read.steps.len(), 12);
+        assert_eq!(
+            with_clock.run_options().dataset_name,
+            Some(with_clock.name.as_str())
+        );
+    }
 }
