@@ -8,12 +8,12 @@
 //!
 //! Defaults read `../shared/datasets/bench/intel.log` and
 //! `../shared/datasets/slam-benchmark-relations/intel.relations` (or under `$SLAM_DATASETS`).
-//! The relations error uses the datasets README's rule (slam-io `relations_error`).
+//! The run is slam-eval's `run_scans`; the relations error uses the datasets README's rule
+//! (slam-eval's `relations_error`).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Proposal};
-use slam_models::{Pose2, ScanSlam};
+use slam_models::Pose2;
 use std::path::PathBuf;
-use std::time::Instant;
 
 fn peak_rss_mb() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -72,21 +72,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let threads = pool.current_num_threads();
     let (proposal, particles) = (config.proposal.kind, config.particles);
     let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed)?;
-    let start = Instant::now();
     let cpu0 = cpu_seconds().unwrap_or(f64::NAN);
-    let (mut failures, mut resamples, mut processed) = (0usize, 0usize, 0usize);
-    pool.install(|| -> Result<(), slam_models::FilterError> {
-        for r in records {
-            let info = slam.process(r)?;
-            failures += info.match_failures;
-            resamples += info.resampled as usize;
-            processed += info.processed_scan as usize;
-        }
-        Ok(())
-    })?;
-    let wall = start.elapsed().as_secs_f64();
+    // slam-eval's run: `process` on every record, timed (the filter only).
+    let opts = slam_eval::RunOptions {
+        relations: Some(&rel),
+        ..Default::default()
+    };
+    let run = pool.install(|| slam_eval::run_scans(&mut slam, &carmen.dataset, &opts))?;
+    let wall = run.metrics.wall_s;
     let cpu = cpu_seconds().unwrap_or(f64::NAN) - cpu0;
-    let traj = slam.trajectory();
+    let (failures, resamples, processed) = run.updates.iter().fold((0, 0, 0), |(f, r, p), u| {
+        (
+            f + u.match_failures,
+            r + u.resampled as usize,
+            p + u.processed_scan as usize,
+        )
+    });
+    let traj = run.trajectory;
     let span =
         records.last().map(|r| r.t).unwrap_or(0.0) - records.first().map(|r| r.t).unwrap_or(0.0);
     let e = slam_eval::metrics::relations_error(&traj, &rel);

@@ -7,6 +7,7 @@ mod common;
 
 use slam_ekf::{Association, AssociationMode, EkfConfig, EkfSlam};
 use slam_eval::metrics::{ate, chi2_band, landmark_error, nees_pose};
+use slam_eval::{Flow, LandmarkProgress};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 use slam_models::{LandmarkDataset, LandmarkId, LandmarkSlam, TimedPose};
@@ -136,15 +137,17 @@ fn loop_mean_nees(runs: u64, first_seed: u64, opts: &ScenarioOptions) -> Vec<f64
         let r = loop_run(seed, opts.clone());
         let mut ekf =
             EkfSlam::new(sim_config(r.motion, r.sensor), r.dataset.initial_pose, 0).unwrap();
-        for (k, s) in r.dataset.steps.iter().enumerate() {
-            ekf.predict(&s.control).unwrap();
-            ekf.update(&s.observations).unwrap();
-            let e = nees_pose(&ekf.pose(), &ekf.pose_covariance(), &r.true_poses[k]);
+        let mut observer = |p: &LandmarkProgress<'_>| {
+            let (k, f) = (p.step, p.filter);
+            let e = nees_pose(&f.pose(), &f.pose_covariance(), &r.true_poses[k]);
             if sum.len() <= k {
                 sum.push(0.0);
             }
             sum[k] += e / runs as f64;
-        }
+            Ok(Flow::Continue)
+        };
+        slam_eval::run_landmarks_observed(&mut ekf, &r.dataset, &Default::default(), &mut observer)
+            .expect("run");
     }
     sum
 }

@@ -25,31 +25,14 @@ fn sim(name: &str, opts: ScenarioOptions) -> LandmarkSimRun {
     }
 }
 
-/// Runs a filter over the data and calls `finish`; returns the online poses and the
-/// full-SLAM path paired with the step times (entry k ≥ 1 with step k − 1), if any.
+/// Runs a filter over the data with slam-eval's run function (which calls `finish`);
+/// returns the online poses and the full-SLAM path paired with the step times (entry k ≥ 1
+/// with step k − 1), if any.
 fn run(f: &mut dyn LandmarkSlam, d: &LandmarkDataset) -> (Vec<TimedPose>, Option<Vec<TimedPose>>) {
-    let mut online = Vec::with_capacity(d.steps.len());
-    for s in &d.steps {
-        f.predict(&s.control).expect("predict");
-        f.update(&s.observations).expect("update");
-        online.push(TimedPose {
-            t: s.t,
-            pose: f.pose(),
-        });
-    }
-    f.finish().expect("finish");
-    let full = f.full_path().map(|p| {
-        assert_eq!(p.len(), d.steps.len() + 1);
-        p[1..]
-            .iter()
-            .zip(&d.steps)
-            .map(|(pose, s)| TimedPose {
-                t: s.t,
-                pose: *pose,
-            })
-            .collect()
-    });
-    (online, full)
+    let run = slam_eval::run_landmarks(f, d, &Default::default()).expect("run");
+    // A path that broke the one-pose-per-step contract would have been dropped.
+    assert_eq!(run.full_path.is_some(), f.full_path().is_some());
+    (run.online, run.full_path)
 }
 
 fn graph_config(motion: MotionModels, sensor: RangeBearingModel) -> GraphLandmarkConfig {

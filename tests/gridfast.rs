@@ -15,7 +15,7 @@ const LOOP_CLOSED_RMSE: f64 = 0.2;
 mod common;
 
 use slam::gridfast::{GridFastConfig, GridFastSlam, Proposal, ProposalConfig};
-use slam::models::{Pose2, ScanRecord, ScanSlam, TimedPose};
+use slam::models::{Pose2, ScanRecord, TimedPose};
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::SimOutput;
 
@@ -75,13 +75,9 @@ fn run_seeded(
         .build()
         .unwrap();
     let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, seed).unwrap();
-    let mut processed = 0;
-    pool.install(|| {
-        for r in records {
-            processed += slam.process(r).unwrap().processed_scan as usize;
-        }
-    });
-    (slam.trajectory(), processed)
+    let run = pool.install(|| common::run_scans(&mut slam, records));
+    let processed = run.updates.iter().map(|u| u.processed_scan as usize).sum();
+    (run.trajectory, processed)
 }
 
 /// The median of a few values.
@@ -193,10 +189,7 @@ fn intel_prefix_relations_error() {
         ..Default::default()
     };
     let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, 42).unwrap();
-    for r in records {
-        slam.process(r).unwrap();
-    }
-    let traj = slam.trajectory();
+    let traj = common::run_scans(&mut slam, records).trajectory;
     assert_eq!(traj.len(), records.len());
     let e = slam::eval::metrics::relations_error(&traj, &inside);
     eprintln!(
@@ -228,11 +221,9 @@ fn intel_whole_log_beats_gmapping() {
     let records = slam::io::carmen::read_carmen(&log).unwrap().dataset.records;
     let relations = slam::io::relations::read_relations(&rel).unwrap();
     let mut slam = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 0).unwrap();
-    for r in &records {
-        slam.process(r).unwrap();
-    }
+    let run = common::run_scans(&mut slam, &records);
     assert_eq!(slam.processed_scans(), 910);
-    let e = slam::eval::metrics::relations_error(&slam.trajectory(), &relations);
+    let e = slam::eval::metrics::relations_error(&run.trajectory, &relations);
     eprintln!(
         "intel whole log, 30 particles, seed 0: {} relations, {:.4} m / {:.3} deg",
         e.used, e.trans_mean, e.rot_mean_deg
@@ -330,13 +321,11 @@ fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
             seed,
         )
         .unwrap();
-        for r in &records {
-            slam.process(r).unwrap();
-        }
+        let run = common::run_scans(&mut slam, &records);
         let c = slam.config();
         assert_eq!(c.preset, slam::gridfast::Preset::Outdoor);
         assert_eq!(c.sensor.max_range, Some(80.0));
-        let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
+        let e = slam::eval::metrics::ate(&run.trajectory, &truth).unwrap();
         eprintln!(
             "campus prefix, seed {seed}: ATE aligned {:.3} m (dead reckoning {:.3} m)",
             e.rmse_aligned, odometry.rmse_aligned
@@ -380,10 +369,8 @@ fn perturbed_intel_prefix_is_not_lost() {
     let records = &records[..800];
     let odometry = slam::eval::metrics::ate(&dead_reckoning(records), &truth).unwrap();
     let mut slam = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 0).unwrap();
-    for r in records {
-        slam.process(r).unwrap();
-    }
-    let e = slam::eval::metrics::ate(&slam.trajectory(), &truth).unwrap();
+    let run = common::run_scans(&mut slam, records);
+    let e = slam::eval::metrics::ate(&run.trajectory, &truth).unwrap();
     eprintln!(
         "intel-moderate prefix: ATE aligned {:.3} m (dead reckoning {:.3} m)",
         e.rmse_aligned, odometry.rmse_aligned

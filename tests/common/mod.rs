@@ -33,3 +33,17 @@ pub fn dataset(rel: &str) -> Option<PathBuf> {
     );
     None
 }
+
+/// Runs a scan filter over `records` with slam-eval's run function (the one loop every
+/// front end calls), without a reference to score against.
+pub fn run_scans(
+    filter: &mut dyn slam::models::ScanSlam,
+    records: &[slam::models::ScanRecord],
+) -> slam::eval::ScanRun {
+    let data = slam::models::ScanDataset {
+        name: "test".into(),
+        records: records.to_vec(),
+        ground_truth: None,
+    };
+    slam::eval::run_scans(filter, &data, &Default::default()).expect("the run")
+}

@@ -159,7 +159,8 @@ fn test_all() -> Result<(), String> {
     // Downstream users of single crates (tests/downstream, outside the workspace): each
     // program compiles with only the crates it names. The workspace's target folder is
     // shared (same lock file versions, same release profile), so only the programs build;
-    // the two that need no data run (they check their results against known geometry).
+    // those that need no data run (they check their results against known geometry or
+    // the simulator's truth; filter_swap once per arm of its one-line swap).
     let target = std::env::var_os("CARGO_TARGET_DIR").unwrap_or_else(|| "target".into());
     let target = std::fs::canonicalize(&target).unwrap_or_else(|_| target.into());
     run(
@@ -173,10 +174,18 @@ fn test_all() -> Result<(), String> {
             ])
             .env("CARGO_TARGET_DIR", &target),
     )?;
-    for bin in ["ekf_alone", "grid_alone"] {
+    for (bin, arg) in [
+        ("ekf_alone", None),
+        ("grid_alone", None),
+        ("scan_match_alone", None),
+        ("filter_swap", Some("ekf")),
+        ("filter_swap", Some("fastslam2")),
+    ] {
+        let mut command = Command::new(target.join("release").join(bin));
+        command.args(arg);
         run(
-            &format!("downstream {bin}"),
-            &mut Command::new(target.join("release").join(bin)),
+            &format!("downstream {bin} {}", arg.unwrap_or("")),
+            &mut command,
         )?;
     }
     let (passed, failed, ignored) =

@@ -123,6 +123,31 @@ pub enum CliError {
     },
 }
 
+impl From<slam_eval::InputError> for CliError {
+    /// An input error as the program reports it: a scenario too short for `--steps` names
+    /// the option.
+    fn from(e: slam_eval::InputError) -> Self {
+        use slam_eval::InputError;
+        match e {
+            InputError::Io(e) => CliError::Io(e),
+            InputError::Sim(e) => CliError::Sim(e),
+            InputError::TooFewSteps {
+                name,
+                seed,
+                want,
+                got,
+                what,
+            } => CliError::InvalidArgument(format!(
+                "--steps {want}: scenario {name} (seed {seed}) gives {got} {what}, its path ends \
+                 there; ask for at most {got}"
+            )),
+            e @ (InputError::ReplayNeedsMap
+            | InputError::ReplayNeedsYaml { .. }
+            | InputError::NoArgument { .. }) => CliError::InvalidArgument(e.to_string()),
+        }
+    }
+}
+
 impl CliError {
     /// The process exit code: 2 for command-line mistakes, 130 (128 + SIGINT, the shell's
     /// convention) for an interrupted run, 1 for everything else.

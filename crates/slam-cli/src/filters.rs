@@ -62,13 +62,14 @@ fn factory_error(e: FactoryError, path: Option<&Path>) -> CliError {
             },
             None => CliError::InvalidArgument(message),
         },
-        FactoryError::Invalid { filter, message } => CliError::FilterConfig {
+        FactoryError::Invalid { filter, source } => CliError::FilterConfig {
             filter: filter.to_string(),
-            message,
+            message: source.to_string(),
         },
         e @ (FactoryError::VariantMismatch { .. }
         | FactoryError::NotAParticleFilter { .. }
-        | FactoryError::WrongKind { .. }) => CliError::InvalidArgument(e.to_string()),
+        | FactoryError::WrongKind { .. }
+        | FactoryError::AmbiguousKind { .. }) => CliError::InvalidArgument(e.to_string()),
     }
 }
 

@@ -81,6 +81,59 @@ pub(crate) fn landmark_picture(l: &LandmarkLayers<'_>) -> Picture {
     pic.trajectory(l.estimate, RED, l.estimate_label)
 }
 
+/// `map.png` of a landmark run ([`landmark_picture`]): the run's trajectory (the path
+/// written to `trajectory.tum`) and map, and for particle filters every particle's path
+/// (grey) and landmark means (dots) from the filter's path tree and maps. Paths are drawn
+/// only while they fit a bounded number of poses (shared history is repeated once per
+/// particle when flattened); otherwise a line in `notes` says so.
+pub(crate) fn landmark_run_picture(
+    title: String,
+    filter: &dyn LandmarkSlam,
+    run: &slam_eval::LandmarkRun,
+    ground_truth: Option<&[TimedPose]>,
+    true_landmarks: Option<&[(LandmarkId, Point2)]>,
+    notes: &mut Vec<String>,
+) -> Picture {
+    const MAX_DRAWN_POSES: usize = 2_000_000;
+    let particles = filter.particles();
+    let poses: Vec<_> = run.trajectory().iter().map(|t| t.pose).collect();
+    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
+    let steps = run.online.len();
+    let particle_paths: Vec<Vec<Pose2>> = match filter.particle_paths() {
+        Some(pp) if pp.leaves.len().saturating_mul(steps + 1) <= MAX_DRAWN_POSES => {
+            (0..pp.leaves.len()).map(|k| pp.path_of(k)).collect()
+        }
+        Some(_) => {
+            notes.push(format!(
+                "map.png: particle paths not drawn (more than {MAX_DRAWN_POSES} poses)"
+            ));
+            Vec::new()
+        }
+        None => Vec::new(),
+    };
+    let particle_landmarks: Vec<Point2> = filter
+        .particle_landmarks()
+        .map(|maps| maps.iter().flatten().map(|l| l.mean).collect())
+        .unwrap_or_default();
+    landmark_picture(&LandmarkLayers {
+        title,
+        estimate: &poses,
+        estimate_label: if run.full_path.is_some() {
+            "best particle's path (full SLAM)"
+        } else if particles.is_some() {
+            "online estimate (best particle at each step)"
+        } else {
+            "estimate"
+        },
+        particle_paths: &particle_paths,
+        particle_landmarks: &particle_landmarks,
+        landmarks: &run.landmarks,
+        particles: particles.as_deref(),
+        ground_truth: gt_poses.as_deref(),
+        true_landmarks,
+    })
+}
+
 /// The picture of a laser filter's run: the map, the estimated trajectory (red, an arrow on
 /// its final pose), the ground truth with its legend label (green; a `--ground-truth` file
 /// for the bench logs is GMapping's trajectory, a reference rather than the truth) and the

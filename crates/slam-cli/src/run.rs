@@ -33,13 +33,12 @@ use crate::mcap::McapRecorder;
 use crate::outdir::{OutDir, Owner};
 use crate::pictures;
 use crate::progress::Progress;
-use crate::sim::{generate_exact, replay_map, scenario_options};
+use slam_eval::input::{self, replay_map, Input, InputData};
 use slam_eval::run::{
     run_landmarks_observed, run_scans_observed, Flow, LandmarkProgress, ObserverError, RunError,
     RunOptions, ScanProgress,
 };
 use slam_eval::Metrics;
-use slam_io::Dataset;
 use slam_models::{LandmarkDataset, ScanDataset, TimedPose};
 use slam_sim::NoiseModels;
 use std::io::Write;
@@ -64,40 +63,6 @@ struct Finished {
     files: Vec<PathBuf>,
     /// Extra summary lines.
     notes: Vec<String>,
-}
-
-/// The data a run works on.
-enum Data {
-    Landmark {
-        dataset: LandmarkDataset,
-        /// The simulator's noise models (simulated runs only).
-        sim_noise: Option<NoiseModels>,
-    },
-    Laser(ScanDataset),
-}
-
-/// The input of a run, loaded.
-struct Input {
-    /// Name for `metrics.json` and the default output folder.
-    name: String,
-    /// What the user gave (`--sim loop`, a path), for messages.
-    label: String,
-    /// One line: what was found.
-    description: String,
-    /// False when the data's times are step indices, not a clock (Freiburg course data).
-    has_clock: bool,
-    /// Made by the simulator (its ground truth is written beside the trajectory).
-    simulated: bool,
-    data: Data,
-}
-
-impl Input {
-    fn kind(&self) -> DataKind {
-        match self.data {
-            Data::Landmark { .. } => DataKind::Landmark,
-            Data::Laser(_) => DataKind::Laser,
-        }
-    }
 }
 
 /// Runs `slam run` with `args`, printing a short summary to `out`.
@@ -182,7 +147,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         crate::mcap::check_path(mcap, &inputs, &out_dir)?;
     }
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
-    let mut input = load_input(args)?;
+    let input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);
     let info = slam_eval::factory::find_for(info.name, input.kind()).unwrap_or(info);
     if both {
@@ -221,12 +186,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         simulated: input.simulated,
     };
     let threads = args.threads.map(|t| t as usize);
-    let run = |input: &mut Input| -> Result<Finished, CliError> {
-        match &mut input.data {
-            Data::Landmark { dataset, sim_noise } => {
-                run_landmark(&ctx, &input.name, input.has_clock, dataset, *sim_noise)
+    let run = |input: &Input| -> Result<Finished, CliError> {
+        match &input.data {
+            InputData::Landmark { dataset, sim_noise } => {
+                run_landmark(&ctx, input, dataset, *sim_noise)
             }
-            Data::Laser(dataset) => run_scan(&ctx, &input.name, input.has_clock, dataset),
+            InputData::Laser(dataset) => run_scan(&ctx, input, dataset),
         }
     };
     let Finished {
@@ -242,9 +207,9 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
                     threads: n,
                     message: e.to_string(),
                 })?;
-            pool.install(|| run(&mut input))?
+            pool.install(|| run(&input))?
         }
-        None => run(&mut input)?,
+        None => run(&input)?,
     };
     if crate::stop_requested() {
         return Err(CliError::Interrupted {
@@ -286,7 +251,7 @@ struct RunContext<'a> {
 /// or folder name without `.gz`/`.log`/`.clf` (with `-robotN` for MRCLAM).
 fn default_name(args: &RunArgs) -> String {
     if let Some(spec) = &args.sim {
-        return base_name(spec);
+        return input::scenario_base_name(spec);
     }
     let stem = args
         .dataset
@@ -305,49 +270,14 @@ fn default_name(args: &RunArgs) -> String {
     }
 }
 
-/// Reads the dataset or generates the scenario.
+/// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]).
 fn load_input(args: &RunArgs) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
-        let (name, opts) = scenario_options(spec, args.seed, args.steps)?;
-        let output = generate_exact(&name, &opts)?;
-        return Ok(match output {
-            slam_sim::SimOutput::Landmark(run) => {
-                let d = &run.dataset;
-                let obs: usize = d.steps.iter().map(|s| s.observations.len()).sum();
-                Input {
-                    description: format!(
-                        "simulated scenario {name} (seed {}): {} steps, {obs} observations, {} true landmarks, ground truth",
-                        args.seed,
-                        d.steps.len(),
-                        d.landmarks.as_ref().map_or(0, Vec::len),
-                    ),
-                    name: base_name(&name),
-                    label: format!("scenario {spec}"),
-                    has_clock: true,
-                    simulated: true,
-                    data: Data::Landmark {
-                        sim_noise: Some(run.noise_models()),
-                        dataset: run.dataset,
-                    },
-                }
-            }
-            slam_sim::SimOutput::Laser(run) => {
-                let d = &run.dataset;
-                let scans = d.records.iter().filter(|r| r.scan.is_some()).count();
-                Input {
-                    description: format!(
-                        "simulated scenario {name} (seed {}): {} records, {scans} scans, ground truth",
-                        args.seed,
-                        d.records.len(),
-                    ),
-                    name: base_name(&name),
-                    label: format!("scenario {spec}"),
-                    has_clock: true,
-                    simulated: true,
-                    data: Data::Laser(run.dataset),
-                }
-            }
-        });
+        return Ok(input::simulate(
+            spec,
+            args.seed,
+            args.steps.map(|s| s as usize),
+        )?);
     }
     let Some(path) = &args.dataset else {
         return Err(CliError::InvalidArgument(
@@ -360,54 +290,7 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
         odom_topic: args.odom_topic.clone(),
         laser_pose: args.laser_pose,
     };
-    let (dataset, description) = slam_io::open_dataset_with(path, &options)?;
-    let stem = path
-        .file_name()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_else(|| "dataset".into());
-    let stem = stem
-        .trim_end_matches(".gz")
-        .trim_end_matches(".log")
-        .trim_end_matches(".clf")
-        .trim_end_matches(".mcap")
-        .to_string();
-    let name_of = |n: &str| {
-        if n.is_empty() {
-            stem.clone()
-        } else {
-            n.to_string()
-        }
-    };
-    // Freiburg course data has no clock: its step times are indices, unless the folder
-    // carries the `times.dat` sidecar that simulated data is written with.
-    let freiburg_without_clock =
-        path.join("sensor_data.dat").is_file() && !path.join("times.dat").is_file();
-    Ok(match dataset {
-        Dataset::Landmark(d) => Input {
-            name: name_of(&d.name),
-            label: path.display().to_string(),
-            description,
-            has_clock: !freiburg_without_clock,
-            simulated: false,
-            data: Data::Landmark {
-                dataset: d,
-                sim_noise: None,
-            },
-        },
-        Dataset::Scan(d) => Input {
-            name: name_of(&d.name),
-            label: path.display().to_string(),
-            description,
-            has_clock: true,
-            simulated: false,
-            data: Data::Laser(d),
-        },
-    })
-}
-
-/// `replay:maps/x.yaml` → `replay`.
-fn base_name(spec: &str) -> String {
-    spec.split_once(':').map_or(spec, |(b, _)| b).to_string()
+    Ok(input::open(path, &options)?)
 }
 
 /// A name usable as part of a folder name.
@@ -430,14 +313,14 @@ fn write_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
     }
 }
 
-/// The library's run options for this run.
-fn run_options<'a>(ctx: &'a RunContext<'_>, name: &'a str, has_clock: bool) -> RunOptions<'a> {
+/// The library's run options for this run: the input's name and clock, and the
+/// reference, relations and map resolution of the command line.
+fn run_options<'a>(ctx: &'a RunContext<'_>, input: &'a Input) -> RunOptions<'a> {
     RunOptions {
-        dataset_name: Some(name),
         ground_truth: ctx.ground_truth.as_deref(),
         relations: ctx.relations.as_deref(),
-        times_are_indices: !has_clock,
         map_resolution: ctx.args.map_resolution,
+        ..input.run_options()
     }
 }
 
@@ -476,8 +359,7 @@ fn warn(warnings: &[String]) {
 
 fn run_landmark(
     ctx: &RunContext<'_>,
-    name: &str,
-    has_clock: bool,
+    input: &Input,
     dataset: &LandmarkDataset,
     sim_noise: Option<NoiseModels>,
 ) -> Result<Finished, CliError> {
@@ -502,7 +384,7 @@ fn run_landmark(
     let seeded = sim_noise.is_some() || particle_count.is_some();
     let title = pictures::title(
         info.name,
-        name,
+        &input.name,
         particle_count,
         seeded.then_some(ctx.args.seed),
     );
@@ -550,7 +432,7 @@ fn run_landmark(
             Flow::Continue
         })
     };
-    let opts = run_options(ctx, name, has_clock);
+    let opts = run_options(ctx, input);
     let run = run_landmarks_observed(filter.as_mut(), dataset, &opts, &mut observer)
         .map_err(run_error)?;
     progress.finish();
@@ -558,7 +440,6 @@ fn run_landmark(
         f.finish()?;
     }
     warn(&run.warnings);
-    let particles = filter.particles();
     let trajectory = run.trajectory();
 
     let dir = ctx.stage;
@@ -597,46 +478,14 @@ fn run_landmark(
     let p = dir.join("landmarks.csv");
     slam_io::landmarks_csv::write_landmarks_csv(&p, &run.landmarks)?;
     files.push(p);
-    let poses: Vec<_> = trajectory.iter().map(|t| t.pose).collect();
-    let gt_poses: Option<Vec<_>> = ground_truth.map(|g| g.iter().map(|t| t.pose).collect());
-    // Particle filters: every particle's path (grey) and landmark means (dots) from the
-    // filter's path tree and maps; the estimate is the path written to trajectory.tum.
-    // Paths are drawn only while they fit a bounded number of poses (shared history is
-    // repeated once per particle when flattened).
-    const MAX_DRAWN_POSES: usize = 2_000_000;
-    let particle_paths: Vec<Vec<slam_models::Pose2>> = match filter.particle_paths() {
-        Some(pp) if pp.leaves.len().saturating_mul(steps.len() + 1) <= MAX_DRAWN_POSES => {
-            (0..pp.leaves.len()).map(|k| pp.path_of(k)).collect()
-        }
-        Some(_) => {
-            notes.push(format!(
-                "map.png: particle paths not drawn (more than {MAX_DRAWN_POSES} poses)"
-            ));
-            Vec::new()
-        }
-        None => Vec::new(),
-    };
-    let particle_landmarks: Vec<slam_models::Point2> = filter
-        .particle_landmarks()
-        .map(|maps| maps.iter().flatten().map(|l| l.mean).collect())
-        .unwrap_or_default();
-    let pic = pictures::landmark_picture(&pictures::LandmarkLayers {
+    let pic = pictures::landmark_run_picture(
         title,
-        estimate: &poses,
-        estimate_label: if run.full_path.is_some() {
-            "best particle's path (full SLAM)"
-        } else if particles.is_some() {
-            "online estimate (best particle at each step)"
-        } else {
-            "estimate"
-        },
-        particle_paths: &particle_paths,
-        particle_landmarks: &particle_landmarks,
-        landmarks: &run.landmarks,
-        particles: particles.as_deref(),
-        ground_truth: gt_poses.as_deref(),
-        true_landmarks: dataset.landmarks.as_deref(),
-    });
+        filter.as_ref(),
+        &run,
+        ground_truth.map(Vec::as_slice),
+        dataset.landmarks.as_deref(),
+        &mut notes,
+    );
     let p = dir.join("map.png");
     pic.save_png(&p)?;
     files.push(p);
@@ -655,8 +504,7 @@ fn run_landmark(
 
 fn run_scan(
     ctx: &RunContext<'_>,
-    name: &str,
-    has_clock: bool,
+    input: &Input,
     dataset: &ScanDataset,
 ) -> Result<Finished, CliError> {
     let info = &ctx.info;
@@ -687,7 +535,7 @@ fn run_scan(
             Flow::Continue
         })
     };
-    let opts = run_options(ctx, name, has_clock);
+    let opts = run_options(ctx, input);
     let run =
         run_scans_observed(filter.as_mut(), dataset, &opts, &mut observer).map_err(run_error)?;
     progress.finish();
@@ -727,7 +575,7 @@ fn run_scan(
     let particle_count = particles.as_ref().map(Vec::len);
     let title = pictures::title(
         info.name,
-        name,
+        &input.name,
         particle_count,
         particle_count.map(|_| ctx.args.seed),
     );

@@ -17,7 +17,7 @@
 use crate::cli::SimArgs;
 use crate::error::CliError;
 use crate::outdir::{OutDir, Owner};
-use slam_sim::scenario::ScenarioOptions;
+use slam_eval::input::{generate_exact, replay_map, scenario_options};
 use slam_sim::SimOutput;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -37,99 +37,13 @@ pub struct SimReport {
     pub steps: usize,
 }
 
-/// Scenario name and options for a `--sim`/`slam sim` argument: `replay:<map.yaml>` loads the
-/// map into the options.
-pub(crate) fn scenario_options(
-    spec: &str,
-    seed: u64,
-    steps: Option<u64>,
-) -> Result<(String, ScenarioOptions), CliError> {
-    let mut opts = ScenarioOptions {
-        seed,
-        steps: steps.map(|s| s as usize),
-        ..Default::default()
-    };
-    let name = match spec.split_once(':') {
-        Some(("replay", map)) => {
-            if map.is_empty() {
-                return Err(CliError::InvalidArgument(
-                    "scenario replay needs a map: replay:<map.yaml> (a ROS map_server YAML)".into(),
-                ));
-            }
-            // A map image is accepted too: its resolution and origin come from the
-            // map_server YAML of the same name beside it.
-            let mut path = Path::new(map).to_path_buf();
-            if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pgm")) {
-                path.set_extension("yaml");
-                if !path.exists() {
-                    return Err(CliError::InvalidArgument(format!(
-                        "replay:{map}: a map image needs its map_server YAML (resolution, origin) \
-                         beside it, expected {}",
-                        path.display()
-                    )));
-                }
-            }
-            opts.replay_map = Some(slam_io::ros_map::read_ros_map(&path)?);
-            "replay".to_string()
-        }
-        Some((other, _)) => {
-            return Err(CliError::InvalidArgument(format!(
-                "scenario `{spec}`: only `replay` takes an argument (`replay:<map.yaml>`), not `{other}`"
-            )))
-        }
-        None if spec == "replay" => {
-            return Err(CliError::InvalidArgument(
-                "scenario replay needs a map: replay:<map.yaml> (a ROS map_server YAML)".into(),
-            ))
-        }
-        None => spec.to_string(),
-    };
-    Ok((name, opts))
-}
-
-/// The map file of a `replay:<map>` scenario spec (an input that must not lie in `--out`).
-pub(crate) fn replay_map(spec: &str) -> Option<&Path> {
-    match spec.split_once(':') {
-        Some(("replay", map)) if !map.is_empty() => Some(Path::new(map)),
-        _ => None,
-    }
-}
-
-/// Generates scenario `name`, checking that it has exactly the `steps` asked for (steps for
-/// landmark scenarios, scans for laser ones): a scenario whose path ends sooner is an error
-/// that says how many it can give.
-pub(crate) fn generate_exact(name: &str, opts: &ScenarioOptions) -> Result<SimOutput, CliError> {
-    let output = slam_sim::scenario::generate(name, opts)?;
-    if let Some(want) = opts.steps {
-        let (got, what) = match &output {
-            SimOutput::Landmark(run) => (run.dataset.steps.len(), "steps"),
-            SimOutput::Laser(run) => (
-                run.dataset
-                    .records
-                    .iter()
-                    .filter(|r| r.scan.is_some())
-                    .count(),
-                "scans",
-            ),
-        };
-        if got != want {
-            return Err(CliError::InvalidArgument(format!(
-                "--steps {want}: scenario {name} (seed {}) gives {got} {what}, its path ends \
-                 there; ask for at most {got}",
-                opts.seed
-            )));
-        }
-    }
-    Ok(output)
-}
-
 /// Runs `slam sim` with `args`, printing what was written to `out`.
 pub fn sim(args: &SimArgs, out: &mut dyn Write) -> Result<SimReport, CliError> {
     let mut inputs: Vec<(&str, &Path)> = Vec::new();
     if let Some(map) = replay_map(&args.scenario) {
         inputs.push(("replay map", map));
     }
-    let (name, opts) = scenario_options(&args.scenario, args.seed, args.steps)?;
+    let (name, opts) = scenario_options(&args.scenario, args.seed, args.steps.map(|s| s as usize))?;
     let staging = OutDir::prepare(&args.out, Owner::Sim, false, &inputs)?;
     let output = generate_exact(&name, &opts)?;
     let dir = &args.out;

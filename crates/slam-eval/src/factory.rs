@@ -13,6 +13,11 @@
 //! # Ok::<(), slam_eval::factory::FactoryError>(())
 //! ```
 //!
+//! `graph` names a filter of each kind of data: a file that names its filter says which
+//! (`filter = "graph-landmark"` or `"graph-laser"`), or the caller gives the kind
+//! ([`FilterConfig::from_toml_for_kind`]); a bare `"graph"` is
+//! [`FactoryError::AmbiguousKind`] rather than a silent pick.
+//!
 //! [`filters`] lists every filter with its data kind and a one-line description (what
 //! `slam list` prints). The list is open: a filter family added later (pose graphs) gets a
 //! variant, a [`FilterInfo`] and a build arm here, and every front end picks it up.
@@ -24,7 +29,7 @@ use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
 use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
 use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
-use slam_models::{LandmarkSlam, Pose2, ScanSlam};
+use slam_models::{BoxedError, LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
 use thiserror::Error;
 
@@ -209,15 +214,39 @@ pub enum FactoryError {
         /// Its kind, `"landmark"` or `"laser"`.
         kind: &'static str,
     },
-    /// The filter's constructor rejected its configuration (the filter crate's message
-    /// names the field and the bound).
-    #[error("filter `{filter}`: {message}")]
+    /// The filter's constructor rejected its configuration (the filter crate's error
+    /// names the field and the bound). The error keeps its type: downcast `source` to the
+    /// filter crate's error (`slam_ekf::EkfError`, `slam_gridfast::GridFastError`, …).
+    #[error("filter `{filter}`: {source}")]
     Invalid {
         /// The filter.
         filter: &'static str,
-        /// The constructor's error, in words.
-        message: String,
+        /// The constructor's own error.
+        #[source]
+        source: BoxedError,
     },
+    /// The filter's name serves both kinds of data (`graph`) and the text does not say
+    /// which: give the kind with [`FilterConfig::from_toml_for_kind`], or set `filter =
+    /// "graph-landmark"` / `"graph-laser"`.
+    #[error(
+        "filter `{filter}` serves both landmark and laser data; say which: \
+         `filter = \"{filter}-landmark\"` or `\"{filter}-laser\"`, or parse with \
+         FilterConfig::from_toml_for_kind"
+    )]
+    AmbiguousKind {
+        /// The filter.
+        filter: &'static str,
+    },
+}
+
+impl FactoryError {
+    /// [`FactoryError::Invalid`] for `filter`, keeping the constructor's error `e`.
+    fn invalid(filter: &'static str, e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        FactoryError::Invalid {
+            filter,
+            source: Box::new(e),
+        }
+    }
 }
 
 fn particle_filter_names() -> String {
@@ -292,9 +321,15 @@ impl ParsedConfig {
 }
 
 impl FilterConfig {
-    /// The filter called `name` with its default configuration.
+    /// The filter called `name` with its default configuration. A name that serves both
+    /// kinds of data (`graph`) is [`FactoryError::AmbiguousKind`]: use
+    /// [`default_for_kind`](Self::default_for_kind).
     pub fn default_for(name: &str) -> Result<Self, FactoryError> {
-        Self::default_for_kind(name, find(name)?.kind)
+        let info = find(name)?;
+        if serves_both_kinds(info.name) {
+            return Err(FactoryError::AmbiguousKind { filter: info.name });
+        }
+        Self::default_for_kind(name, info.kind)
     }
 
     /// The filter called `name` for data of `kind` with its default configuration (a name
@@ -327,11 +362,14 @@ impl FilterConfig {
         })
     }
 
-    /// Parses a tagged TOML configuration: `filter = "<name>"` and the filter's keys
-    /// (`graph`, which serves both kinds of data, is the landmark front end here; give the
-    /// kind with [`from_toml_for_kind`](Self::from_toml_for_kind) for the laser one)
-    /// (any subset; the rest keep their defaults). An unknown tag, a missing tag, an unknown
+    /// Parses a tagged TOML configuration: `filter = "<name>"` and the filter's keys (any
+    /// subset; the rest keep their defaults). An unknown tag, a missing tag, an unknown
     /// key or a wrong type is a [`FactoryError`] naming it.
+    ///
+    /// `graph` serves both kinds of data, so the text must say which: `filter =
+    /// "graph-landmark"` or `"graph-laser"` (the tags [`FilterConfig`] serialises with);
+    /// a bare `"graph"` is [`FactoryError::AmbiguousKind`] here, and
+    /// [`from_toml_for_kind`](Self::from_toml_for_kind) takes it with the data's kind.
     pub fn from_toml(text: &str) -> Result<ParsedConfig, FactoryError> {
         let table = parse_table(text)?;
         let name = match table.get("filter") {
@@ -352,14 +390,23 @@ impl FilterConfig {
                 })
             }
         };
-        Self::from_toml_for(&name, text)
+        match name.as_str() {
+            "graph-landmark" => Self::from_toml_for_kind("graph", DataKind::Landmark, text),
+            "graph-laser" => Self::from_toml_for_kind("graph", DataKind::Laser, text),
+            _ => Self::from_toml_for(&name, text),
+        }
     }
 
     /// Parses the TOML table of the filter called `name` (a `configs/<name>.toml` file, the
     /// `--config` of `slam run`): the filter's keys over its defaults. A `filter` key, if
-    /// present, must name the same filter.
+    /// present, must name the same filter. A name that serves both kinds of data (`graph`)
+    /// is [`FactoryError::AmbiguousKind`]: use [`from_toml_for_kind`](Self::from_toml_for_kind).
     pub fn from_toml_for(name: &str, text: &str) -> Result<ParsedConfig, FactoryError> {
-        Self::from_toml_for_kind(name, find(name)?.kind, text)
+        let info = find(name)?;
+        if serves_both_kinds(info.name) {
+            return Err(FactoryError::AmbiguousKind { filter: info.name });
+        }
+        Self::from_toml_for_kind(name, info.kind, text)
     }
 
     /// [`from_toml_for`](Self::from_toml_for) for data of `kind` (a name may serve both
@@ -372,7 +419,12 @@ impl FilterConfig {
         let info = find_for(name, kind).map_or_else(|| find(name), Ok)?;
         let mut table = parse_table(text)?;
         if let Some(tag) = table.remove("filter") {
-            if tag.as_str() != Some(info.name) {
+            // `graph-landmark` / `graph-laser`: the kind-qualified tag of a name that
+            // serves both kinds, accepted for its own kind.
+            let qualified = format!("{}-{}", info.name, info.kind.as_str());
+            let same = tag.as_str() == Some(info.name)
+                || (serves_both_kinds(info.name) && tag.as_str() == Some(qualified.as_str()));
+            if !same {
                 return Err(FactoryError::Parse {
                     line: None,
                     message: format!("the config file is for filter {tag}, not `{}`", info.name),
@@ -482,19 +534,19 @@ impl FilterConfig {
         initial_pose: Pose2,
         seed: u64,
     ) -> Result<Box<dyn LandmarkSlam>, FactoryError> {
-        let invalid = |e: &dyn std::fmt::Display| FactoryError::Invalid {
-            filter: self.name(),
-            message: e.to_string(),
-        };
+        let name = self.name();
         Ok(match self {
-            FilterConfig::Ekf(c) => {
-                Box::new(EkfSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
-            }
-            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => {
-                Box::new(FastSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?)
-            }
+            FilterConfig::Ekf(c) => Box::new(
+                EkfSlam::new(c.clone(), initial_pose, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
+            ),
+            FilterConfig::Fastslam1(c) | FilterConfig::Fastslam2(c) => Box::new(
+                FastSlam::new(c.clone(), initial_pose, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
+            ),
             FilterConfig::GraphLandmark(c) => Box::new(
-                GraphLandmarkSlam::new(c.clone(), initial_pose, seed).map_err(|e| invalid(&e))?,
+                GraphLandmarkSlam::new(c.clone(), initial_pose, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
             ),
             FilterConfig::Scanmatch(_)
             | FilterConfig::Gridfast(_)
@@ -511,21 +563,20 @@ impl FilterConfig {
     /// GMapping's), its random numbers
     /// from `seed` (particle filters).
     pub fn build_scan(&self, seed: u64) -> Result<Box<dyn ScanSlam>, FactoryError> {
-        let invalid = |e: &dyn std::fmt::Display| FactoryError::Invalid {
-            filter: self.name(),
-            message: e.to_string(),
-        };
+        let name = self.name();
         Ok(match self {
             FilterConfig::Scanmatch(c) => Box::new(
                 ScanMatchOdometry::new(c.clone(), Pose2::IDENTITY, seed)
-                    .map_err(|e| invalid(&e))?,
+                    .map_err(|e| FactoryError::invalid(name, e))?,
             ),
             FilterConfig::Gridfast(c) => Box::new(
-                GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed).map_err(|e| invalid(&e))?,
+                GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
             ),
-            FilterConfig::GraphLaser(c) => {
-                Box::new(LaserGraphSlam::new((**c).clone()).map_err(|e| invalid(&e))?)
-            }
+            FilterConfig::GraphLaser(c) => Box::new(
+                LaserGraphSlam::new((**c).clone(), Pose2::IDENTITY, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
+            ),
             FilterConfig::Ekf(_)
             | FilterConfig::Fastslam1(_)
             | FilterConfig::Fastslam2(_)

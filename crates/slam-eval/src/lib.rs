@@ -9,6 +9,8 @@
 //! * [`run_landmarks`] / [`run_scans`]: drive a `&mut dyn LandmarkSlam` / `&mut dyn
 //!   ScanSlam` over a dataset and score it ([`run`]), with an observer for progress,
 //!   pictures and Ctrl-C.
+//! * [`input`]: a run's input, loaded: a simulated scenario, or whatever a dataset path
+//!   holds (CARMEN, Freiburg, MRCLAM, ROS bags, through slam-io's readers).
 //! * [`factory`]: a [`FilterConfig`] tagged by the filter's name (`filter = "ekf"`, …)
 //!   builds a `Box<dyn LandmarkSlam>` / `Box<dyn ScanSlam>`, so swapping the filter is a
 //!   config change; [`filters`](factory::filters) lists them.
@@ -19,12 +21,14 @@
 
 pub mod error;
 pub mod factory;
+pub mod input;
 pub mod metrics;
 pub mod metrics_json;
 pub mod run;
 
 pub use error::EvalError;
 pub use factory::{FactoryError, FilterConfig};
+pub use input::{Input, InputData, InputError};
 pub use metrics_json::{peak_rss_mb, Metrics};
 pub use run::{
     run_landmarks, run_landmarks_observed, run_scans, run_scans_observed, Flow, LandmarkObserver,

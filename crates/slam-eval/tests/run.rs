@@ -307,3 +307,134 @@ fn a_config_file_keeps_its_own_noise_models() {
     let applied = parsed.apply_sim_noise(&sim.noise_models());
     assert!(applied.motion && !applied.sensor);
 }
+
+#[test]
+fn a_constructor_error_keeps_its_type() {
+    // `particles = 0` is refused by FastSLAM's constructor: the factory's error holds the
+    // crate's own typed error, whose ConfigError names the key and the bound.
+    let parsed = FilterConfig::from_toml("filter = \"fastslam2\"\nparticles = 0\n").unwrap();
+    let Some(FactoryError::Invalid { filter, source }) =
+        parsed.config.build_landmark(Pose2::default(), 0).err()
+    else {
+        panic!("expected FactoryError::Invalid");
+    };
+    assert_eq!(filter, "fastslam2");
+    let Some(slam_fastslam::FastSlamError::InvalidConfig(c)) =
+        source.downcast_ref::<slam_fastslam::FastSlamError>()
+    else {
+        panic!("source is not a FastSlamError::InvalidConfig: {source:?}");
+    };
+    assert_eq!((c.key(), c.value.as_str()), ("particles".to_string(), "0"));
+    // The same for a scan filter (grid FastSLAM's own error type).
+    let parsed = FilterConfig::from_toml("filter = \"gridfast\"\nparticles = 0\n").unwrap();
+    let Some(FactoryError::Invalid { source, .. }) = parsed.config.build_scan(0).err() else {
+        panic!("expected FactoryError::Invalid");
+    };
+    assert!(
+        source
+            .downcast_ref::<slam_gridfast::GridFastError>()
+            .is_some(),
+        "{source:?}"
+    );
+    // std's source chain reaches it too.
+    let e = FilterConfig::from_toml("filter = \"ekf\"\nmax-landmarks = 0\n")
+        .unwrap()
+        .config
+        .build_landmark(Pose2::default(), 0)
+        .err()
+        .unwrap();
+    let source = std::error::Error::source(&e).expect("a source");
+    assert!(
+        source.downcast_ref::<slam_ekf::EkfError>().is_some(),
+        "{source:?}"
+    );
+}
+
+#[test]
+fn graph_without_a_kind_is_an_error_that_says_how() {
+    // `graph` serves both kinds of data: a bare tag does not pick one silently.
+    let e = FilterConfig::from_toml("filter = \"graph\"\n").unwrap_err();
+    assert!(
+        matches!(e, FactoryError::AmbiguousKind { filter: "graph" }),
+        "{e}"
+    );
+    let text = e.to_string();
+    assert!(
+        text.contains("graph-landmark") && text.contains("from_toml_for_kind"),
+        "{text}"
+    );
+    assert!(matches!(
+        FilterConfig::from_toml_for("graph", ""),
+        Err(FactoryError::AmbiguousKind { .. })
+    ));
+    assert!(matches!(
+        FilterConfig::default_for("graph"),
+        Err(FactoryError::AmbiguousKind { .. })
+    ));
+    // The kind-qualified tags, and the kind given by the caller, pick one each.
+    let landmark = FilterConfig::from_toml("filter = \"graph-landmark\"\n").unwrap();
+    assert_eq!(landmark.config.kind(), DataKind::Landmark);
+    let laser = FilterConfig::from_toml("filter = \"graph-laser\"\n").unwrap();
+    assert_eq!(laser.config.kind(), DataKind::Laser);
+    let laser =
+        FilterConfig::from_toml_for_kind("graph", DataKind::Laser, "filter = \"graph\"\n").unwrap();
+    assert_eq!(laser.config.kind(), DataKind::Laser);
+    // A tag of the other kind is refused.
+    assert!(FilterConfig::from_toml_for_kind(
+        "graph",
+        DataKind::Laser,
+        "filter = \"graph-landmark\"\n"
+    )
+    .is_err());
+}
+
+/// The run functions are the hand-written loop they replace: the same filter, seed and
+/// data give bit-identical trajectories (what keeps every accuracy test's figures).
+#[test]
+fn the_run_functions_give_the_hand_loops_trajectory() {
+    let sim = loop_run(80);
+    let build = || {
+        let mut parsed =
+            FilterConfig::from_toml("filter = \"fastslam2\"\nparticles = 15\n").unwrap();
+        parsed.apply_sim_noise(&sim.noise_models());
+        parsed
+            .config
+            .build_landmark(sim.dataset.initial_pose, 5)
+            .unwrap()
+    };
+    let mut by_hand = build();
+    let mut online = Vec::new();
+    for s in &sim.dataset.steps {
+        by_hand.predict(&s.control).unwrap();
+        by_hand.update(&s.observations).unwrap();
+        online.push(by_hand.pose());
+    }
+    let mut by_run = build();
+    let run = run_landmarks(by_run.as_mut(), &sim.dataset, &RunOptions::default()).unwrap();
+    assert!(online.iter().zip(&run.online).all(|(a, b)| *a == b.pose));
+    assert_eq!(by_hand.full_path(), by_run.full_path());
+    assert_eq!(by_hand.landmarks(), run.landmarks);
+
+    let opts = ScenarioOptions {
+        steps: Some(60),
+        ..Default::default()
+    };
+    let SimOutput::Laser(sim) = generate("office", &opts).unwrap() else {
+        panic!("office is a laser scenario")
+    };
+    let build = || {
+        FilterConfig::from_toml("filter = \"gridfast\"\nparticles = 6\n")
+            .unwrap()
+            .config
+            .build_scan(9)
+            .unwrap()
+    };
+    let mut by_hand = build();
+    for r in &sim.dataset.records {
+        by_hand.process(r).unwrap();
+    }
+    let mut by_run = build();
+    let run = run_scans(by_run.as_mut(), &sim.dataset, &RunOptions::default()).unwrap();
+    assert_eq!(by_hand.trajectory(), run.trajectory);
+    assert_eq!(by_hand.map(), run.map);
+}

@@ -42,3 +42,20 @@ pub use linear::{Factorization, Ordering};
 pub use optimizer::{
     IterationInfo, Method, OptimizeReport, Optimizer, OptimizerConfig, StopReason,
 };
+
+/// The `slam-models` vocabulary this crate's API speaks (poses and matrices of the graph,
+/// the filter traits its front ends implement), re-exported so that a user of the pose
+/// graph or its front ends compiles with this crate alone (sophus-rs style).
+pub use slam_models::association::AssociationMode;
+pub use slam_models::{
+    ConfigError, Control, FilterError, FromConfig, GridMap, LandmarkDataset, LandmarkEstimate,
+    LandmarkId, LandmarkSlam, LaserScan, Matrix2, Matrix3, OdometryControl, Point2, Pose2,
+    RangeBearing, ScanDataset, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose, UpdateInfo,
+    VelocityControl,
+};
+
+/// Traits only, for glob import: `use slam_graph::prelude::*;` (re-exports
+/// [`slam_models::prelude`]).
+pub mod prelude {
+    pub use slam_models::prelude::*;
+}

@@ -153,10 +153,11 @@ pub struct WeightedPose {
 /// The one constructor shape of every filter: a configuration, the initial pose and a seed.
 ///
 /// Every filter crate's filter (`EkfSlam`, `FastSlam`, `ScanMatchOdometry`,
-/// `GridFastSlam`) has an inherent `new(config, initial_pose, seed)` with exactly these
-/// arguments and implements this trait by calling it, so generic code (a filter factory, a
-/// benchmark over several filters) can build any of them the same way. Deterministic
-/// filters (the EKF, scan-matching odometry) take the seed for uniformity and ignore it;
+/// `GridFastSlam`, slam-graph's `GraphLandmarkSlam` and `LaserGraphSlam`) has an inherent
+/// `new(config, initial_pose, seed)` with exactly these arguments and implements this trait
+/// by calling it, so generic code (a filter factory, a benchmark over several filters) can
+/// build any of them the same way. Deterministic filters (the EKF, scan-matching odometry,
+/// the pose-graph front ends) take the seed for uniformity and ignore it;
 /// for the particle filters it fixes every random draw (same seed, same bytes).
 ///
 /// `initial_pose` places the filter's own starting frame in the world frame:
@@ -165,7 +166,9 @@ pub struct WeightedPose {
 ///   (the first record);
 /// * grid FastSLAM: the pose of the odometry frame, so a record's uncorrected pose is
 ///   `initial_pose ⊕ odometry` (GMapping's convention: the map is drawn in the odometry
-///   frame, and `Pose2::IDENTITY` keeps it there).
+///   frame, and `Pose2::IDENTITY` keeps it there);
+/// * slam-graph's laser front end: the pose of the odometry frame too, of which it accepts
+///   only `Pose2::IDENTITY` (it maps in the odometry frame; another pose is a config error).
 ///
 /// `Pose2::IDENTITY` gives every filter its behaviour from before this argument existed.
 pub trait FromConfig: Sized {

@@ -45,8 +45,8 @@ use crate::graph::PoseGraph;
 use crate::optimizer::Optimizer;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, PreparedScan};
 use slam_models::{
-    normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
-    ScanSlam, ScanUpdateInfo, TimedPose,
+    normalize_angle, FilterError, FromConfig, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2,
+    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
 };
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -109,7 +109,7 @@ pub struct LaserGraphStats {
 /// use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
 /// use slam_models::{Pose2, ScanRecord, ScanSlam};
 ///
-/// let mut slam = LaserGraphSlam::new(LaserGraphConfig::default()).unwrap();
+/// let mut slam = LaserGraphSlam::new(LaserGraphConfig::default(), Pose2::IDENTITY, 0).unwrap();
 /// slam.process(&ScanRecord { t: 0.0, odometry: Pose2::IDENTITY, scan: None }).unwrap();
 /// assert_eq!(slam.trajectory().len(), 1);
 /// ```
@@ -153,9 +153,32 @@ impl Clone for LaserGraphSlam {
 }
 
 impl LaserGraphSlam {
-    /// A front end with no data yet; rejects an invalid configuration (the error names the
-    /// field and its bound).
-    pub fn new(config: LaserGraphConfig) -> Result<Self, GraphError> {
+    /// A front end with no data yet, in the one constructor shape of every filter
+    /// ([`FromConfig`]); rejects an invalid configuration (the error names the field and
+    /// its bound).
+    ///
+    /// `initial_pose` is the pose of the odometry frame in the world, as for grid FastSLAM;
+    /// the front end works in the odometry frame, so only `Pose2::IDENTITY` is accepted
+    /// (any other pose is a [`GraphError::InvalidConfig`] naming `initial-pose`). `seed` is
+    /// taken for uniformity and ignored: the front end draws no random numbers.
+    pub fn new(
+        config: LaserGraphConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, GraphError> {
+        let _ = seed;
+        if initial_pose != Pose2::IDENTITY {
+            return Err(slam_models::ConfigError::new(
+                "laser graph",
+                "initial_pose",
+                format!(
+                    "({}, {}, {})",
+                    initial_pose.x, initial_pose.y, initial_pose.theta
+                ),
+                "the identity: the front end maps in the odometry frame",
+            )
+            .into());
+        }
         config.validate()?;
         let guard = OdometryJumpGuard::new(config.odometry_jump)?;
         Ok(Self {
@@ -697,6 +720,19 @@ fn invert(cov: &Matrix3) -> Matrix3 {
             .unwrap_or(Matrix3::identity())
     });
     (m + m.transpose()) * 0.5
+}
+
+impl FromConfig for LaserGraphSlam {
+    type Config = LaserGraphConfig;
+    type Error = GraphError;
+
+    fn from_config(
+        config: LaserGraphConfig,
+        initial_pose: Pose2,
+        seed: u64,
+    ) -> Result<Self, GraphError> {
+        Self::new(config, initial_pose, seed)
+    }
 }
 
 impl ScanSlam for LaserGraphSlam {

@@ -15,7 +15,7 @@ fn record(t: f64, odometry: Pose2) -> ScanRecord {
 /// satisfied exactly, the first pose held).
 #[test]
 fn odometry_only_gives_the_odometry() {
-    let mut f = LaserGraphSlam::new(LaserGraphConfig::default()).unwrap();
+    let mut f = LaserGraphSlam::new(LaserGraphConfig::default(), Pose2::IDENTITY, 0).unwrap();
     let mut o = Pose2::new(1.0, -2.0, 0.3);
     let mut expected = Vec::new();
     for i in 0..50 {
@@ -34,7 +34,7 @@ fn odometry_only_gives_the_odometry() {
 /// beyond the limit is an error naming the bound.
 #[test]
 fn bad_records_are_errors_that_change_nothing() {
-    let mut f = LaserGraphSlam::new(LaserGraphConfig::default()).unwrap();
+    let mut f = LaserGraphSlam::new(LaserGraphConfig::default(), Pose2::IDENTITY, 0).unwrap();
     f.process(&record(0.0, Pose2::IDENTITY)).unwrap();
     let bad = ScanRecord {
         t: 0.1,
