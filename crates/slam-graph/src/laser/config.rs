@@ -119,9 +119,12 @@ pub struct LaserGraphConfig {
     /// How a match's covariance is estimated. Default: from the tempered likelihood
     /// sampled over ±0.3 m and ±0.03 rad at T = 10.
     pub match_covariance: MatchCovariance,
-    /// Standard deviations (m, rad) added in quadrature to the matcher's covariance before
-    /// it becomes an edge's information: the matcher's lattice fit is a lower bound on the
-    /// error (it knows nothing of map errors). Default (0.02, 0.01).
+    /// Standard deviations (m, rad) added in quadrature to a match's covariance before it
+    /// becomes an edge's information: the sampled response is a lower bound on the error
+    /// (it knows nothing of map errors). Added, not a lower bound on the eigenvalues, so
+    /// the response's anisotropy survives. Default (0.02, 0.002): a scan fixes the heading
+    /// far better than 0.01 rad, the earlier floor, which let the odometry's heading
+    /// errors into the office's map (docs/results/graph.md).
     pub match_min_std: [f64; 2],
     /// Scans per submap (≥ 2, ≤ [`MAX_SUBMAP_SCANS`]); a new submap starts every half of
     /// this, so two overlap and the older (fuller) one is matched against (Hess et al.
@@ -161,7 +164,9 @@ pub struct LaserGraphConfig {
     /// Loop closure: at most this many submaps (the nearest) are searched per keyframe.
     /// Default 3.
     pub loop_max_candidates: usize,
-    /// Loop closure: pyramids kept for reuse (least recently used dropped). Default 6.
+    /// Loop closure: finished submaps' grids and pyramids kept for reuse (least recently
+    /// used dropped; a submap not in the cache is rebuilt from its keyframes' scans). The
+    /// front end's memory beyond its keyframes is about this many submaps. Default 6.
     pub loop_pyramid_cache: usize,
     /// The optimiser (slam-graph's Levenberg-Marquardt), run after every keyframe that
     /// added a loop closure and once more over every record for the trajectory. Default:
@@ -199,7 +204,7 @@ impl Default for LaserGraphConfig {
             local_min_score: 0.25,
             match_covariance_scale: 1.0,
             match_covariance: MatchCovariance::default(),
-            match_min_std: [0.02, 0.01],
+            match_min_std: [0.02, 0.002],
             submap_scans: 20,
             odometry_noise: OdometryNoise::default(),
             loop_min_score: 0.55,
