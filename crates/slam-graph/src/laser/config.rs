@@ -50,6 +50,43 @@ impl Default for OdometryNoise {
     }
 }
 
+/// How the covariance of a local scan match (the edge between consecutive keyframes) is
+/// estimated before the `match-min-std` floor is added and it becomes the edge's
+/// information. (Loop closures keep the matcher's own.)
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", tag = "kind")]
+pub enum MatchCovariance {
+    /// The matcher's own: Gauss-Newton's σ̂²H⁻¹ at its optimum (the correlative or
+    /// branch-and-bound lattice's when the refinement fails). A local, quadratic and, with
+    /// independent beams, very confident estimate: once floored, nearly isotropic.
+    Matcher,
+    /// Olson 2009's covariance of the response (eq. 14–16): the moments of
+    /// wₖ ∝ exp(ℓ(xₖ)/T) over a lattice of poses around the match (one cell, and the
+    /// rotation that moves the farthest end point one cell, apart), ℓ the scan's
+    /// likelihood-field log-likelihood. Wide enough to see that a corridor's response is
+    /// flat along its axis, so the odometry keeps its weight there.
+    #[serde(rename_all = "kebab-case")]
+    Response {
+        /// Half-width of the translation window, metres (> 0, ≤ 2). Default 0.3.
+        linear_window: f64,
+        /// Half-width of the rotation window, radians (in [0, 0.5]). Default 0.03.
+        angular_window: f64,
+        /// T (≥ 1): 1 treats the beams as independent; larger values flatten the
+        /// response for their correlation and the map's errors. Default 10.
+        temperature: f64,
+    },
+}
+
+impl Default for MatchCovariance {
+    fn default() -> Self {
+        MatchCovariance::Response {
+            linear_window: 0.3,
+            angular_window: 0.03,
+            temperature: 10.0,
+        }
+    }
+}
+
 /// Configuration of [`super::LaserGraphSlam`]. Lengths in metres, angles in radians; the
 /// keys are kebab-case in TOML (`submap-scans = 20`), the nested slam-grid structs keep
 /// their own names.
@@ -77,13 +114,17 @@ pub struct LaserGraphConfig {
     /// A local match scoring below this mean field value per end point is rejected and the
     /// odometry increment used instead. Default 0.25.
     pub local_min_score: f64,
-    /// Factor on the matchers' covariances before they become information: the
-    /// independent-beam model makes them overconfident by about this much (Gauss-Newton's
-    /// σ̂²H⁻¹ keeps its shape, so a corridor stays weak along its axis). Default 1.
+    /// Factor on the matches' covariances before they become information. Default 1.
     pub match_covariance_scale: f64,
-    /// Standard deviations (m, rad) added in quadrature to the matcher's covariance before
-    /// it becomes an edge's information: the matcher's lattice fit is a lower bound on the
-    /// error (it knows nothing of map errors). Default (0.02, 0.01).
+    /// How a match's covariance is estimated. Default: from the tempered likelihood
+    /// sampled over ±0.3 m and ±0.03 rad at T = 10.
+    pub match_covariance: MatchCovariance,
+    /// Standard deviations (m, rad) added in quadrature to a match's covariance before it
+    /// becomes an edge's information: the sampled response is a lower bound on the error
+    /// (it knows nothing of map errors). Added, not a lower bound on the eigenvalues, so
+    /// the response's anisotropy survives. Default (0.02, 0.002): a scan fixes the heading
+    /// far better than 0.01 rad, the earlier floor, which let the odometry's heading
+    /// errors into the office's map (docs/results/graph.md).
     pub match_min_std: [f64; 2],
     /// Scans per submap (≥ 2, ≤ [`MAX_SUBMAP_SCANS`]); a new submap starts every half of
     /// this, so two overlap and the older (fuller) one is matched against (Hess et al.
@@ -123,7 +164,9 @@ pub struct LaserGraphConfig {
     /// Loop closure: at most this many submaps (the nearest) are searched per keyframe.
     /// Default 3.
     pub loop_max_candidates: usize,
-    /// Loop closure: pyramids kept for reuse (least recently used dropped). Default 6.
+    /// Loop closure: finished submaps' grids and pyramids kept for reuse (least recently
+    /// used dropped; a submap not in the cache is rebuilt from its keyframes' scans). The
+    /// front end's memory beyond its keyframes is about this many submaps. Default 6.
     pub loop_pyramid_cache: usize,
     /// The optimiser (slam-graph's Levenberg-Marquardt), run after every keyframe that
     /// added a loop closure and once more over every record for the trajectory. Default:
@@ -160,7 +203,8 @@ impl Default for LaserGraphConfig {
             local_matcher,
             local_min_score: 0.25,
             match_covariance_scale: 1.0,
-            match_min_std: [0.02, 0.01],
+            match_covariance: MatchCovariance::default(),
+            match_min_std: [0.02, 0.002],
             submap_scans: 20,
             odometry_noise: OdometryNoise::default(),
             loop_min_score: 0.55,
@@ -228,6 +272,29 @@ impl LaserGraphConfig {
         ensure((0.0..=1.0).contains(&s), "local-min-score", s, "in [0, 1]")?;
         let k = self.match_covariance_scale;
         ensure(k > 0.0, "match-covariance-scale", k, "> 0")?;
+        if let MatchCovariance::Response {
+            linear_window,
+            angular_window,
+            temperature,
+        } = self.match_covariance
+        {
+            let w = linear_window;
+            ensure(
+                w > 0.0 && w <= 2.0,
+                "match-covariance.linear-window",
+                w,
+                "in (0, 2] m",
+            )?;
+            let a = angular_window;
+            ensure(
+                (0.0..=0.5).contains(&a),
+                "match-covariance.angular-window",
+                a,
+                "in [0, 0.5] rad",
+            )?;
+            let t = temperature;
+            ensure(t >= 1.0, "match-covariance.temperature", t, ">= 1")?;
+        }
         for (i, &v) in self.match_min_std.iter().enumerate() {
             let f = ["match-min-std[0]", "match-min-std[1]"][i];
             ensure(v > 0.0, f, v, "> 0 (m, rad)")?;
@@ -384,6 +451,17 @@ mod tests {
             ),
             (
                 LaserGraphConfig {
+                    match_covariance: MatchCovariance::Response {
+                        linear_window: 0.3,
+                        angular_window: 0.03,
+                        temperature: 0.5,
+                    },
+                    ..Default::default()
+                },
+                "match-covariance.temperature",
+            ),
+            (
+                LaserGraphConfig {
                     odometry_noise: OdometryNoise {
                         min_rotation: 0.0,
                         ..Default::default()
@@ -408,5 +486,21 @@ mod tests {
         assert_eq!(c.loop_min_score, 0.7);
         assert_eq!(c.resolution, 0.05);
         assert!(serde_json::from_str::<LaserGraphConfig>(r#"{"submap_scans": 10}"#).is_err());
+        let c: LaserGraphConfig = serde_json::from_str(
+            r#"{"match-covariance": {"kind": "response", "linear-window": 0.5,
+                "angular-window": 0.05, "temperature": 30.0}}"#,
+        )
+        .unwrap();
+        assert_eq!(
+            c.match_covariance,
+            MatchCovariance::Response {
+                linear_window: 0.5,
+                angular_window: 0.05,
+                temperature: 30.0
+            }
+        );
+        let c: LaserGraphConfig =
+            serde_json::from_str(r#"{"match-covariance": {"kind": "matcher"}}"#).unwrap();
+        assert_eq!(c.match_covariance, MatchCovariance::Matcher);
     }
 }

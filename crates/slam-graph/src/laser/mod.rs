@@ -9,8 +9,11 @@
 //!   keyframe's local pose composed with the odometry since; it is then inserted into both.
 //!   Local poses live in a frame of their own that loop closures never move, so the
 //!   submaps stay consistent. Consecutive keyframes are joined by an edge with their local
-//!   relative pose and the inverse of the matcher's covariance (rotated into the earlier
-//!   keyframe's frame, floored by `match-min-std`) as information.
+//!   relative pose and, as information, the inverse of the match's covariance estimated
+//!   from the tempered likelihood sampled over a window of poses (Olson 2009's response
+//!   covariance, [`MatchCovariance`]; rotated into the earlier keyframe's frame, floored by
+//!   `match-min-std`): in a corridor it is large along the axis, so there the odometry
+//!   keeps its weight instead of being overruled by a match that knows nothing of it.
 //! * **Loop closure**: a finished submap (its last scan at least `loop-min-scan-gap`
 //!   keyframes old) whose keyframes lie within reach of the keyframe's global position is
 //!   searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the submap,
@@ -19,7 +22,10 @@
 //!   of their relative pose before the closure), up to their caps. A match scoring at
 //!   least `loop-min-score`, and not matched almost as well 0.25–1 m away
 //!   (`loop-ambiguity-ratio`), is refined by Gauss-Newton and becomes an edge from the
-//!   submap's keyframe nearest to the match. After every keyframe that added a closure the
+//!   submap's keyframe nearest to the match. Finished submaps keep no grid: the search
+//!   rebuilds one from its keyframes' scans (the same insertions, so the same grid) and
+//!   keeps it with its pyramid in a small cache (`loop-pyramid-cache`), so memory does not
+//!   grow with the number of submaps. After every keyframe that added a closure the
 //!   keyframe graph is optimised (Levenberg-Marquardt with the configured robust kernel,
 //!   DCS by default, against false closures).
 //! * **Poses at every record**: the odometry is a measurement, not only a prediction. The
@@ -37,8 +43,9 @@
 //! odometry reading). Everything is deterministic: no random numbers are drawn.
 
 pub mod config;
+mod covariance;
 
-pub use config::{LaserGraphConfig, OdometryNoise, MAX_SUBMAP_SCANS};
+pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SCANS};
 
 use crate::error::GraphError;
 use crate::graph::PoseGraph;
@@ -54,11 +61,22 @@ use std::sync::Mutex;
 /// A submap: an occupancy grid in the local frame built from consecutive keyframes.
 #[derive(Debug, Clone)]
 struct Submap {
-    grid: OccupancyGrid,
+    /// The grid while the submap is active; `None` once finished (the loop search rebuilds
+    /// it from the keyframes' scans, [`LoopMap`]).
+    grid: Option<OccupancyGrid>,
     /// Keyframe indices inserted, in order.
     keyframes: Vec<usize>,
     /// True once it receives no more scans.
     finished: bool,
+}
+
+/// A finished submap's grid, rebuilt from its keyframes' scans at their local poses (the
+/// same insertions in the same order, so the same grid), and its loop-closure pyramid.
+#[derive(Debug, Clone)]
+struct LoopMap {
+    submap: usize,
+    grid: OccupancyGrid,
+    pyramid: MaxPyramid,
 }
 
 /// A keyframe: the record it came from, its prepared scan and its poses.
@@ -126,8 +144,8 @@ pub struct LaserGraphSlam {
     /// Indices of the active submaps, oldest first (at most two).
     active: Vec<usize>,
     constraints: Vec<Constraint>,
-    /// Loop-closure pyramids by submap, most recently used last.
-    pyramids: VecDeque<(usize, MaxPyramid)>,
+    /// Finished submaps' grids and pyramids for loop closure, most recently used last.
+    loop_maps: VecDeque<LoopMap>,
     stats: LaserGraphStats,
     /// The smoothed trajectory and the number of records it covers.
     smoothed: Mutex<Option<(usize, Vec<Pose2>)>>,
@@ -145,7 +163,7 @@ impl Clone for LaserGraphSlam {
             submaps: self.submaps.clone(),
             active: self.active.clone(),
             constraints: self.constraints.clone(),
-            pyramids: self.pyramids.clone(),
+            loop_maps: self.loop_maps.clone(),
             stats: self.stats,
             smoothed: Mutex::new(self.smoothed.lock().map(|s| s.clone()).unwrap_or(None)),
         }
@@ -191,7 +209,7 @@ impl LaserGraphSlam {
             submaps: Vec::new(),
             active: Vec::new(),
             constraints: Vec::new(),
-            pyramids: VecDeque::new(),
+            loop_maps: VecDeque::new(),
             stats: LaserGraphStats::default(),
             smoothed: Mutex::new(None),
         })
@@ -354,14 +372,43 @@ impl LaserGraphSlam {
     /// there is no submap yet, the match failed or scored below `local-min-score`.
     fn local_match(&self, scan: &PreparedScan, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
         let &oldest = self.active.first()?;
-        let grid = &self.submaps[oldest].grid;
+        let grid = self.submaps[oldest].grid.as_ref()?;
         match self
             .config
             .local_matcher
             .match_prepared(grid, scan, predicted)
         {
-            Ok(m) if m.score >= self.config.local_min_score => Some((m.pose, m.covariance)),
+            Ok(m) if m.score >= self.config.local_min_score => Some((
+                m.pose,
+                self.match_covariance(grid, scan, &m.pose, m.covariance),
+            )),
             _ => None,
+        }
+    }
+
+    /// The covariance of a match at `pose` on `grid` ([`MatchCovariance`]), `matcher`'s
+    /// own when so configured or when the sampling has nothing to sample.
+    fn match_covariance(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &PreparedScan,
+        pose: &Pose2,
+        matcher: Matrix3,
+    ) -> Matrix3 {
+        match self.config.match_covariance {
+            MatchCovariance::Matcher => matcher,
+            MatchCovariance::Response {
+                linear_window,
+                angular_window,
+                temperature,
+            } => {
+                let sampling = covariance::ResponseSampling {
+                    linear_window,
+                    angular_window,
+                    temperature,
+                };
+                covariance::response_covariance(grid, scan, pose, &sampling).unwrap_or(matcher)
+            }
         }
     }
 
@@ -421,10 +468,8 @@ impl LaserGraphSlam {
             Some(&s) => self.submaps[s].keyframes.len() >= n / 2 && self.active.len() < 2,
         };
         if start_new {
-            let grid = OccupancyGrid::try_new(self.config.resolution, self.config.sensor_model)?
-                .with_likelihood(self.config.likelihood)?;
             self.submaps.push(Submap {
-                grid,
+                grid: Some(self.empty_submap_grid()?),
                 keyframes: Vec::new(),
                 finished: false,
             });
@@ -433,17 +478,23 @@ impl LaserGraphSlam {
         // Integrate into copies first so that an error leaves every submap as it was.
         let mut updated = Vec::with_capacity(self.active.len());
         for &s in &self.active {
-            let mut g = self.submaps[s].grid.clone();
+            let mut g = match &self.submaps[s].grid {
+                Some(g) => g.clone(),
+                None => self.empty_submap_grid()?,
+            };
             g.try_integrate_prepared(local, scan)?;
             updated.push(g);
         }
         for (&s, g) in self.active.iter().zip(updated) {
-            self.submaps[s].grid = g;
+            self.submaps[s].grid = Some(g);
             self.submaps[s].keyframes.push(k);
         }
         if let Some(&oldest) = self.active.first() {
             if self.submaps[oldest].keyframes.len() >= n {
                 self.submaps[oldest].finished = true;
+                // Its grid is rebuilt when a loop search needs it: memory stays bounded by
+                // the loop-map cache instead of growing with every submap.
+                self.submaps[oldest].grid = None;
                 self.active.remove(0);
             }
         }
@@ -502,11 +553,12 @@ impl LaserGraphSlam {
             let (a_local, a_global) = (self.keyframes[anchor].local, self.keyframes[anchor].global);
             // Keyframe k in the submap's (local) frame, as the current graph predicts it.
             let predicted = a_local.compose(&a_global.between(&self.keyframes[k].global));
-            if !self.cache_pyramid(s)? {
+            if !self.cache_loop_map(s)? {
                 continue;
             }
             self.stats.loop_searches += 1;
-            let pyramid = &self.pyramids.back().expect("cached above").1;
+            let loop_map = self.loop_maps.back().expect("cached above");
+            let pyramid = &loop_map.pyramid;
             let scan = &self.keyframes[k].scan;
             let hit = match matcher.match_in(pyramid, scan, &predicted) {
                 Ok(Some(m)) => m,
@@ -519,7 +571,7 @@ impl LaserGraphSlam {
                 continue;
             }
             // Sub-cell refinement on the submap itself; kept only if it stays close.
-            let grid = &self.submaps[s].grid;
+            let grid = &loop_map.grid;
             let refine = &self.config.local_matcher.refine;
             let m = match refine.match_prepared(grid, scan, &hit.pose) {
                 Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
@@ -540,6 +592,8 @@ impl LaserGraphSlam {
                 .unwrap_or(anchor);
             let from_local = self.keyframes[from].local;
             let z = from_local.between(&m.pose);
+            // The matcher's own covariance: on the office the response's made the
+            // closures slightly worse (docs/results/graph.md).
             let information = self.match_information(&m.covariance, from_local.theta);
             self.constraints.push(Constraint {
                 from,
@@ -590,21 +644,39 @@ impl LaserGraphSlam {
         false
     }
 
-    /// Puts submap `s`'s loop-closure pyramid at the back of the cache (building it if
-    /// needed); false for an empty submap.
-    fn cache_pyramid(&mut self, s: usize) -> Result<bool, GraphError> {
-        if let Some(pos) = self.pyramids.iter().position(|(id, _)| *id == s) {
-            let entry = self.pyramids.remove(pos).expect("position is valid");
-            self.pyramids.push_back(entry);
+    /// An empty submap grid (the configured resolution, sensor model and likelihood).
+    fn empty_submap_grid(&self) -> Result<OccupancyGrid, GraphError> {
+        Ok(
+            OccupancyGrid::try_new(self.config.resolution, self.config.sensor_model)?
+                .with_likelihood(self.config.likelihood)?,
+        )
+    }
+
+    /// Puts finished submap `s`'s grid and loop-closure pyramid at the back of the cache,
+    /// rebuilding them from its keyframes' scans if needed (the least recently used entry
+    /// is dropped beyond `loop-pyramid-cache`); false for an empty submap.
+    fn cache_loop_map(&mut self, s: usize) -> Result<bool, GraphError> {
+        if let Some(pos) = self.loop_maps.iter().position(|m| m.submap == s) {
+            let entry = self.loop_maps.remove(pos).expect("position is valid");
+            self.loop_maps.push_back(entry);
             return Ok(true);
         }
-        let Some(p) = MaxPyramid::covering(&self.submaps[s].grid, self.config.loop_depth)? else {
+        let mut grid = self.empty_submap_grid()?;
+        for &k in &self.submaps[s].keyframes {
+            let kf = &self.keyframes[k];
+            grid.try_integrate_prepared(&kf.local, &kf.scan)?;
+        }
+        let Some(pyramid) = loop_pyramid(&grid, self.config.loop_depth)? else {
             return Ok(false);
         };
-        if self.pyramids.len() >= self.config.loop_pyramid_cache {
-            self.pyramids.pop_front();
+        if self.loop_maps.len() >= self.config.loop_pyramid_cache {
+            self.loop_maps.pop_front();
         }
-        self.pyramids.push_back((s, p));
+        self.loop_maps.push_back(LoopMap {
+            submap: s,
+            grid,
+            pyramid,
+        });
         Ok(true)
     }
 
@@ -709,6 +781,36 @@ impl LaserGraphSlam {
         }
         Ok(grid.to_grid_map())
     }
+}
+
+/// The loop-closure pyramid of a submap grid over the cells where its likelihood field
+/// is not the far value: the obstacles' bounding box grown by the field's reach
+/// (`max-distance`, plus two cells for the sub-cell hit positions). Outside it the
+/// pyramid reads the far value, as the field there is, so the search is the same as
+/// over every covered cell, on a smaller pyramid. `None` without obstacles.
+fn loop_pyramid(grid: &OccupancyGrid, depth: u32) -> Result<Option<MaxPyramid>, GraphError> {
+    let Some((lo, hi)) = grid.known_bounds() else {
+        return Ok(None);
+    };
+    let (mut min, mut max) = (
+        slam_grid::CellIndex::new(i32::MAX, i32::MAX),
+        slam_grid::CellIndex::new(i32::MIN, i32::MIN),
+    );
+    for y in lo.y..=hi.y {
+        for x in lo.x..=hi.x {
+            if grid.is_obstacle(slam_grid::CellIndex::new(x, y)) {
+                min = slam_grid::CellIndex::new(min.x.min(x), min.y.min(y));
+                max = slam_grid::CellIndex::new(max.x.max(x), max.y.max(y));
+            }
+        }
+    }
+    if min.x > max.x {
+        return Ok(None);
+    }
+    let reach = (grid.likelihood_params().max_distance / grid.resolution()).ceil() as i32 + 2;
+    let min = slam_grid::CellIndex::new(min.x - reach, min.y - reach);
+    let max = slam_grid::CellIndex::new(max.x + reach, max.y + reach);
+    Ok(Some(MaxPyramid::new(grid, min, max, depth)?))
 }
 
 /// The inverse of a symmetric positive-definite 3×3 matrix, symmetrised (a covariance to an
