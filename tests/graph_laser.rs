@@ -190,9 +190,10 @@ fn deterministic() {
     assert_eq!(a, b);
 }
 
-/// The one constructor shape: `FromConfig` builds the same front end as `new`, and an
-/// initial pose other than the identity (the odometry frame's placement, which the front
-/// end does not support) is a configuration error naming `initial-pose`, not ignored.
+/// The one constructor shape: `FromConfig` builds the same front end as `new`; the initial
+/// pose places the odometry frame in the world (the trajectory moves with it, checked
+/// against the identity run composed with the placement); a non-finite one is a
+/// configuration error naming `initial-pose`.
 #[test]
 fn constructor_shape() {
     use slam::models::FromConfig;
@@ -209,8 +210,32 @@ fn constructor_shape() {
         a.trajectory(),
         run(records, LaserGraphConfig::default()).trajectory()
     );
-    let e =
-        LaserGraphSlam::new(LaserGraphConfig::default(), Pose2::new(1.0, 0.0, 0.0), 0).unwrap_err();
+    // The odometry frame placed in the world: the trajectory is the identity run's, moved
+    // by that placement. Not bit for bit: a moved scan falls on the grid's cells with other
+    // rounding, and a match can settle one lattice step (1 cm, 0.25°) apart; 3 cm here.
+    let identity = a.trajectory();
+    for place in [Pose2::new(2.0, -1.0, 0.0), Pose2::new(-3.0, 4.5, 0.7)] {
+        let mut b = LaserGraphSlam::new(LaserGraphConfig::default(), place, 0).unwrap();
+        common::run_scans(&mut b, records);
+        let moved = b.trajectory();
+        assert_eq!(moved.len(), identity.len());
+        let worst = identity
+            .iter()
+            .zip(&moved)
+            .map(|(i, m)| {
+                let want = place.compose(&i.pose);
+                let d = want.between(&m.pose);
+                d.x.hypot(d.y) + d.theta.abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 0.05, "placement {place:?}: worst deviation {worst}");
+    }
+    let e = LaserGraphSlam::new(
+        LaserGraphConfig::default(),
+        Pose2::new(f64::NAN, 0.0, 0.0),
+        0,
+    )
+    .unwrap_err();
     let slam::graph::GraphError::InvalidConfig(c) = &e else {
         panic!("{e}")
     };

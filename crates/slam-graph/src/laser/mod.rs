@@ -39,8 +39,9 @@
 //!   (a smoother), instead of being applied at the keyframe only.
 //! * **The map** is rendered from the keyframes' scans at their smoothed poses.
 //!
-//! The world frame is the odometry frame of the first record (its pose is the first
-//! odometry reading). Everything is deterministic: no random numbers are drawn.
+//! The world frame is the odometry frame placed at the constructor's `initial_pose` (the
+//! identity: the odometry frame itself), and the first record's pose is its odometry
+//! reading in that frame. Everything is deterministic: no random numbers are drawn.
 
 pub mod config;
 mod covariance;
@@ -134,6 +135,8 @@ pub struct LaserGraphStats {
 #[derive(Debug)]
 pub struct LaserGraphSlam {
     config: LaserGraphConfig,
+    /// The pose of the odometry frame in the world (the constructor's `initial_pose`).
+    frame: Pose2,
     guard: OdometryJumpGuard,
     times: Vec<f64>,
     odometry: Vec<Pose2>,
@@ -155,6 +158,7 @@ impl Clone for LaserGraphSlam {
     fn clone(&self) -> Self {
         Self {
             config: self.config.clone(),
+            frame: self.frame,
             guard: self.guard.clone(),
             times: self.times.clone(),
             odometry: self.odometry.clone(),
@@ -175,17 +179,18 @@ impl LaserGraphSlam {
     /// ([`FromConfig`]); rejects an invalid configuration (the error names the field and
     /// its bound).
     ///
-    /// `initial_pose` is the pose of the odometry frame in the world, as for grid FastSLAM;
-    /// the front end works in the odometry frame, so only `Pose2::IDENTITY` is accepted
-    /// (any other pose is a [`GraphError::InvalidConfig`] naming `initial-pose`). `seed` is
-    /// taken for uniformity and ignored: the front end draws no random numbers.
+    /// `initial_pose` is the pose of the odometry frame in the world, as for grid FastSLAM:
+    /// every odometry reading o is taken as the world pose `initial_pose ⊕ o`, so the map
+    /// and the trajectory are in the world frame (relative increments, and with them every
+    /// edge, do not change under that rigid motion). `seed` is taken for uniformity and
+    /// ignored: the front end draws no random numbers.
     pub fn new(
         config: LaserGraphConfig,
         initial_pose: Pose2,
         seed: u64,
     ) -> Result<Self, GraphError> {
         let _ = seed;
-        if initial_pose != Pose2::IDENTITY {
+        if !initial_pose.is_finite() {
             return Err(slam_models::ConfigError::new(
                 "laser graph",
                 "initial_pose",
@@ -193,7 +198,7 @@ impl LaserGraphSlam {
                     "({}, {}, {})",
                     initial_pose.x, initial_pose.y, initial_pose.theta
                 ),
-                "the identity: the front end maps in the odometry frame",
+                "a finite pose",
             )
             .into());
         }
@@ -201,6 +206,7 @@ impl LaserGraphSlam {
         let guard = OdometryJumpGuard::new(config.odometry_jump)?;
         Ok(Self {
             config,
+            frame: initial_pose,
             guard,
             times: Vec::new(),
             odometry: Vec::new(),
@@ -268,6 +274,7 @@ impl LaserGraphSlam {
             None => None,
         };
         let (odometry, skipped) = self.guard.check(&record.odometry)?;
+        let odometry = self.frame.compose(&odometry);
         let mut info = ScanUpdateInfo {
             odometry_jumps_skipped: skipped as usize,
             ..ScanUpdateInfo::default()
