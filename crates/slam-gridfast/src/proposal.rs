@@ -1,12 +1,13 @@
 //! The three proposal distributions: how one particle draws its pose at a processed scan
 //! and by how much its weight changes.
 
-use crate::matcher::{
-    coarse_score, grid_search, hill_climb, score, HillClimb, Likelihood, PreparedScan, SearchWindow,
-};
 use nalgebra::Cholesky;
 use rand::Rng;
+use slam_grid::matcher::endpoint::{
+    coarse_score, grid_search, hill_climb, score_scan, EndpointModel, HillClimbSteps, SearchWindow,
+};
 use slam_grid::DistanceField;
+use slam_grid::PreparedScan;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 
@@ -14,11 +15,11 @@ use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 pub(crate) struct StepContext<'a> {
     pub scan: &'a PreparedScan,
     /// The endpoint model truncated at `likelihood_radius`: fine matching, samples, weights.
-    pub lk: Likelihood,
+    pub lk: EndpointModel,
     /// The same model truncated at the field's reach: the choice of starting point and the
     /// hill climber's coarse phase.
-    pub capture: Likelihood,
-    pub hc: HillClimb,
+    pub capture: EndpointModel,
+    pub hc: HillClimbSteps,
     /// The odometry increment since the last processed scan.
     pub u: OdometryControl,
     pub motion: OdometryModel,
@@ -68,7 +69,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
     let x = motion.sample(pose, u, rng);
     Drawn {
         pose: x,
-        log_weight: score(field, ctx.scan, &x, &ctx.lk).log_likelihood,
+        log_weight: score_scan(field, ctx.scan, &x, &ctx.lk).log_likelihood,
         match_failed: false,
         match_recovered: false,
     }
@@ -177,7 +178,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
         let l = if *o == [0.0; 3] {
             m.score.log_likelihood
         } else {
-            score(field, ctx.scan, &xj, &ctx.lk).log_likelihood
+            score_scan(field, ctx.scan, &xj, &ctx.lk).log_likelihood
         };
         let e = Vector3::new(
             xj.x - predicted.x,
@@ -259,8 +260,8 @@ pub(crate) fn sample_offsets(n: usize, range_xy: f64, range_theta: f64) -> Vec<[
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::matcher::field;
     use crate::matcher::tests::{empty_map, room_scan};
-    use crate::matcher::{field, HillClimb, Likelihood, PreparedScan};
     use rand::SeedableRng;
 
     /// The gain tempers the weight and nothing else: for the same σ and random stream,
@@ -273,7 +274,7 @@ mod tests {
             map.integrate_scan(&p, &room_scan(&p));
         }
         let truth = Pose2::new(0.3, 0.4, 0.3);
-        let scan = PreparedScan::new(&room_scan(&truth), 1, 50.0).unwrap();
+        let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
         let offsets = sample_offsets(3, 0.01, 0.005);
         let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
         let previous = Pose2::new(0.0, 0.0, 0.0);
@@ -283,17 +284,17 @@ mod tests {
         let draw = |gain: f64| {
             let ctx = StepContext {
                 scan: &scan,
-                lk: Likelihood {
+                lk: EndpointModel {
                     k: 1.0 / (2.0 * sigma * sigma * gain),
                     radius: 0.15,
                     gain,
                 },
-                capture: Likelihood {
+                capture: EndpointModel {
                     k: 1.0 / (2.0 * sigma * sigma * gain),
                     radius: 0.2,
                     gain,
                 },
-                hc: HillClimb {
+                hc: HillClimbSteps {
                     linear_step: 0.05,
                     angular_step: 0.05,
                     refinements: 6,
@@ -336,7 +337,7 @@ mod tests {
             .iter()
             .map(|o| {
                 let xj = Pose2::new(m.pose.x + o[0], m.pose.y + o[1], m.pose.theta + o[2]);
-                let l = score(&field(&map), &scan, &xj, &ctx3.lk).log_likelihood;
+                let l = score_scan(&field(&map), &scan, &xj, &ctx3.lk).log_likelihood;
                 let e = Vector3::new(
                     xj.x - predicted.x,
                     xj.y - predicted.y,
