@@ -4,7 +4,8 @@
 use nalgebra::Cholesky;
 use rand::Rng;
 use slam_grid::matcher::endpoint::{
-    coarse_score, grid_search, hill_climb, score_scan, EndpointModel, HillClimbSteps, SearchWindow,
+    coarse_score, grid_search, hill_climb, score_scan, wide_search, EndpointModel, HillClimbSteps,
+    SearchWindow,
 };
 use slam_grid::DistanceField;
 use slam_grid::PreparedScan;
@@ -100,8 +101,10 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 ///
 /// A poor match (fewer inliers than [`Recovery::trigger_inliers`]: the prediction was too
 /// far off for the hill climber's capture range, e.g. after an odometry jump) is answered
-/// by an exhaustive search of a wide window around the prediction on the capture field
-/// ([`grid_search`]), under the motion model widened by the window, N(x', R + W) with
+/// by a branch-and-bound search of a wide window around the prediction over a max-pyramid
+/// of the capture field, built for this particle's map when the recovery triggers
+/// ([`wide_search`]; the same optimum as brute force over its lattice), under the motion
+/// model widened by the window, N(x', R + W) with
 /// W = diag((w_xy/2)², (w_xy/2)², (w_θ/2)²): the broad component of a mixture that admits
 /// odometry errors of the window's size. Hill climbing from its best pose replaces the
 /// local match when more beams find the map there; the samples τⱼ then use that widened
@@ -150,7 +153,12 @@ pub(crate) fn improved<R: Rng + ?Sized>(
             step_theta: rc.step_theta,
             information: wide.try_inverse().unwrap_or_else(Matrix3::zeros),
         };
-        let found = grid_search(field, ctx.scan, &predicted, &ctx.capture, &window);
+        // Branch and bound over a pyramid built for this particle's map now (its map
+        // changes every step); brute force only if the window is too large for a pyramid.
+        let found = match wide_search(field, ctx.scan, &predicted, &ctx.capture, &window) {
+            Ok(w) => w.pose,
+            Err(_) => grid_search(field, ctx.scan, &predicted, &ctx.capture, &window),
+        };
         let m2 = hill_climb(field, ctx.scan, &found, &ctx.capture, &ctx.lk, &ctx.hc);
         // Taken when it is no longer poor itself (and better than the local match).
         if m2.score.inliers > m.score.inliers
