@@ -18,7 +18,7 @@ impl OccupancyGrid {
     /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
     /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
     /// before the hits, so a cell both crossed and hit ends up l_free + l_occ (with
-    /// [`InverseSensorModel::protect_scan_hits`]: l_occ, once).
+    /// [`crate::InverseSensorModel::protect_scan_hits`]: l_occ, once).
     ///
     /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
     /// [`OccupancyGrid::try_integrate_scan`] reports it instead.

@@ -4,8 +4,8 @@
 //! `integrate` writes scans into it (ray casting and log-odds updates); [`distance`] is the
 //! optional incrementally repaired distance field. The lazy likelihood field the matchers
 //! read lives in [`crate::likelihood`]: the grid only stores its per-tile entries, type
-//! erased ([`CachedTile`]), and drops those a write may have changed, so that the grid does
-//! not depend on the likelihood module.
+//! erased, and drops those a write may have changed, so that the grid does not depend on
+//! the likelihood module.
 
 pub mod distance;
 mod integrate;

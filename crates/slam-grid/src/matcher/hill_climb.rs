@@ -81,7 +81,8 @@ pub(crate) fn climb<S: Copy>(
 }
 
 /// Greedy hill climbing over (x, y, θ) with step halving, as GMapping's
-/// `ScanMatcher::optimize` (Grisetti et al. 2007; the crate's one climber, [`climb`]):
+/// `ScanMatcher::optimize` (Grisetti et al. 2007; the crate's one climber, shared with
+/// [`super::endpoint::hill_climb`]):
 /// from the current pose try the six moves ±Δx, ±Δy (world axes), ±Δθ; take the best one
 /// if it improves the score; otherwise halve both steps, up to `refinements` times. The
 /// score is the mean bilinearly interpolated field value, so the search keeps improving
