@@ -405,11 +405,9 @@ fn a_far_odometry_jump_in_the_office_is_recovered() {
         };
         config.matching.recovery.trigger_fraction = trigger;
         let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, 1).unwrap();
-        let mut recovered = 0;
-        for r in &records {
-            recovered += slam.process(r).unwrap().match_recoveries;
-        }
-        (rmse(&slam.trajectory(), &truth), recovered)
+        let run = common::run_scans(&mut slam, &records);
+        let recovered: usize = run.updates.iter().map(|u| u.match_recoveries).sum();
+        (rmse(&run.trajectory, &truth), recovered)
     };
     let (with, recovered) = run(0.4);
     let (without, none) = run(0.0);
