@@ -1,7 +1,9 @@
 //! Matching benchmarks: one correlative + Gauss-Newton match of a 180-beam scan (the
 //! default windows: ±0.4 m, ±12°), and the stages on their own; the same match on a grid
 //! whose field measures to fitted lines (`LikelihoodParams::surface_lines`), and the
-//! field of the whole room computed from scratch both ways.
+//! field of the whole room computed from scratch both ways; and grid FastSLAM's wide
+//! search of a poor match (indoor window ±1.5 m / ±0.4 rad) by branch and bound over a
+//! pyramid built per search against the brute-force lattice search it replaced.
 // criterion_group! generates undocumented public functions.
 #![allow(missing_docs)]
 
@@ -131,5 +133,56 @@ fn matching(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, matching);
+fn wide_search(c: &mut Criterion) {
+    use slam_grid::matcher::endpoint::{self, EndpointModel, SearchWindow};
+    use slam_models::{Matrix3, Vector3};
+    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_incremental_distance(4)
+        .expect("radius");
+    for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
+        for k in 0..4 {
+            let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
+            grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
+        }
+    }
+    let field = grid.distance_field().expect("incremental field");
+    let truth = Pose2::new(5.2, 2.9, 0.4);
+    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    // A 1.2 m / 17° odometry error; the gridfast defaults (indoor preset, gain 3).
+    let initial = Pose2::new(4.3, 3.7, 0.1);
+    let capture = EndpointModel::new(0.05, 0.2, 3.0);
+    let window = SearchWindow {
+        range_xy: 1.5,
+        step_xy: 0.1,
+        range_theta: 0.4,
+        step_theta: 0.02,
+        information: Matrix3::from_diagonal(&Vector3::new(1.8, 1.8, 25.0)),
+    };
+    let w = endpoint::wide_search(&field, &scan, &initial, &capture, &window).expect("search");
+    let b = endpoint::grid_search(&field, &scan, &initial, &capture, &window);
+    println!(
+        "wide search: branch and bound {:.3} m off ({} pyramid cells), brute force {:.3} m off",
+        w.pose.distance(&truth),
+        w.pyramid_cells,
+        b.distance(&truth)
+    );
+    let mut g = c.benchmark_group("wide_search");
+    g.bench_function("branch_and_bound_with_pyramid_180_beams", |b| {
+        b.iter(|| endpoint::wide_search(&field, &scan, black_box(&initial), &capture, &window))
+    });
+    // One rotation: mostly the cost of building the pyramid.
+    let one = SearchWindow {
+        range_theta: 0.0,
+        ..window
+    };
+    g.bench_function("branch_and_bound_one_rotation_180_beams", |b| {
+        b.iter(|| endpoint::wide_search(&field, &scan, black_box(&initial), &capture, &one))
+    });
+    g.bench_function("brute_force_180_beams", |b| {
+        b.iter(|| endpoint::grid_search(&field, &scan, black_box(&initial), &capture, &window))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, matching, wide_search);
 criterion_main!(benches);

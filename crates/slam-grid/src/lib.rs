@@ -15,7 +15,10 @@
 //! * [`matcher`]: scan matchers returning pose, score and covariance: GMapping-style hill
 //!   climbing, correlative multi-resolution search (Olson 2009) and Gauss-Newton on the
 //!   bilinearly interpolated field (Hector SLAM), and a branch-and-bound search over a
-//!   reusable max-pyramid (Cartographer's fast correlative matcher) for loop closures.
+//!   reusable max-pyramid (Cartographer's fast correlative matcher) for loop closures;
+//!   [`matcher::endpoint`]: the truncated endpoint model as a log-likelihood on the
+//!   incremental distance field, with the same hill climber and an exhaustive search under a
+//!   motion prior (grid FastSLAM's matching). Every matcher takes the one [`PreparedScan`].
 //! * [`ScanMatchOdometry`]: each scan matched against the map built so far (`ScanSlam`,
 //!   name `"scanmatch"`).
 //!

@@ -287,9 +287,9 @@ impl Default for MatchingConfig {
 
 /// The answer to a poor match (improved proposal): a particle whose hill-climbed match has
 /// fewer than `trigger_fraction` of its beams on the map searches a wide window around its
-/// prediction exhaustively (the coarse correlative search of Olson, ICRA 2009, on the
-/// capture field), with the motion prior widened to the window, and climbs from the best
-/// pose found. The result replaces the local match when more beams find the map there.
+/// prediction by branch and bound over a coarse-to-fine max-pyramid of the capture field
+/// (Olson, ICRA 2009, §IV-C; Cartographer; [`slam_grid::matcher::endpoint::wide_search`]),
+/// with the motion prior widened to the window, and climbs from the best pose found. The result replaces the local match when more beams find the map there.
 /// Only then is the motion model the fallback.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
@@ -302,8 +302,9 @@ pub struct RecoveryConfig {
     pub range_xy: Option<f64>,
     /// ± this in θ, radians. Default 0.4 (23°).
     pub range_theta: f64,
-    /// Translation step, metres (at most the field's reach, so that every basin is hit).
-    /// Default from the preset: 0.1 indoor, 0.4 outdoor.
+    /// Translation step, metres, rounded to whole map cells (at least one): the lattice of
+    /// the branch-and-bound search. Default from the preset: 0.1 indoor, 0.4 outdoor (two
+    /// cells).
     pub step_xy: Option<f64>,
     /// Rotation step, radians. Default from the preset: 0.02 indoor, 0.01 outdoor.
     pub step_theta: Option<f64>,

@@ -2,9 +2,7 @@
 
 use crate::config::{GridFastConfig, Proposal, Resolved};
 use crate::error::GridFastError;
-use crate::matcher::{
-    field, grid_search, hill_climb, HillClimb, Likelihood, PreparedScan, SearchWindow,
-};
+use crate::matcher::field;
 #[allow(unused_imports)]
 use crate::par::*;
 use crate::proposal::{
@@ -12,6 +10,10 @@ use crate::proposal::{
 };
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
+use slam_grid::matcher::endpoint::{
+    grid_search, hill_climb, EndpointModel, HillClimbSteps, SearchWindow,
+};
+use slam_grid::PreparedScan;
 use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::keyframes::{self, Keyframe};
 use slam_models::motion::{MotionModel, OdometryModel};
@@ -145,9 +147,9 @@ struct Derived {
     /// An empty map (the template of every particle's map).
     empty: OccupancyGrid,
     /// The endpoint model truncated at `likelihood_radius` and at the field's reach.
-    lk: Likelihood,
-    capture: Likelihood,
-    hc: HillClimb,
+    lk: EndpointModel,
+    capture: EndpointModel,
+    hc: HillClimbSteps,
     offsets: Vec<[f64; 3]>,
 }
 
@@ -155,7 +157,7 @@ impl Derived {
     fn new(config: &GridFastConfig) -> Result<Self, GridFastError> {
         let config = Resolved::from(config);
         let radius = (config.field_radius / config.resolution).round() as i32;
-        let lk = Likelihood {
+        let lk = EndpointModel {
             k: 1.0 / (2.0 * config.likelihood_sigma.powi(2) * config.likelihood_gain),
             radius: config.likelihood_radius,
             gain: config.likelihood_gain,
@@ -163,11 +165,11 @@ impl Derived {
         Ok(Self {
             empty: new_map(&config)?,
             lk,
-            capture: Likelihood {
+            capture: EndpointModel {
                 radius: radius as f64 * config.resolution,
                 ..lk
             },
-            hc: HillClimb {
+            hc: HillClimbSteps {
                 linear_step: config.match_linear_step,
                 angular_step: config.match_angular_step,
                 refinements: config.match_refinements,
@@ -179,6 +181,12 @@ impl Derived {
             ),
         })
     }
+}
+
+/// The largest f64 below `x`, for a positive finite `x` (the config validates
+/// `max_range > 0`): `f64::next_down`, which is newer than this workspace's MSRV 1.85.
+fn below(x: f64) -> f64 {
+    f64::from_bits(x.to_bits() - 1)
 }
 
 /// A slam-grid failure while processing scan `k` (a non-finite pose or end point).
@@ -500,7 +508,7 @@ impl GridFastSlam {
         let node = PathNode::child(None, pose, 0);
         let mut map = self.particles[0].map.clone();
         let prepared = self.prepare(0, scan)?;
-        map.try_integrate_prepared(&pose, &prepared.grid)
+        map.try_integrate_prepared(&pose, &prepared)
             .map_err(|e| numerical(0, e))?;
         for p in &mut self.particles {
             p.pose = pose;
@@ -517,9 +525,18 @@ impl GridFastSlam {
         })
     }
 
-    /// The scan prepared for matching and integration.
+    /// The scan prepared for matching and integration: every `beam_step`-th of the hits
+    /// with 0 < r < `max_range` (the scan's `sensor_pose` applied) is matched; a reading at
+    /// `max_range` itself is a no return for the filter's sensor model (`far_hits_clear`
+    /// off), so it is not matched either.
     fn prepare(&self, k: usize, scan: &LaserScan) -> Result<PreparedScan, GridFastError> {
-        PreparedScan::new(scan, self.p.beam_step, self.p.max_range).map_err(|e| numerical(k, e))
+        PreparedScan::with_limits_every(
+            scan,
+            f64::MIN_POSITIVE,
+            below(self.p.max_range),
+            self.p.beam_step,
+        )
+        .map_err(|e| numerical(k, e))
     }
 
     fn update(&mut self, k: usize, scan: &LaserScan) -> Result<ScanUpdateInfo, GridFastError> {
@@ -531,8 +548,9 @@ impl GridFastSlam {
             .motion
             .control_from_poses(&self.odometry[r_prev], &odo_now);
         let prepared = self.prepare(k, scan)?;
-        let min_inliers =
-            ((cfg.match_min_inlier_fraction * prepared.points.len() as f64).ceil() as usize).max(1);
+        let min_inliers = ((cfg.match_min_inlier_fraction * prepared.points().len() as f64).ceil()
+            as usize)
+            .max(1);
         // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
         // particle a second starting point for its hill climbing.
         let search = cfg.search_range_xy > 0.0 || cfg.search_range_theta > 0.0;
@@ -578,7 +596,7 @@ impl GridFastSlam {
             offsets: &self.d.offsets,
             correction,
             recovery: (cfg.recovery_trigger_fraction > 0.0).then(|| Recovery {
-                trigger_inliers: (cfg.recovery_trigger_fraction * prepared.points.len() as f64)
+                trigger_inliers: (cfg.recovery_trigger_fraction * prepared.points().len() as f64)
                     .ceil() as usize,
                 range_xy: cfg.recovery_range_xy,
                 step_xy: cfg.recovery_step_xy,
@@ -713,7 +731,7 @@ impl GridFastSlam {
         }
         let integrated = groups
             .par_iter_mut()
-            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared.grid));
+            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared));
         let mut particles = Vec::with_capacity(m);
         for (p, n) in groups {
             for _ in 1..n {
@@ -961,7 +979,7 @@ mod tests {
             ..room_scan(&pose)
         };
         let prepared = f.prepare(1, &scan).unwrap();
-        assert_eq!(prepared.points, vec![[1.0, 0.0]]);
+        assert_eq!(prepared.points(), &[slam_models::Point2::new(1.0, 0.0)]);
         // Nothing is marked or cleared along the +x axis up to and at the wall.
         let map = &f.particles[0].map;
         for x in [0.5, 1.5, 2.5, 3.0] {

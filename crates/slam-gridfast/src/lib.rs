@@ -21,9 +21,10 @@
 //! `protect_scan_hits`) and the likelihood field, a truncated distance field that slam-grid
 //! repairs incrementally after each integration from the cells whose occupancy flipped
 //! ([`slam_grid::OccupancyGrid::with_incremental_distance`]), stored in copy-on-write tiles
-//! like the occupancy. This crate adds the filter, the proposals and a GMapping-style scorer
-//! and hill climber on that field (the scan's log-likelihood, which the weights need). The
-//! scorer truncates the field twice, coarse to fine: at its full reach
+//! like the occupancy. This crate adds the filter and the proposals; they match with
+//! slam-grid's endpoint matching on that field ([`slam_grid::matcher::endpoint`]: the scan's
+//! log-likelihood, which the weights need, GMapping's hill climber and an exhaustive coarse
+//! search). The scorer truncates the field twice, coarse to fine: at its full reach
 //! (`matching.field-radius`) for the capture range of the coarse search and of the
 //! hill climber's first steps, and tighter (`matching.likelihood-radius`) where
 //! the pose is decided and weighed, so that beams ending on clutter pull less.

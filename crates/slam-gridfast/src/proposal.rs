@@ -1,12 +1,14 @@
 //! The three proposal distributions: how one particle draws its pose at a processed scan
 //! and by how much its weight changes.
 
-use crate::matcher::{
-    coarse_score, grid_search, hill_climb, score, HillClimb, Likelihood, PreparedScan, SearchWindow,
-};
 use nalgebra::Cholesky;
 use rand::Rng;
+use slam_grid::matcher::endpoint::{
+    coarse_score, grid_search, hill_climb, score_scan, wide_search, EndpointModel, HillClimbSteps,
+    SearchWindow,
+};
 use slam_grid::DistanceField;
+use slam_grid::PreparedScan;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 
@@ -14,11 +16,11 @@ use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 pub(crate) struct StepContext<'a> {
     pub scan: &'a PreparedScan,
     /// The endpoint model truncated at `likelihood_radius`: fine matching, samples, weights.
-    pub lk: Likelihood,
+    pub lk: EndpointModel,
     /// The same model truncated at the field's reach: the choice of starting point and the
     /// hill climber's coarse phase.
-    pub capture: Likelihood,
-    pub hc: HillClimb,
+    pub capture: EndpointModel,
+    pub hc: HillClimbSteps,
     /// The odometry increment since the last processed scan.
     pub u: OdometryControl,
     pub motion: OdometryModel,
@@ -68,7 +70,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
     let x = motion.sample(pose, u, rng);
     Drawn {
         pose: x,
-        log_weight: score(field, ctx.scan, &x, &ctx.lk).log_likelihood,
+        log_weight: score_scan(field, ctx.scan, &x, &ctx.lk).log_likelihood,
         match_failed: false,
         match_recovered: false,
     }
@@ -99,8 +101,10 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 ///
 /// A poor match (fewer inliers than [`Recovery::trigger_inliers`]: the prediction was too
 /// far off for the hill climber's capture range, e.g. after an odometry jump) is answered
-/// by an exhaustive search of a wide window around the prediction on the capture field
-/// ([`grid_search`]), under the motion model widened by the window, N(x', R + W) with
+/// by a branch-and-bound search of a wide window around the prediction over a max-pyramid
+/// of the capture field, built for this particle's map when the recovery triggers
+/// ([`wide_search`]; the same optimum as brute force over its lattice), under the motion
+/// model widened by the window, N(x', R + W) with
 /// W = diag((w_xy/2)², (w_xy/2)², (w_θ/2)²): the broad component of a mixture that admits
 /// odometry errors of the window's size. Hill climbing from its best pose replaces the
 /// local match when more beams find the map there; the samples τⱼ then use that widened
@@ -149,7 +153,12 @@ pub(crate) fn improved<R: Rng + ?Sized>(
             step_theta: rc.step_theta,
             information: wide.try_inverse().unwrap_or_else(Matrix3::zeros),
         };
-        let found = grid_search(field, ctx.scan, &predicted, &ctx.capture, &window);
+        // Branch and bound over a pyramid built for this particle's map now (its map
+        // changes every step); brute force only if the window is too large for a pyramid.
+        let found = match wide_search(field, ctx.scan, &predicted, &ctx.capture, &window) {
+            Ok(w) => w.pose,
+            Err(_) => grid_search(field, ctx.scan, &predicted, &ctx.capture, &window),
+        };
         let m2 = hill_climb(field, ctx.scan, &found, &ctx.capture, &ctx.lk, &ctx.hc);
         // Taken when it is no longer poor itself (and better than the local match).
         if m2.score.inliers > m.score.inliers
@@ -177,7 +186,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
         let l = if *o == [0.0; 3] {
             m.score.log_likelihood
         } else {
-            score(field, ctx.scan, &xj, &ctx.lk).log_likelihood
+            score_scan(field, ctx.scan, &xj, &ctx.lk).log_likelihood
         };
         let e = Vector3::new(
             xj.x - predicted.x,
@@ -259,8 +268,8 @@ pub(crate) fn sample_offsets(n: usize, range_xy: f64, range_theta: f64) -> Vec<[
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::matcher::field;
     use crate::matcher::tests::{empty_map, room_scan};
-    use crate::matcher::{field, HillClimb, Likelihood, PreparedScan};
     use rand::SeedableRng;
 
     /// The gain tempers the weight and nothing else: for the same σ and random stream,
@@ -273,7 +282,7 @@ mod tests {
             map.integrate_scan(&p, &room_scan(&p));
         }
         let truth = Pose2::new(0.3, 0.4, 0.3);
-        let scan = PreparedScan::new(&room_scan(&truth), 1, 50.0).unwrap();
+        let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
         let offsets = sample_offsets(3, 0.01, 0.005);
         let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
         let previous = Pose2::new(0.0, 0.0, 0.0);
@@ -283,17 +292,17 @@ mod tests {
         let draw = |gain: f64| {
             let ctx = StepContext {
                 scan: &scan,
-                lk: Likelihood {
+                lk: EndpointModel {
                     k: 1.0 / (2.0 * sigma * sigma * gain),
                     radius: 0.15,
                     gain,
                 },
-                capture: Likelihood {
+                capture: EndpointModel {
                     k: 1.0 / (2.0 * sigma * sigma * gain),
                     radius: 0.2,
                     gain,
                 },
-                hc: HillClimb {
+                hc: HillClimbSteps {
                     linear_step: 0.05,
                     angular_step: 0.05,
                     refinements: 6,
@@ -336,7 +345,7 @@ mod tests {
             .iter()
             .map(|o| {
                 let xj = Pose2::new(m.pose.x + o[0], m.pose.y + o[1], m.pose.theta + o[2]);
-                let l = score(&field(&map), &scan, &xj, &ctx3.lk).log_likelihood;
+                let l = score_scan(&field(&map), &scan, &xj, &ctx3.lk).log_likelihood;
                 let e = Vector3::new(
                     xj.x - predicted.x,
                     xj.y - predicted.y,

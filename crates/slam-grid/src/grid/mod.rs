@@ -1,20 +1,27 @@
 //! The log-odds occupancy grid on copy-on-write tiles.
+//!
+//! Split by concern: this file holds the grid type, its growth and its read access;
+//! `integrate` writes scans into it (ray casting and log-odds updates); [`distance`] is the
+//! optional incrementally repaired distance field. The lazy likelihood field the matchers
+//! read lives in [`crate::likelihood`]: the grid only stores its per-tile entries, type
+//! erased, and drops those a write may have changed, so that the grid does not depend on
+//! the likelihood module.
 
 pub mod distance;
+mod integrate;
 mod raytrace;
 pub(crate) mod sensor_model;
 pub(crate) mod tiles;
 
 use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
-use crate::likelihood::{compute_region, FieldTile, LikelihoodParams};
-use crate::scan::PreparedScan;
 use distance::{DistanceField, IncrementalDistance, MAX_DISTANCE_RADIUS};
 pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
-use slam_models::{GridMap, LaserScan, Point2, Pose2};
+use slam_models::{GridMap, Point2};
+use std::any::Any;
 use std::sync::{Arc, OnceLock};
-use tiles::{split, Tile, TileLayout, TileTable, HIT_CAP, TILE_CELLS, TILE_SIZE};
+use tiles::{split, Tile, TileLayout, TileTable, TILE_SIZE};
 
 /// Largest width or height of the area a grid covers, cells (2¹⁶: 3.3 km at 5 cm, 655 m at
 /// 1 cm). A scan that would stretch the grid beyond it is refused with
@@ -28,9 +35,6 @@ pub const MAX_MAP_EXTENT_CELLS: u64 = 1 << 16;
 /// ([`OccupancyGrid::to_grid_map`], one byte per cell) stays below 256 MiB. Beyond it,
 /// [`GridError::MapTooLarge`].
 pub const MAX_MAP_CELLS: u64 = 1 << 28;
-
-/// Continuous cell coordinates (u, v) (see [`crate::cell`]).
-type CellPoint = (f64, f64);
 
 /// Counters of the copy-on-write machinery (since creation or the last
 /// [`OccupancyGrid::reset_copy_stats`]); clones start from the source's counters.
@@ -55,7 +59,8 @@ pub struct CopyStats {
 ///   write copies just the tiles it changes that are still shared
 ///   ([`OccupancyGrid::copy_stats`] counts them). Grid FastSLAM's particles share maps so.
 /// * Each grid also caches a likelihood field per tile ([`crate::likelihood`]), computed
-///   lazily by the matchers and shared between clones in the same way.
+///   lazily by the matchers, shared between clones in the same way and dropped where a
+///   write changes which cells are obstacles.
 /// * Optionally ([`OccupancyGrid::with_incremental_distance`]) a grid also keeps a
 ///   truncated distance field repaired after every integration from the cells whose
 ///   obstacle status flipped ([`distance`]), for particle filters that match every scan.
@@ -76,9 +81,10 @@ pub struct CopyStats {
 pub struct OccupancyGrid {
     frame: GridFrame,
     model: InverseSensorModel,
-    params: LikelihoodParams,
+    /// Which cells are obstacles, and whether tiles keep mean hit positions.
+    pub(crate) params: ObstacleRule,
     /// The covered rectangle and the sparse slot index of the stored tiles.
-    table: TileTable,
+    pub(crate) table: TileTable,
     /// The bounding box of every cell the grid was asked to cover (no growth slack), the
     /// extent checked against [`MAX_MAP_EXTENT_CELLS`] and [`MAX_MAP_CELLS`].
     span: Option<(CellIndex, CellIndex)>,
@@ -87,19 +93,40 @@ pub struct OccupancyGrid {
     /// The lazy likelihood field's cache, one cell per tile slot; the table itself is
     /// allocated on the first field read, so grids that never read the lazy field (grid
     /// FastSLAM's, which use the incremental one) have one table less to clone.
-    fields: OnceLock<FieldCache>,
-    far_field: Arc<FieldTile>,
-    distance: Option<IncrementalDistance>,
+    pub(crate) fields: OnceLock<TileCache>,
+    /// The lazy field's own state (its parameters and far tile; `None`: the defaults),
+    /// type erased like its tiles.
+    pub(crate) field_state: Option<Arc<dyn Any + Send + Sync>>,
+    pub(crate) distance: Option<IncrementalDistance>,
     stats: CopyStats,
 }
 
-/// Lazily computed field tiles, one cell per tile slot.
-type FieldCache = Vec<OnceLock<Arc<FieldTile>>>;
-
-/// A field cache of `n` empty cells.
-fn empty_field_cache(n: usize) -> FieldCache {
-    (0..n).map(|_| OnceLock::new()).collect()
+/// The part of the likelihood parameters the grid itself needs: which cells are obstacles
+/// (log-odds above `occupied_threshold`; a change of status invalidates cached field tiles
+/// and repairs the incremental distance field) and whether tiles keep mean hit positions
+/// (`subcell`). Set with [`crate::LikelihoodParams`] through
+/// [`OccupancyGrid::with_likelihood`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ObstacleRule {
+    pub(crate) occupied_threshold: f32,
+    pub(crate) subcell: bool,
 }
+
+impl ObstacleRule {
+    /// The rule of the default likelihood parameters (a test in the likelihood module
+    /// checks that they agree).
+    pub(crate) const DEFAULT: Self = Self {
+        occupied_threshold: 0.0,
+        subcell: true,
+    };
+}
+
+/// One entry of the per-tile cache a grid keeps for its lazy likelihood field, type erased
+/// so that the grid does not depend on the module that computes it.
+pub(crate) type CachedTile = Arc<dyn Any + Send + Sync>;
+
+/// The per-tile cache: one cell per tile slot, filled on first read.
+pub(crate) type TileCache = Vec<OnceLock<CachedTile>>;
 
 impl std::fmt::Debug for OccupancyGrid {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -115,7 +142,7 @@ impl std::fmt::Debug for OccupancyGrid {
 
 impl OccupancyGrid {
     /// An empty grid (every cell unknown) with origin (0, 0), cell edge `resolution` metres,
-    /// the given inverse sensor model and default [`LikelihoodParams`].
+    /// the given inverse sensor model and default [`crate::LikelihoodParams`].
     ///
     /// A non-finite or non-positive resolution is replaced by 0.05 m; use
     /// [`OccupancyGrid::try_new`] to have it rejected instead.
@@ -125,16 +152,15 @@ impl OccupancyGrid {
         } else {
             0.05
         };
-        let params = LikelihoodParams::default();
         Self {
             frame: GridFrame::new(Point2::origin(), resolution),
             model,
-            params,
+            params: ObstacleRule::DEFAULT,
             table: TileTable::default(),
             span: None,
             tiles: Vec::new(),
             fields: OnceLock::new(),
-            far_field: Arc::new(FieldTile::far(&params)),
+            field_state: None,
             distance: None,
             stats: CopyStats::default(),
         }
@@ -145,19 +171,6 @@ impl OccupancyGrid {
         ensure_config(resolution > 0.0, "resolution", resolution, "> 0 m")?;
         model.validate()?;
         Ok(Self::new(resolution, model))
-    }
-
-    /// This grid with its likelihood-field parameters replaced (cached fields dropped).
-    pub fn with_likelihood(mut self, params: LikelihoodParams) -> Result<Self, GridError> {
-        params.validate()?;
-        self.params = params;
-        self.far_field = Arc::new(FieldTile::far(&params));
-        self.fields = OnceLock::new();
-        // The obstacle threshold may have changed: rebuild the incremental field.
-        if let Some(d) = self.distance.take() {
-            return self.with_incremental_distance(d.radius() as u32);
-        }
-        Ok(self)
     }
 
     /// This grid with an incrementally repaired truncated distance field of
@@ -235,11 +248,6 @@ impl OccupancyGrid {
         &self.model
     }
 
-    /// The likelihood-field parameters.
-    pub fn likelihood_params(&self) -> LikelihoodParams {
-        self.params
-    }
-
     /// The cell containing world point `p`.
     #[inline]
     pub fn world_to_cell(&self, p: &Point2) -> CellIndex {
@@ -303,7 +311,7 @@ impl OccupancyGrid {
     }
 
     /// Bytes held by one tile (log-odds and mean hit positions of its cells; a grid whose
-    /// [`LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
+    /// [`crate::LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
     pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
     /// Inclusive range of cells covered by the tile table (`None` while empty): the
@@ -429,347 +437,6 @@ impl OccupancyGrid {
         self.table.insert(tx, ty).0
     }
 
-    /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
-    /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
-    /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
-    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ (with
-    /// [`InverseSensorModel::protect_scan_hits`]: l_occ, once).
-    ///
-    /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
-    /// [`OccupancyGrid::try_integrate_scan`] reports it instead.
-    pub fn integrate_scan(&mut self, robot_pose: &Pose2, scan: &LaserScan) {
-        let _ = self.try_integrate_scan(robot_pose, scan);
-    }
-
-    /// [`OccupancyGrid::integrate_scan`], returning an error for invalid input.
-    pub fn try_integrate_scan(
-        &mut self,
-        robot_pose: &Pose2,
-        scan: &LaserScan,
-    ) -> Result<(), GridError> {
-        let prepared = PreparedScan::new(scan)?;
-        self.try_integrate_prepared(robot_pose, &prepared)
-    }
-
-    /// Integrates a [`PreparedScan`] (no trigonometry per beam: one `sin_cos` per call).
-    pub fn try_integrate_prepared(
-        &mut self,
-        robot_pose: &Pose2,
-        scan: &PreparedScan,
-    ) -> Result<(), GridError> {
-        if !robot_pose.is_finite() {
-            return Err(GridError::NonFinite {
-                what: "robot pose",
-                value: f64::NAN,
-            });
-        }
-        let sensor = robot_pose.compose(&scan.sensor_pose);
-        let (s, c) = sensor.theta.sin_cos();
-        let start = self.frame.world_to_continuous(&sensor.translation());
-        let inv_res = 1.0 / self.frame.resolution;
-        let m = self.model;
-        // Segment ends in continuous cell coordinates, and whether the end cell is a hit.
-        // (end of the free stretch, end point, hit?) in continuous cell coordinates.
-        let mut segs: Vec<(CellPoint, CellPoint, bool)> = Vec::with_capacity(scan.beams.len());
-        let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (start.0, start.1, start.0, start.1);
-        for b in &scan.beams {
-            if b.range < m.min_range {
-                continue;
-            }
-            // A hit beyond max_range (at or beyond it when far hits do not clear).
-            let far = b.hit
-                && if m.far_hits_clear {
-                    b.range > m.max_range
-                } else {
-                    b.range >= m.max_range
-                };
-            let (len, hit) = if b.hit && !far {
-                (b.range, true)
-            } else if far && m.far_hits_clear {
-                (m.max_range, false)
-            } else {
-                (m.no_return_range.min(b.range), false)
-            };
-            if len <= 0.0 {
-                continue;
-            }
-            // Beam direction in the world: R(θ_sensor)·dir.
-            let (dx, dy) = (c * b.dir.0 - s * b.dir.1, s * b.dir.0 + c * b.dir.1);
-            let end = (start.0 + len * dx * inv_res, start.1 + len * dy * inv_res);
-            let free_len = if hit {
-                (len - m.hit_margin).max(0.0)
-            } else {
-                len
-            };
-            let free_end = (
-                start.0 + free_len * dx * inv_res,
-                start.1 + free_len * dy * inv_res,
-            );
-            lo_x = lo_x.min(end.0);
-            lo_y = lo_y.min(end.1);
-            hi_x = hi_x.max(end.0);
-            hi_y = hi_y.max(end.1);
-            segs.push((free_end, end, hit));
-        }
-        if !(lo_x.is_finite() && lo_y.is_finite() && hi_x.is_finite() && hi_y.is_finite()) {
-            return Err(GridError::NonFinite {
-                what: "beam end point",
-                value: f64::NAN,
-            });
-        }
-        const LIMIT: f64 = (1u32 << 30) as f64;
-        if lo_x.abs() > LIMIT || lo_y.abs() > LIMIT || hi_x.abs() > LIMIT || hi_y.abs() > LIMIT {
-            return Err(GridError::OutOfGrid {
-                what: "beam end point",
-                cells: lo_x.abs().max(hi_x.abs()).max(lo_y.abs()).max(hi_y.abs()),
-            });
-        }
-        // With an incremental distance field the table extends `radius` cells beyond
-        // every end point, so that no obstacle's stamp is cut off.
-        let margin = self.distance.as_ref().map_or(0, |d| d.radius());
-        let (lo, hi) = (
-            CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
-            CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
-        );
-        self.ensure_covers(lo, hi)?;
-        // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
-        // written under one copy-on-write check. The slots are this scan's own, row-major
-        // over the tiles it touches (one tile of border): sorting by them sorts by
-        // (ty, tx), and their number is bounded by the map extent checked above.
-        let (t0, _) = split(lo);
-        let (t1, _) = split(hi);
-        let layout = TileLayout {
-            tx0: t0.0 - 1,
-            ty0: t0.1 - 1,
-            tw: t1.0 - t0.0 + 3,
-            th: t1.1 - t0.1 + 3,
-        };
-        let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
-        let mut hits: Vec<(u32, u16, i8, i8)> = Vec::with_capacity(segs.len());
-        let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
-            let ((tx, ty), local) = split(cell);
-            if let Some(slot) = layout.slot(tx, ty) {
-                v.push((slot as u32, local as u16));
-            }
-        };
-        for &(free_end, end, hit) in &segs {
-            let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
-            if hit {
-                let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
-                let ((tx, ty), local) = split(end_cell);
-                if let Some(slot) = layout.slot(tx, ty) {
-                    // End point relative to its cell centre, in 1/256 cell.
-                    let q = |f: f64| (f * 256.0).round().clamp(-128.0, 127.0) as i8;
-                    let ox = q(end.0 - end_cell.x as f64 - 0.5);
-                    let oy = q(end.1 - end_cell.y as f64 - 0.5);
-                    hits.push((slot as u32, local as u16, ox, oy));
-                }
-            } else {
-                push(&mut free, last);
-            }
-        }
-        let mut changed: Vec<usize> = Vec::new();
-        let mut flips: Vec<(u32, u16)> = Vec::new();
-        let protected: &[(u32, u16, i8, i8)] = if m.protect_scan_hits {
-            // Sorted by cell so that a tile's hits are found by binary search and a cell's
-            // repeated hits are adjacent.
-            hits.sort_unstable_by_key(|h| (h.0, h.1));
-            &hits
-        } else {
-            &[]
-        };
-        self.apply(
-            &layout,
-            &free,
-            m.l_free,
-            protected,
-            &mut changed,
-            &mut flips,
-        );
-        self.apply_hits(
-            &layout,
-            &hits,
-            m.l_occ,
-            m.protect_scan_hits,
-            &mut changed,
-            &mut flips,
-        );
-        self.invalidate_fields(changed);
-        if let Some(mut d) = self.distance.take() {
-            let mut cells: Vec<CellIndex> = flips
-                .iter()
-                .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
-                .collect();
-            d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
-            self.distance = Some(d);
-        }
-        Ok(())
-    }
-
-    /// Cell `local` of the tile in `slot`.
-    #[inline]
-    fn cell_of_slot(&self, slot: usize, local: usize) -> CellIndex {
-        let (tx, ty) = self.table.tile_of_slot(slot);
-        let t = TILE_SIZE as i32;
-        CellIndex::new(
-            tx * t + (local % TILE_SIZE) as i32,
-            ty * t + (local / TILE_SIZE) as i32,
-        )
-    }
-
-    /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
-    /// (sorted by slot), copying shared tiles on first write and recording the slots where
-    /// some cell changed obstacle status, and (with an incremental distance field) those
-    /// cells in `flips` as (slot, local index). `updates` and `protected` name tiles by
-    /// their slot in `scan` (the scan's tiles); `changed` and `flips` get the grid's slots.
-    fn apply(
-        &mut self,
-        scan: &TileLayout,
-        updates: &[(u32, u16)],
-        delta: f32,
-        protected: &[(u32, u16, i8, i8)],
-        changed: &mut Vec<usize>,
-        flips: &mut Vec<(u32, u16)>,
-    ) {
-        let track = self.distance.is_some();
-        let (lmin, lmax, thr) = (
-            self.model.l_min,
-            self.model.l_max,
-            self.params.occupied_threshold,
-        );
-        // Updates come sorted by tile slot: handle each tile's run at once.
-        for run in updates.chunk_by(|a, b| a.0 == b.0) {
-            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
-            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
-            let mask = protected_mask(protected, run[0].0);
-            let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
-            // Skip the copy entirely when no value in the run would change (saturated cells).
-            let needs_write = match stored {
-                None => run.iter().any(|&(_, l)| !skip(l)),
-                Some(t) => run.iter().any(|&(_, l)| {
-                    let v = t.cells[l as usize];
-                    !skip(l) && (v + delta).clamp(lmin, lmax) != v
-                }),
-            };
-            if !needs_write {
-                continue;
-            }
-            let slot = self.slot_for_write(tx, ty);
-            let tile = self.tile_for_write(slot);
-            let mut status_changed = false;
-            for &(_, l) in run {
-                if skip(l) {
-                    continue;
-                }
-                let v = &mut tile.cells[l as usize];
-                let nv = (*v + delta).clamp(lmin, lmax);
-                let flip = (*v > thr) != (nv > thr);
-                status_changed |= flip;
-                *v = nv;
-                if flip && track {
-                    flips.push((slot as u32, l));
-                }
-            }
-            if status_changed && changed.last() != Some(&slot) {
-                changed.push(slot);
-            }
-        }
-    }
-
-    /// The tile of `slot`, private to this grid: created if absent, copied if shared
-    /// (copy-on-write, counted in the stats).
-    fn tile_for_write(&mut self, slot: usize) -> &mut Tile {
-        let entry = &mut self.tiles[slot];
-        let arc = match entry {
-            None => {
-                self.stats.tiles_created += 1;
-                entry.insert(Arc::new(Tile::unknown(self.params.subcell)))
-            }
-            Some(a) => {
-                if Arc::strong_count(a) > 1 {
-                    self.stats.tiles_copied += 1;
-                    self.stats.bytes_copied += a.bytes() as u64;
-                }
-                a
-            }
-        };
-        Arc::make_mut(arc)
-    }
-
-    /// Adds `delta` (= l_occ) to the hit cells (once per cell when `once`, the updates
-    /// then sorted by cell) and folds each end point into its cell's mean hit position
-    /// (running mean over the first [`HIT_CAP`] hits).
-    fn apply_hits(
-        &mut self,
-        scan: &TileLayout,
-        updates: &[(u32, u16, i8, i8)],
-        delta: f32,
-        once: bool,
-        changed: &mut Vec<usize>,
-        flips: &mut Vec<(u32, u16)>,
-    ) {
-        let track = self.distance.is_some();
-        let (lmin, lmax, thr) = (
-            self.model.l_min,
-            self.model.l_max,
-            self.params.occupied_threshold,
-        );
-        // Updates come sorted by tile slot: handle each tile's run at once.
-        for run in updates.chunk_by(|a, b| a.0 == b.0) {
-            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
-            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
-            let needs_write = match stored {
-                None => true,
-                Some(t) => run.iter().any(|&(_, l, _, _)| {
-                    let v = t.cells[l as usize];
-                    (v + delta).clamp(lmin, lmax) != v
-                        || t.hit.as_ref().is_some_and(|h| h.hits[l as usize] < HIT_CAP)
-                }),
-            };
-            if !needs_write {
-                continue;
-            }
-            let slot = self.slot_for_write(tx, ty);
-            let tile = self.tile_for_write(slot);
-            let mut field_changed = false;
-            for (i, &(_, l, ox, oy)) in run.iter().enumerate() {
-                let repeat = once && i > 0 && run[i - 1].1 == l;
-                let l = l as usize;
-                let v = tile.cells[l];
-                let nv = if repeat {
-                    v
-                } else {
-                    (v + delta).clamp(lmin, lmax)
-                };
-                let flip = (v > thr) != (nv > thr);
-                field_changed |= flip;
-                if flip && track {
-                    flips.push((slot as u32, l as u16));
-                }
-                tile.cells[l] = nv;
-                let Some(h) = tile.hit.as_deref_mut() else {
-                    continue;
-                };
-                let n = h.hits[l];
-                if n < HIT_CAP {
-                    let mean = |m: i8, o: i8| {
-                        let m = m as i32;
-                        (m + ((o as i32 - m) as f32 / (n as f32 + 1.0)).round() as i32)
-                            .clamp(-128, 127) as i8
-                    };
-                    let (mx, my) = (mean(h.hit_x[l], ox), mean(h.hit_y[l], oy));
-                    field_changed |= nv > thr && (mx != h.hit_x[l] || my != h.hit_y[l]);
-                    h.hit_x[l] = mx;
-                    h.hit_y[l] = my;
-                    h.hits[l] = n + 1;
-                }
-            }
-            if field_changed && changed.last() != Some(&slot) {
-                changed.push(slot);
-            }
-        }
-    }
-
     /// Drops the cached fields of the given slots and their 8 neighbours (the obstacle
     /// margin never exceeds one tile).
     fn invalidate_fields(&mut self, mut changed: Vec<usize>) {
@@ -836,190 +503,6 @@ impl OccupancyGrid {
         (out, offsets)
     }
 
-    /// The cached field tile of a slot, computed on first use.
-    #[inline]
-    fn field_tile(&self, slot: usize) -> &FieldTile {
-        let fields = self
-            .fields
-            .get_or_init(|| empty_field_cache(self.table.len()));
-        fields[slot].get_or_init(|| {
-            let (tx, ty) = self.table.tile_of_slot(slot);
-            let t = TILE_SIZE as i32;
-            let margin = crate::likelihood::margin_cells_clamped(&self.params, self.resolution());
-            match compute_region(
-                self,
-                CellIndex::new(tx * t, ty * t),
-                TILE_SIZE,
-                TILE_SIZE,
-                margin,
-            ) {
-                None => self.far_field.clone(),
-                Some((v, d2)) => {
-                    let mut values = [0.0f32; TILE_CELLS];
-                    values.copy_from_slice(&v);
-                    let mut dist2 = [0.0f32; TILE_CELLS];
-                    dist2.copy_from_slice(&d2);
-                    Arc::new(FieldTile { values, dist2 })
-                }
-            }
-        })
-    }
-
-    /// Likelihood-field value s ∈ (0, 1] of cell `c` (PR §6.4): exp(−d²/(2σ²)) with d the
-    /// distance from the cell centre to the nearest obstacle cell (its mean hit position
-    /// when `subcell` is on, else its centre), clamped to `max_distance`. Computed per tile
-    /// on first use and cached.
-    #[inline]
-    pub fn likelihood(&self, c: CellIndex) -> f32 {
-        let ((tx, ty), local) = split(c);
-        match self.table.slot(tx, ty) {
-            Some(s) => self.field_tile(s).values[local],
-            None => self.far_field.values[0],
-        }
-    }
-
-    /// Bilinear interpolation of the likelihood field at world point `p` between the four
-    /// surrounding cell centres (Hector SLAM, Kohlbrecher et al. 2011, eq. 5–6), with its
-    /// gradient in the world frame (per metre).
-    #[inline]
-    pub fn likelihood_interpolated(&self, p: &Point2) -> (f64, [f64; 2]) {
-        let (u, v) = self.frame.world_to_continuous(p);
-        let (u, v) = (u - 0.5, v - 0.5);
-        let (x0, y0) = (u.floor(), v.floor());
-        let (fx, fy) = (u - x0, v - y0);
-        let (i, j) = (clamp_cell(x0), clamp_cell(y0));
-        let blk = self.field_block::<2>(i, j, false);
-        let (m00, m10) = (blk[0][0] as f64, blk[0][1] as f64);
-        let (m01, m11) = (blk[1][0] as f64, blk[1][1] as f64);
-        let val = fy * (fx * m11 + (1.0 - fx) * m01) + (1.0 - fy) * (fx * m10 + (1.0 - fx) * m00);
-        let du = fy * (m11 - m01) + (1.0 - fy) * (m10 - m00);
-        let dv = fx * (m11 - m10) + (1.0 - fx) * (m01 - m00);
-        let inv = 1.0 / self.frame.resolution;
-        (val, [du * inv, dv * inv])
-    }
-
-    /// The N×N block of field values (or squared distances) with lower-left cell (i0, j0),
-    /// as `out[row][column]`; one tile lookup when the block lies inside one tile.
-    #[inline]
-    fn field_block<const N: usize>(&self, i0: i32, j0: i32, dist2: bool) -> [[f32; N]; N] {
-        let mut out = [[0.0f32; N]; N];
-        let n = N as i32 - 1;
-        let bits = tiles::TILE_BITS;
-        let (tx, ty) = (i0 >> bits, j0 >> bits);
-        if tx == (i0 + n) >> bits && ty == (j0 + n) >> bits {
-            let tile: &FieldTile = match self.table.slot(tx, ty) {
-                Some(s) => self.field_tile(s),
-                None => &self.far_field,
-            };
-            let arr = if dist2 { &tile.dist2 } else { &tile.values };
-            let t = TILE_SIZE as i32;
-            let (lx, ly) = ((i0 - tx * t) as usize, (j0 - ty * t) as usize);
-            for (b, row) in out.iter_mut().enumerate() {
-                let base = (ly + b) * TILE_SIZE + lx;
-                row.copy_from_slice(&arr[base..base + N]);
-            }
-        } else {
-            for (b, row) in out.iter_mut().enumerate() {
-                for (a, v) in row.iter_mut().enumerate() {
-                    let c = CellIndex::new(i0 + a as i32, j0 + b as i32);
-                    *v = if dist2 {
-                        self.distance_squared(c)
-                    } else {
-                        self.likelihood(c)
-                    };
-                }
-            }
-        }
-        out
-    }
-
-    /// Squared distance d² (m², clamped to max_distance²) from the centre of cell `c` to the
-    /// nearest obstacle, the quantity the field value is computed from.
-    #[inline]
-    pub fn distance_squared(&self, c: CellIndex) -> f32 {
-        let ((tx, ty), local) = split(c);
-        match self.table.slot(tx, ty) {
-            Some(s) => self.field_tile(s).dist2[local],
-            None => self.far_field.dist2[0],
-        }
-    }
-
-    /// The likelihood field at world point `p` from a bicubic (Catmull-Rom) interpolation
-    /// of the squared obstacle distance over the 4×4 surrounding cell centres:
-    /// M = exp(−D/(2σ²)) with D the interpolated d², and its gradient in the world frame
-    /// (per metre), ∇M = −M·∇D/(2σ²).
-    ///
-    /// Interpolating d² rather than M matters: Catmull-Rom reproduces quadratics, and
-    /// d² = (x − w)² across a straight wall at w is one, so the peak lands on the wall's
-    /// (mean hit) position instead of on a cell centre, as the bilinear interpolant's does.
-    #[inline]
-    pub fn likelihood_bicubic(&self, p: &Point2) -> (f64, [f64; 2]) {
-        self.likelihood_bicubic_sigma(p, self.params.sigma)
-    }
-
-    /// [`OccupancyGrid::likelihood_bicubic`] with a σ of the caller's choice (metres, > 0)
-    /// in M = exp(−D/(2σ²)): the squared distances do not depend on σ, so a refinement can
-    /// use a narrower Gaussian than the field's own.
-    #[inline]
-    pub fn likelihood_bicubic_sigma(&self, p: &Point2, sigma: f64) -> (f64, [f64; 2]) {
-        let (u, v) = self.frame.world_to_continuous(p);
-        let (u, v) = (u - 0.5, v - 0.5);
-        let (x0, y0) = (u.floor(), v.floor());
-        let (wx, dwx) = catmull_rom_weights(u - x0);
-        let (wy, dwy) = catmull_rom_weights(v - y0);
-        let (i, j) = (clamp_cell(x0), clamp_cell(y0));
-        let blk = self.field_block::<4>(i - 1, j - 1, true);
-        let (mut val, mut du, mut dv) = (0.0, 0.0, 0.0);
-        for (b, (&wyb, &dwyb)) in wy.iter().zip(&dwy).enumerate() {
-            let (mut row, mut drow) = (0.0, 0.0);
-            for (a, (&wxa, &dwxa)) in wx.iter().zip(&dwx).enumerate() {
-                let m = blk[b][a] as f64;
-                row += wxa * m;
-                drow += dwxa * m;
-            }
-            val += wyb * row;
-            du += wyb * drow;
-            dv += dwyb * row;
-        }
-        let inv = 1.0 / self.frame.resolution;
-        let k = -0.5 / (sigma * sigma);
-        let m = (k * val.max(0.0)).exp();
-        (m, [m * k * du * inv, m * k * dv * inv])
-    }
-
-    /// Copies the likelihood-field values of the `w × h` cells starting at `min` into a
-    /// row-major buffer
-    /// (tile by tile; cells outside the table get the far value).
-    pub fn field_window(&self, min: CellIndex, w: usize, h: usize) -> Vec<f32> {
-        let far = self.far_field.values[0];
-        let mut out = vec![far; w * h];
-        if w == 0 || h == 0 {
-            return out;
-        }
-        let t = TILE_SIZE as i32;
-        let max_x = min.x + w as i32 - 1;
-        let max_y = min.y + h as i32 - 1;
-        for ty in (min.y >> tiles::TILE_BITS)..=(max_y >> tiles::TILE_BITS) {
-            for tx in (min.x >> tiles::TILE_BITS)..=(max_x >> tiles::TILE_BITS) {
-                let Some(slot) = self.table.slot(tx, ty) else {
-                    continue;
-                };
-                let f = self.field_tile(slot);
-                let x0 = (tx * t).max(min.x);
-                let x1 = (tx * t + t - 1).min(max_x);
-                let y0 = (ty * t).max(min.y);
-                let y1 = (ty * t + t - 1).min(max_y);
-                for y in y0..=y1 {
-                    let src = (y - ty * t) as usize * TILE_SIZE + (x0 - tx * t) as usize;
-                    let dst = (y - min.y) as usize * w + (x0 - min.x) as usize;
-                    let n = (x1 - x0 + 1) as usize;
-                    out[dst..dst + n].copy_from_slice(&f.values[src..src + n]);
-                }
-            }
-        }
-        out
-    }
-
     /// The smallest rectangle of cells holding every observed (non-zero log-odds) cell, as
     /// inclusive corners; `None` for an empty grid.
     pub fn known_bounds(&self) -> Option<(CellIndex, CellIndex)> {
@@ -1073,52 +556,6 @@ impl OccupancyGrid {
         }
         map
     }
-}
-
-/// The cells of tile `slot` among `protected` (sorted by slot) as a 1024-bit mask, or
-/// `None` when it has none.
-#[inline]
-fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; TILE_CELLS / 64]> {
-    let a = protected.partition_point(|h| h.0 < slot);
-    let b = a + protected[a..].partition_point(|h| h.0 == slot);
-    (a < b).then(|| {
-        let mut m = [0u64; TILE_CELLS / 64];
-        for &(_, l, _, _) in &protected[a..b] {
-            m[l as usize >> 6] |= 1 << (l & 63);
-        }
-        m
-    })
-}
-
-/// A floored continuous cell coordinate as a cell index, clamped to ±2³⁰ so that the
-/// interpolation's block arithmetic (a few cells beyond it) cannot overflow for a point
-/// far off the map (such a point reads the far value either way).
-#[inline]
-fn clamp_cell(x: f64) -> i32 {
-    const L: f64 = (1u32 << 30) as f64;
-    x.clamp(-L, L) as i32
-}
-
-/// Catmull-Rom weights of the samples at −1, 0, 1, 2 for a point at t ∈ [0, 1), and
-/// their derivatives with respect to t.
-#[inline]
-fn catmull_rom_weights(t: f64) -> ([f64; 4], [f64; 4]) {
-    let t2 = t * t;
-    let t3 = t2 * t;
-    (
-        [
-            0.5 * (-t3 + 2.0 * t2 - t),
-            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-            0.5 * (t3 - t2),
-        ],
-        [
-            0.5 * (-3.0 * t2 + 4.0 * t - 1.0),
-            0.5 * (9.0 * t2 - 10.0 * t),
-            0.5 * (-9.0 * t2 + 8.0 * t + 1.0),
-            0.5 * (3.0 * t2 - 2.0 * t),
-        ],
-    )
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::likelihood::{LikelihoodField, LikelihoodParams};
+use slam_models::{LaserScan, Pose2};
 
 fn scan(ranges: Vec<f64>, angle_min: f64, inc: f64) -> LaserScan {
     LaserScan {

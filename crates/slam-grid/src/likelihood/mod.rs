@@ -10,8 +10,8 @@
 
 pub(crate) mod edt;
 mod field;
+mod lazy;
 mod params;
 
 pub use field::LikelihoodField;
-pub(crate) use field::{compute_region, margin_cells_clamped, FieldTile};
 pub use params::LikelihoodParams;

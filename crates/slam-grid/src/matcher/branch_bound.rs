@@ -46,25 +46,36 @@ pub const MAX_PYRAMID_DEPTH: u32 = 12;
 pub struct MaxPyramid {
     frame: GridFrame,
     params: LikelihoodParams,
+    levels: Levels,
+}
+
+/// Max-pooled levels of any per-cell score over a rectangle of cells, with a lattice
+/// stride m ≥ 1 (translations in steps of m cells): P₀(c) = v(c) and
+/// P_k(x, y) = max of P₀ over {x + a·m : 0 ≤ a < 2^k} × {y + b·m : 0 ≤ b < 2^k}, computed as
+/// P_k(x, y) = max(P_{k−1}(x, y), P_{k−1}(x + h, y), P_{k−1}(x, y + h), P_{k−1}(x + h, y + h))
+/// with h = m·2^(k−1). Cells outside the rectangle read `far`, the score's minimum.
+#[derive(Debug, Clone)]
+pub(crate) struct Levels {
     /// Lowest stored cell (the rectangle's minimum corner less the padding).
     origin: CellIndex,
     width: usize,
     height: usize,
+    stride: i32,
     far: f32,
     levels: Vec<Vec<f32>>,
 }
 
-impl MaxPyramid {
-    /// The pyramid of `depth` levels over the inclusive cell rectangle `min … max` of
-    /// `grid`'s likelihood field.
-    ///
-    /// Errors for a depth outside 1..=[`MAX_PYRAMID_DEPTH`], an empty rectangle, or one
-    /// whose padded levels exceed [`MAX_PYRAMID_CELLS`] cells.
-    pub fn new(
-        grid: &OccupancyGrid,
+impl Levels {
+    /// The `depth` levels over the inclusive rectangle `min … max` with lattice stride
+    /// `stride`; `base(origin, w, h)` gives the row-major values of the `w × h` cells from
+    /// `origin` (the rectangle grown by the padding below it, which reads `far`).
+    pub(crate) fn build(
         min: CellIndex,
         max: CellIndex,
         depth: u32,
+        stride: i32,
+        far: f32,
+        base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
     ) -> Result<Self, GridError> {
         ensure_config(
             (1..=MAX_PYRAMID_DEPTH).contains(&depth),
@@ -72,7 +83,8 @@ impl MaxPyramid {
             depth as f64,
             "in 1..=12",
         )?;
-        let pad = (1i64 << (depth - 1)) - 1;
+        let stride = stride.max(1);
+        let pad = ((1i64 << (depth - 1)) - 1) * stride as i64;
         let w = max.x as i64 - min.x as i64 + 1 + pad;
         let h = max.y as i64 - min.y as i64 + 1 + pad;
         if w <= pad || h <= pad {
@@ -93,11 +105,7 @@ impl MaxPyramid {
         }
         let (w, h) = (w as usize, h as usize);
         let origin = CellIndex::new(min.x - pad as i32, min.y - pad as i32);
-        let params = grid.likelihood_params();
-        let far = params.far_value();
-        // The padding reads the far value too: the grid returns it outside its tiles, and
-        // inside them the rectangle is what the caller asked for.
-        let mut base = grid.field_window(origin, w, h);
+        let mut base = base(origin, w, h);
         for y in 0..h {
             for x in 0..w {
                 if x < pad as usize || y < pad as usize {
@@ -108,7 +116,7 @@ impl MaxPyramid {
         let mut levels = Vec::with_capacity(depth as usize);
         levels.push(base);
         for k in 1..depth as usize {
-            let half = 1usize << (k - 1);
+            let half = (stride as usize) << (k - 1);
             let prev = &levels[k - 1];
             let at = |x: usize, y: usize| {
                 if x < w && y < h {
@@ -129,12 +137,62 @@ impl MaxPyramid {
             levels.push(next);
         }
         Ok(Self {
-            frame: grid.frame(),
-            params,
             origin,
             width: w,
             height: h,
+            stride,
             far,
+            levels,
+        })
+    }
+
+    /// P_level(c); `far` outside the stored cells.
+    #[inline]
+    pub(crate) fn value(&self, level: u32, c: CellIndex) -> f32 {
+        let x = c.x as i64 - self.origin.x as i64;
+        let y = c.y as i64 - self.origin.y as i64;
+        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
+            return self.far;
+        }
+        self.levels[level as usize][y as usize * self.width + x as usize]
+    }
+
+    /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps.
+    #[inline]
+    pub(crate) fn score(&self, level: u32, cells: &[CellIndex], dx: i32, dy: i32) -> f32 {
+        let (dx, dy) = (dx * self.stride, dy * self.stride);
+        cells
+            .iter()
+            .map(|c| self.value(level, CellIndex::new(c.x + dx, c.y + dy)))
+            .sum()
+    }
+
+    fn depth(&self) -> u32 {
+        self.levels.len() as u32
+    }
+}
+
+impl MaxPyramid {
+    /// The pyramid of `depth` levels over the inclusive cell rectangle `min … max` of
+    /// `grid`'s likelihood field.
+    ///
+    /// Errors for a depth outside 1..=[`MAX_PYRAMID_DEPTH`], an empty rectangle, or one
+    /// whose padded levels exceed [`MAX_PYRAMID_CELLS`] cells.
+    pub fn new(
+        grid: &OccupancyGrid,
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+    ) -> Result<Self, GridError> {
+        let params = grid.likelihood_params();
+        // The padding reads the far value too: the grid returns it outside its tiles, and
+        // inside them the rectangle is what the caller asked for.
+        let levels = Levels::build(min, max, depth, 1, params.far_value(), |origin, w, h| {
+            grid.field_window(origin, w, h)
+        })?;
+        Ok(Self {
+            frame: grid.frame(),
+            params,
             levels,
         })
     }
@@ -150,7 +208,7 @@ impl MaxPyramid {
 
     /// Number of levels.
     pub fn depth(&self) -> u32 {
-        self.levels.len() as u32
+        self.levels.depth()
     }
 
     /// The grid geometry the pyramid was built on.
@@ -160,28 +218,17 @@ impl MaxPyramid {
 
     /// Bytes held by the levels.
     pub fn memory_bytes(&self) -> usize {
-        self.levels.len() * self.width * self.height * std::mem::size_of::<f32>()
+        self.levels.levels.len()
+            * self.levels.width
+            * self.levels.height
+            * std::mem::size_of::<f32>()
     }
 
     /// P_level(c): the maximum field value over the 2^level-cell block whose lowest corner
     /// is `c` (level 0: the field value of `c`); the far value outside the stored cells.
     #[inline]
     pub fn value(&self, level: u32, c: CellIndex) -> f32 {
-        let x = c.x as i64 - self.origin.x as i64;
-        let y = c.y as i64 - self.origin.y as i64;
-        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
-            return self.far;
-        }
-        self.levels[level as usize][y as usize * self.width + x as usize]
-    }
-
-    /// Σ over `cells` of P_level(c + (dx, dy)).
-    #[inline]
-    fn score(&self, level: u32, cells: &[CellIndex], dx: i32, dy: i32) -> f32 {
-        cells
-            .iter()
-            .map(|c| self.value(level, CellIndex::new(c.x + dx, c.y + dy)))
-            .sum()
+        self.levels.value(level, c)
     }
 }
 
@@ -237,21 +284,76 @@ impl Default for BranchBoundMatcher {
 /// One node of the search: a rotation index and a block of translations (lowest offset in
 /// cells from the window's centre) with its bound or, at level 0, its exact score.
 #[derive(Debug, Clone, Copy)]
-struct Candidate {
-    rotation: u32,
-    dx: i32,
-    dy: i32,
-    score: f32,
+pub(crate) struct Candidate {
+    pub(crate) rotation: u32,
+    pub(crate) dx: i32,
+    pub(crate) dy: i32,
+    pub(crate) score: f32,
 }
 
 /// The search lattice of one scan: its end-point cells for every rotation at the window's
-/// centre.
-struct Lattice {
-    dtheta: f64,
-    k_max: i32,
-    half_cells: i32,
+/// centre, rotations θ₀ + k·δθ with |k| ≤ `k_max`, translations in lattice steps (of the
+/// levels' stride) up to `half_steps` either way.
+pub(crate) struct Lattice {
+    pub(crate) dtheta: f64,
+    pub(crate) k_max: i32,
+    pub(crate) half_steps: i32,
     n: usize,
     cells: Vec<CellIndex>,
+}
+
+impl Lattice {
+    /// The lattice of `points` (robot frame) around `initial` with rotation step `dtheta`
+    /// (> 0) and `k_max` rotations per side.
+    pub(crate) fn new(
+        frame: &GridFrame,
+        points: &[slam_models::Point2],
+        initial: &Pose2,
+        dtheta: f64,
+        k_max: f64,
+        half_steps: i32,
+    ) -> Result<Self, GridError> {
+        if k_max > MAX_ROTATIONS as f64 {
+            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
+                "branch-and-bound matcher",
+                "branch-and-bound rotations per side (angular_window / angular_step)",
+                k_max,
+                "at most 100000: a larger angular_step or a smaller angular_window",
+            )));
+        }
+        let k_max = k_max as i32;
+        let n = points.len();
+        let mut cells = Vec::with_capacity((2 * k_max as usize + 1) * n);
+        for k in -k_max..=k_max {
+            let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * dtheta);
+            cells.extend(transform_points(points, &pose).map(|p| frame.world_to_cell(&p)));
+        }
+        Ok(Self {
+            dtheta,
+            k_max,
+            half_steps,
+            n,
+            cells,
+        })
+    }
+
+    /// The inclusive rectangle of cells the lattice's end points reach with every
+    /// translation of up to `half_steps · stride` cells.
+    pub(crate) fn reach(&self, stride: i32) -> (CellIndex, CellIndex) {
+        let (mut lo, mut hi) = (
+            CellIndex::new(i32::MAX, i32::MAX),
+            CellIndex::new(i32::MIN, i32::MIN),
+        );
+        for c in &self.cells {
+            lo = CellIndex::new(lo.x.min(c.x), lo.y.min(c.y));
+            hi = CellIndex::new(hi.x.max(c.x), hi.y.max(c.y));
+        }
+        let l = self.half_steps * stride.max(1);
+        (
+            CellIndex::new(lo.x - l, lo.y - l),
+            CellIndex::new(hi.x + l, hi.y + l),
+        )
+    }
 }
 
 impl BranchBoundMatcher {
@@ -290,28 +392,14 @@ impl BranchBoundMatcher {
                 .max(1e-4)
         };
         let k_max = (self.angular_window / dtheta).floor();
-        if k_max > MAX_ROTATIONS as f64 {
-            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
-                "branch-and-bound matcher",
-                "branch-and-bound rotations per side (angular_window / angular_step)",
-                k_max,
-                "at most 100000: a larger angular_step or a smaller angular_window",
-            )));
-        }
-        let k_max = k_max as i32;
-        let n = scan.points.len();
-        let mut cells = Vec::with_capacity((2 * k_max as usize + 1) * n);
-        for k in -k_max..=k_max {
-            let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * dtheta);
-            cells.extend(transform_points(&scan.points, &pose).map(|p| frame.world_to_cell(&p)));
-        }
-        Ok(Lattice {
+        Lattice::new(
+            frame,
+            &scan.points,
+            initial,
             dtheta,
             k_max,
-            half_cells: (self.linear_window / res).round() as i32,
-            n,
-            cells,
-        })
+            (self.linear_window / res).round() as i32,
+        )
     }
 
     /// Searches the window around `initial` in a pyramid built beforehand (e.g. of a
@@ -393,98 +481,107 @@ impl BranchBoundMatcher {
         check_input(grid, scan, initial, self.min_points, self.linear_window)?;
         let frame = grid.frame();
         let lat = self.lattice(&frame, scan, initial)?;
-        let (mut lo, mut hi) = (
-            CellIndex::new(i32::MAX, i32::MAX),
-            CellIndex::new(i32::MIN, i32::MIN),
-        );
-        for c in &lat.cells {
-            lo = CellIndex::new(lo.x.min(c.x), lo.y.min(c.y));
-            hi = CellIndex::new(hi.x.max(c.x), hi.y.max(c.y));
-        }
-        let l = lat.half_cells;
-        let pyramid = MaxPyramid::new(
-            grid,
-            CellIndex::new(lo.x - l, lo.y - l),
-            CellIndex::new(hi.x + l, hi.y + l),
-            self.depth,
-        )?;
+        let (lo, hi) = lat.reach(1);
+        let pyramid = MaxPyramid::new(grid, lo, hi, self.depth)?;
         self.match_in(&pyramid, scan, initial)
     }
 
     /// Depth-first branch and bound; the best exact candidate scoring at least
     /// `min_score`·n, if any.
     fn search(&self, pyramid: &MaxPyramid, lat: &Lattice) -> Option<Candidate> {
-        let top = self.depth - 1;
-        let step = 1i32 << top;
-        let l = lat.half_cells;
-        let n_rot = 2 * lat.k_max as usize + 1;
-        let mut roots = Vec::new();
-        for r in 0..n_rot {
-            let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
-            let mut dy = -l;
-            while dy <= l {
-                let mut dx = -l;
-                while dx <= l {
-                    roots.push(Candidate {
-                        rotation: r as u32,
-                        dx,
-                        dy,
-                        score: pyramid.score(top, cells, dx, dy),
-                    });
-                    dx += step;
-                }
-                dy += step;
-            }
-        }
-        sort_descending(&mut roots);
         let threshold = (self.min_score * lat.n as f64) as f32;
-        let mut best: Option<Candidate> = None;
-        self.descend(pyramid, lat, &roots, top, threshold, &mut best);
-        best
+        branch_and_bound(
+            &pyramid.levels,
+            lat,
+            self.depth - 1,
+            threshold,
+            |_, _, _, _| 0.0,
+        )
     }
+}
 
-    /// Visits `candidates` (sorted by decreasing bound, all at `level`) depth first.
-    fn descend(
-        &self,
-        pyramid: &MaxPyramid,
-        lat: &Lattice,
-        candidates: &[Candidate],
-        level: u32,
-        threshold: f32,
-        best: &mut Option<Candidate>,
-    ) {
-        let l = lat.half_cells;
-        for c in candidates {
-            let beaten = match best {
-                Some(b) => c.score <= b.score,
-                None => c.score < threshold,
-            };
-            if beaten {
-                // Sorted: every later candidate is bounded by this one's bound.
-                return;
+/// Depth-first branch and bound over `levels` from level `top` down (Hess et al. 2016,
+/// Algorithm 3): the best exact candidate scoring at least `threshold`, if any. A
+/// candidate's score is Σ P_level over the end points plus `bonus(rotation, dx, dy,
+/// level)`, which must bound from above the exact bonus of every translation in the block
+/// at levels above 0 (e.g. a motion prior; 0 for none), so that every bound stays an upper
+/// bound and the result exact.
+pub(crate) fn branch_and_bound(
+    levels: &Levels,
+    lat: &Lattice,
+    top: u32,
+    threshold: f32,
+    bonus: impl Fn(u32, i32, i32, u32) -> f32,
+) -> Option<Candidate> {
+    let step = 1i32 << top;
+    let l = lat.half_steps;
+    let n_rot = 2 * lat.k_max as usize + 1;
+    let mut roots = Vec::new();
+    for r in 0..n_rot {
+        let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
+        let mut dy = -l;
+        while dy <= l {
+            let mut dx = -l;
+            while dx <= l {
+                roots.push(Candidate {
+                    rotation: r as u32,
+                    dx,
+                    dy,
+                    score: levels.score(top, cells, dx, dy) + bonus(r as u32, dx, dy, top),
+                });
+                dx += step;
             }
-            if level == 0 {
-                *best = Some(*c);
-                continue;
-            }
-            let half = 1i32 << (level - 1);
-            let r = c.rotation as usize;
-            let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
-            let mut children = Vec::with_capacity(4);
-            for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
-                let (dx, dy) = (c.dx + ox, c.dy + oy);
-                if dx <= l && dy <= l {
-                    children.push(Candidate {
-                        rotation: c.rotation,
-                        dx,
-                        dy,
-                        score: pyramid.score(level - 1, cells, dx, dy),
-                    });
-                }
-            }
-            sort_descending(&mut children);
-            self.descend(pyramid, lat, &children, level - 1, threshold, best);
+            dy += step;
         }
+    }
+    sort_descending(&mut roots);
+    let mut best: Option<Candidate> = None;
+    descend(levels, lat, &roots, top, threshold, &bonus, &mut best);
+    best
+}
+
+/// Visits `candidates` (sorted by decreasing bound, all at `level`) depth first.
+fn descend(
+    levels: &Levels,
+    lat: &Lattice,
+    candidates: &[Candidate],
+    level: u32,
+    threshold: f32,
+    bonus: &impl Fn(u32, i32, i32, u32) -> f32,
+    best: &mut Option<Candidate>,
+) {
+    let l = lat.half_steps;
+    for c in candidates {
+        let beaten = match best {
+            Some(b) => c.score <= b.score,
+            None => c.score < threshold,
+        };
+        if beaten {
+            // Sorted: every later candidate is bounded by this one's bound.
+            return;
+        }
+        if level == 0 {
+            *best = Some(*c);
+            continue;
+        }
+        let half = 1i32 << (level - 1);
+        let r = c.rotation as usize;
+        let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
+        let mut children = Vec::with_capacity(4);
+        for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
+            let (dx, dy) = (c.dx + ox, c.dy + oy);
+            if dx <= l && dy <= l {
+                children.push(Candidate {
+                    rotation: c.rotation,
+                    dx,
+                    dy,
+                    score: levels.score(level - 1, cells, dx, dy)
+                        + bonus(c.rotation, dx, dy, level - 1),
+                });
+            }
+        }
+        sort_descending(&mut children);
+        descend(levels, lat, &children, level - 1, threshold, bonus, best);
     }
 }
 
@@ -549,7 +646,11 @@ mod tests {
                         for xx in x..x + (1 << k) {
                             let c = CellIndex::new(xx, yy);
                             let inside = (10..=60).contains(&xx) && (5..=40).contains(&yy);
-                            let v = if inside { g.likelihood(c) } else { p.far };
+                            let v = if inside {
+                                g.likelihood(c)
+                            } else {
+                                p.levels.far
+                            };
                             m = m.max(v);
                         }
                     }

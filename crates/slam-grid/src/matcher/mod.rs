@@ -15,9 +15,15 @@
 //!
 //! Scores are the mean field value s̄ = (1/n)·Σ s(pᵢ) ∈ (0, 1] over the n end points
 //! (1: every end point on an obstacle).
+//!
+//! [`endpoint`] scores the same endpoint model as a truncated log-likelihood on a grid's
+//! incrementally repaired distance field, with the same hill climber and an exhaustive
+//! search under a motion prior: the matching of grid FastSLAM (slam-gridfast), which needs
+//! log-likelihoods for its weights.
 
 mod branch_bound;
 mod correlative;
+pub mod endpoint;
 mod gauss_newton;
 mod hill_climb;
 mod refined;

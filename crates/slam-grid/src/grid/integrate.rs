@@ -1,0 +1,372 @@
+//! Scan integration: each beam traced exactly from the sensor (Amanatides–Woo,
+//! [`super::raytrace`]) and the inverse sensor model's log-odds added to the cells it
+//! crosses and ends in (PR table 9.1/9.2), tile by tile under copy-on-write.
+
+use super::tiles::{split, Tile, TileLayout, HIT_CAP, TILE_CELLS, TILE_SIZE};
+use super::{trace_segment, OccupancyGrid};
+use crate::cell::CellIndex;
+use crate::error::GridError;
+use crate::scan::PreparedScan;
+use slam_models::{LaserScan, Pose2};
+use std::sync::Arc;
+
+/// Continuous cell coordinates (u, v) (see [`crate::cell`]).
+type CellPoint = (f64, f64);
+
+impl OccupancyGrid {
+    /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
+    /// (PR table 9.1/9.2), tracing each beam exactly (Amanatides–Woo) from the sensor
+    /// (`robot_pose ⊕ scan.sensor_pose`). Within one scan all free-space updates are applied
+    /// before the hits, so a cell both crossed and hit ends up l_free + l_occ (with
+    /// [`crate::InverseSensorModel::protect_scan_hits`]: l_occ, once).
+    ///
+    /// Invalid input (a non-finite pose, NaN or negative readings) leaves the grid unchanged;
+    /// [`OccupancyGrid::try_integrate_scan`] reports it instead.
+    pub fn integrate_scan(&mut self, robot_pose: &Pose2, scan: &LaserScan) {
+        let _ = self.try_integrate_scan(robot_pose, scan);
+    }
+
+    /// [`OccupancyGrid::integrate_scan`], returning an error for invalid input.
+    pub fn try_integrate_scan(
+        &mut self,
+        robot_pose: &Pose2,
+        scan: &LaserScan,
+    ) -> Result<(), GridError> {
+        let prepared = PreparedScan::new(scan)?;
+        self.try_integrate_prepared(robot_pose, &prepared)
+    }
+
+    /// Integrates a [`PreparedScan`] (no trigonometry per beam: one `sin_cos` per call).
+    pub fn try_integrate_prepared(
+        &mut self,
+        robot_pose: &Pose2,
+        scan: &PreparedScan,
+    ) -> Result<(), GridError> {
+        if !robot_pose.is_finite() {
+            return Err(GridError::NonFinite {
+                what: "robot pose",
+                value: f64::NAN,
+            });
+        }
+        let sensor = robot_pose.compose(&scan.sensor_pose);
+        let (s, c) = sensor.theta.sin_cos();
+        let start = self.frame.world_to_continuous(&sensor.translation());
+        let inv_res = 1.0 / self.frame.resolution;
+        let m = self.model;
+        // Segment ends in continuous cell coordinates, and whether the end cell is a hit.
+        // (end of the free stretch, end point, hit?) in continuous cell coordinates.
+        let mut segs: Vec<(CellPoint, CellPoint, bool)> = Vec::with_capacity(scan.beams.len());
+        let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (start.0, start.1, start.0, start.1);
+        for b in &scan.beams {
+            if b.range < m.min_range {
+                continue;
+            }
+            // A hit beyond max_range (at or beyond it when far hits do not clear).
+            let far = b.hit
+                && if m.far_hits_clear {
+                    b.range > m.max_range
+                } else {
+                    b.range >= m.max_range
+                };
+            let (len, hit) = if b.hit && !far {
+                (b.range, true)
+            } else if far && m.far_hits_clear {
+                (m.max_range, false)
+            } else {
+                (m.no_return_range.min(b.range), false)
+            };
+            if len <= 0.0 {
+                continue;
+            }
+            // Beam direction in the world: R(θ_sensor)·dir.
+            let (dx, dy) = (c * b.dir.0 - s * b.dir.1, s * b.dir.0 + c * b.dir.1);
+            let end = (start.0 + len * dx * inv_res, start.1 + len * dy * inv_res);
+            let free_len = if hit {
+                (len - m.hit_margin).max(0.0)
+            } else {
+                len
+            };
+            let free_end = (
+                start.0 + free_len * dx * inv_res,
+                start.1 + free_len * dy * inv_res,
+            );
+            lo_x = lo_x.min(end.0);
+            lo_y = lo_y.min(end.1);
+            hi_x = hi_x.max(end.0);
+            hi_y = hi_y.max(end.1);
+            segs.push((free_end, end, hit));
+        }
+        if !(lo_x.is_finite() && lo_y.is_finite() && hi_x.is_finite() && hi_y.is_finite()) {
+            return Err(GridError::NonFinite {
+                what: "beam end point",
+                value: f64::NAN,
+            });
+        }
+        const LIMIT: f64 = (1u32 << 30) as f64;
+        if lo_x.abs() > LIMIT || lo_y.abs() > LIMIT || hi_x.abs() > LIMIT || hi_y.abs() > LIMIT {
+            return Err(GridError::OutOfGrid {
+                what: "beam end point",
+                cells: lo_x.abs().max(hi_x.abs()).max(lo_y.abs()).max(hi_y.abs()),
+            });
+        }
+        // With an incremental distance field the table extends `radius` cells beyond
+        // every end point, so that no obstacle's stamp is cut off.
+        let margin = self.distance.as_ref().map_or(0, |d| d.radius());
+        let (lo, hi) = (
+            CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
+            CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
+        );
+        self.ensure_covers(lo, hi)?;
+        // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
+        // written under one copy-on-write check. The slots are this scan's own, row-major
+        // over the tiles it touches (one tile of border): sorting by them sorts by
+        // (ty, tx), and their number is bounded by the map extent checked above.
+        let (t0, _) = split(lo);
+        let (t1, _) = split(hi);
+        let layout = TileLayout {
+            tx0: t0.0 - 1,
+            ty0: t0.1 - 1,
+            tw: t1.0 - t0.0 + 3,
+            th: t1.1 - t0.1 + 3,
+        };
+        let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
+        let mut hits: Vec<(u32, u16, i8, i8)> = Vec::with_capacity(segs.len());
+        let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
+            let ((tx, ty), local) = split(cell);
+            if let Some(slot) = layout.slot(tx, ty) {
+                v.push((slot as u32, local as u16));
+            }
+        };
+        for &(free_end, end, hit) in &segs {
+            let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
+            if hit {
+                let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
+                let ((tx, ty), local) = split(end_cell);
+                if let Some(slot) = layout.slot(tx, ty) {
+                    // End point relative to its cell centre, in 1/256 cell.
+                    let q = |f: f64| (f * 256.0).round().clamp(-128.0, 127.0) as i8;
+                    let ox = q(end.0 - end_cell.x as f64 - 0.5);
+                    let oy = q(end.1 - end_cell.y as f64 - 0.5);
+                    hits.push((slot as u32, local as u16, ox, oy));
+                }
+            } else {
+                push(&mut free, last);
+            }
+        }
+        let mut changed: Vec<usize> = Vec::new();
+        let mut flips: Vec<(u32, u16)> = Vec::new();
+        let protected: &[(u32, u16, i8, i8)] = if m.protect_scan_hits {
+            // Sorted by cell so that a tile's hits are found by binary search and a cell's
+            // repeated hits are adjacent.
+            hits.sort_unstable_by_key(|h| (h.0, h.1));
+            &hits
+        } else {
+            &[]
+        };
+        self.apply(
+            &layout,
+            &free,
+            m.l_free,
+            protected,
+            &mut changed,
+            &mut flips,
+        );
+        self.apply_hits(
+            &layout,
+            &hits,
+            m.l_occ,
+            m.protect_scan_hits,
+            &mut changed,
+            &mut flips,
+        );
+        self.invalidate_fields(changed);
+        if let Some(mut d) = self.distance.take() {
+            let mut cells: Vec<CellIndex> = flips
+                .iter()
+                .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
+                .collect();
+            d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
+            self.distance = Some(d);
+        }
+        Ok(())
+    }
+
+    /// Cell `local` of the tile in `slot`.
+    #[inline]
+    fn cell_of_slot(&self, slot: usize, local: usize) -> CellIndex {
+        let (tx, ty) = self.table.tile_of_slot(slot);
+        let t = TILE_SIZE as i32;
+        CellIndex::new(
+            tx * t + (local % TILE_SIZE) as i32,
+            ty * t + (local / TILE_SIZE) as i32,
+        )
+    }
+
+    /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
+    /// (sorted by slot), copying shared tiles on first write and recording the slots where
+    /// some cell changed obstacle status, and (with an incremental distance field) those
+    /// cells in `flips` as (slot, local index). `updates` and `protected` name tiles by
+    /// their slot in `scan` (the scan's tiles); `changed` and `flips` get the grid's slots.
+    fn apply(
+        &mut self,
+        scan: &TileLayout,
+        updates: &[(u32, u16)],
+        delta: f32,
+        protected: &[(u32, u16, i8, i8)],
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
+        let (lmin, lmax, thr) = (
+            self.model.l_min,
+            self.model.l_max,
+            self.params.occupied_threshold,
+        );
+        // Updates come sorted by tile slot: handle each tile's run at once.
+        for run in updates.chunk_by(|a, b| a.0 == b.0) {
+            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
+            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
+            let mask = protected_mask(protected, run[0].0);
+            let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
+            // Skip the copy entirely when no value in the run would change (saturated cells).
+            let needs_write = match stored {
+                None => run.iter().any(|&(_, l)| !skip(l)),
+                Some(t) => run.iter().any(|&(_, l)| {
+                    let v = t.cells[l as usize];
+                    !skip(l) && (v + delta).clamp(lmin, lmax) != v
+                }),
+            };
+            if !needs_write {
+                continue;
+            }
+            let slot = self.slot_for_write(tx, ty);
+            let tile = self.tile_for_write(slot);
+            let mut status_changed = false;
+            for &(_, l) in run {
+                if skip(l) {
+                    continue;
+                }
+                let v = &mut tile.cells[l as usize];
+                let nv = (*v + delta).clamp(lmin, lmax);
+                let flip = (*v > thr) != (nv > thr);
+                status_changed |= flip;
+                *v = nv;
+                if flip && track {
+                    flips.push((slot as u32, l));
+                }
+            }
+            if status_changed && changed.last() != Some(&slot) {
+                changed.push(slot);
+            }
+        }
+    }
+
+    /// The tile of `slot`, private to this grid: created if absent, copied if shared
+    /// (copy-on-write, counted in the stats).
+    fn tile_for_write(&mut self, slot: usize) -> &mut Tile {
+        let entry = &mut self.tiles[slot];
+        let arc = match entry {
+            None => {
+                self.stats.tiles_created += 1;
+                entry.insert(Arc::new(Tile::unknown(self.params.subcell)))
+            }
+            Some(a) => {
+                if Arc::strong_count(a) > 1 {
+                    self.stats.tiles_copied += 1;
+                    self.stats.bytes_copied += a.bytes() as u64;
+                }
+                a
+            }
+        };
+        Arc::make_mut(arc)
+    }
+
+    /// Adds `delta` (= l_occ) to the hit cells (once per cell when `once`, the updates
+    /// then sorted by cell) and folds each end point into its cell's mean hit position
+    /// (running mean over the first [`HIT_CAP`] hits).
+    fn apply_hits(
+        &mut self,
+        scan: &TileLayout,
+        updates: &[(u32, u16, i8, i8)],
+        delta: f32,
+        once: bool,
+        changed: &mut Vec<usize>,
+        flips: &mut Vec<(u32, u16)>,
+    ) {
+        let track = self.distance.is_some();
+        let (lmin, lmax, thr) = (
+            self.model.l_min,
+            self.model.l_max,
+            self.params.occupied_threshold,
+        );
+        // Updates come sorted by tile slot: handle each tile's run at once.
+        for run in updates.chunk_by(|a, b| a.0 == b.0) {
+            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
+            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
+            let needs_write = match stored {
+                None => true,
+                Some(t) => run.iter().any(|&(_, l, _, _)| {
+                    let v = t.cells[l as usize];
+                    (v + delta).clamp(lmin, lmax) != v
+                        || t.hit.as_ref().is_some_and(|h| h.hits[l as usize] < HIT_CAP)
+                }),
+            };
+            if !needs_write {
+                continue;
+            }
+            let slot = self.slot_for_write(tx, ty);
+            let tile = self.tile_for_write(slot);
+            let mut field_changed = false;
+            for (i, &(_, l, ox, oy)) in run.iter().enumerate() {
+                let repeat = once && i > 0 && run[i - 1].1 == l;
+                let l = l as usize;
+                let v = tile.cells[l];
+                let nv = if repeat {
+                    v
+                } else {
+                    (v + delta).clamp(lmin, lmax)
+                };
+                let flip = (v > thr) != (nv > thr);
+                field_changed |= flip;
+                if flip && track {
+                    flips.push((slot as u32, l as u16));
+                }
+                tile.cells[l] = nv;
+                let Some(h) = tile.hit.as_deref_mut() else {
+                    continue;
+                };
+                let n = h.hits[l];
+                if n < HIT_CAP {
+                    let mean = |m: i8, o: i8| {
+                        let m = m as i32;
+                        (m + ((o as i32 - m) as f32 / (n as f32 + 1.0)).round() as i32)
+                            .clamp(-128, 127) as i8
+                    };
+                    let (mx, my) = (mean(h.hit_x[l], ox), mean(h.hit_y[l], oy));
+                    field_changed |= nv > thr && (mx != h.hit_x[l] || my != h.hit_y[l]);
+                    h.hit_x[l] = mx;
+                    h.hit_y[l] = my;
+                    h.hits[l] = n + 1;
+                }
+            }
+            if field_changed && changed.last() != Some(&slot) {
+                changed.push(slot);
+            }
+        }
+    }
+}
+
+/// The cells of tile `slot` among `protected` (sorted by slot) as a 1024-bit mask, or
+/// `None` when it has none.
+#[inline]
+fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; TILE_CELLS / 64]> {
+    let a = protected.partition_point(|h| h.0 < slot);
+    let b = a + protected[a..].partition_point(|h| h.0 == slot);
+    (a < b).then(|| {
+        let mut m = [0u64; TILE_CELLS / 64];
+        for &(_, l, _, _) in &protected[a..b] {
+            m[l as usize >> 6] |= 1 << (l & 63);
+        }
+        m
+    })
+}

@@ -1,0 +1,512 @@
+//! The truncated endpoint model on the incremental distance field: the scorer, hill
+//! climber and exhaustive grid search of grid FastSLAM's scan matching.
+//!
+//! A prepared scan's end points are in the robot frame ([`PreparedScan`]); every pose
+//! evaluation is then one rotation and translation per beam and a bilinear look-up in a
+//! grid's incrementally repaired distance field ([`DistanceField`]), with no trigonometry
+//! per beam (GMapping recomputes sin/cos and rounding for every beam of every evaluation).
+//!
+//! Endpoint model (PR §6.4, "likelihood field"): a beam ending at distance d from the
+//! nearest occupied cell contributes ln p = −min(d, r)²/(2σ²) (the truncation r is the
+//! outlier floor). The scan's log-likelihood is Σ ln p divided by the gain g (GMapping's
+//! `ogain`). Unlike the lazy field's mean value s̄ the other matchers score, this is a
+//! log-likelihood, which a particle filter needs for its weights and for the Gaussian fit
+//! of the improved proposal (Grisetti et al. 2007, eqs. 14–16).
+//!
+//! Two truncations, coarse to fine, are the caller's choice: the coarse search and the hill
+//! climber's coarse phase score with a wide r (`capture`, e.g. the field's full reach) so
+//! that a pose several centimetres off still feels the walls; the fine phase with the
+//! model's own r, so that beams ending on clutter pull the mode less.
+
+use super::branch_bound::{branch_and_bound, Lattice, Levels};
+use super::hill_climb::{climb, Climb};
+use super::MAX_PYRAMID_DEPTH;
+use crate::cell::CellIndex;
+use crate::error::{ensure_config, GridError};
+use crate::grid::distance::DistanceField;
+use crate::scan::PreparedScan;
+use slam_models::{Matrix3, Point2, Pose2, Vector3};
+
+/// The parameters of the truncated endpoint model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EndpointModel {
+    /// 1/(2σ²·g), per m².
+    pub k: f64,
+    /// Truncation r, metres: distances beyond it count as r (at most the field's reach).
+    pub radius: f64,
+    /// The gain g itself: `g ·` an [`EndpointScore::log_likelihood`] is the untempered
+    /// Σ ln p.
+    pub gain: f64,
+}
+
+impl EndpointModel {
+    /// The model with standard deviation `sigma` (metres), truncation `radius` (metres) and
+    /// gain `gain` (≥ 1 tempers the scan's likelihood): k = 1/(2σ²·g).
+    pub fn new(sigma: f64, radius: f64, gain: f64) -> Self {
+        Self {
+            k: 1.0 / (2.0 * sigma * sigma * gain),
+            radius,
+            gain,
+        }
+    }
+}
+
+/// The score of one pose: Σ ln p / g, and how many end points ended within the
+/// truncation r (the beams that "find the map").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EndpointScore {
+    /// Σ −min(d, r)²·k over the end points.
+    pub log_likelihood: f64,
+    /// End points closer than r to an obstacle.
+    pub inliers: usize,
+}
+
+/// Scores the robot-frame end points `points` at `pose` (bilinear interpolation of the
+/// distance field between the four cell centres around each end point).
+#[inline]
+pub fn score(
+    field: &DistanceField<'_>,
+    points: &[Point2],
+    pose: &Pose2,
+    model: &EndpointModel,
+) -> EndpointScore {
+    let frame = field.frame();
+    let inv = 1.0 / frame.resolution;
+    let unit = field.metres_per_unit();
+    let (s, c) = pose.theta.sin_cos();
+    let (tx, ty) = (
+        (pose.x - frame.origin.x) * inv - 0.5,
+        (pose.y - frame.origin.y) * inv - 0.5,
+    );
+    let (s, c) = (s * inv, c * inv);
+    let mut sum = 0.0;
+    let mut inliers = 0;
+    let r_in = model.radius * 0.999;
+    let mut field = field.cursor();
+    for p in points {
+        // Cell-centre coordinates: cell (i, j) has its centre at (i, j).
+        let u = c * p.x - s * p.y + tx;
+        let v = s * p.x + c * p.y + ty;
+        let (iu, iv) = (fast_floor(u), fast_floor(v));
+        let (au, av) = (u - iu as f64, v - iv as f64);
+        let d = field.dist4(CellIndex::new(iu, iv));
+        let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
+        let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
+        let dm = ((d0 + av * (d1 - d0)) * unit).min(model.radius);
+        if dm < r_in {
+            inliers += 1;
+        }
+        sum += dm * dm;
+    }
+    EndpointScore {
+        log_likelihood: -model.k * sum,
+        inliers,
+    }
+}
+
+/// ⌊x⌋ as an integer without a libm call (x well inside the i32 range; NaN maps to 0).
+#[inline(always)]
+fn fast_floor(x: f64) -> i32 {
+    let i = x as i32;
+    i - ((i as f64) > x) as i32
+}
+
+/// The score of every matching point of `scan` at `pose`.
+#[inline]
+pub fn score_scan(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    pose: &Pose2,
+    model: &EndpointModel,
+) -> EndpointScore {
+    score(field, &scan.points, pose, model)
+}
+
+/// The log-likelihood of the coarse subset ([`PreparedScan::coarse_points`]) at `pose`, for
+/// choosing between starting points.
+pub fn coarse_score(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    pose: &Pose2,
+    model: &EndpointModel,
+) -> f64 {
+    score(field, scan.coarse_points(), pose, model).log_likelihood
+}
+
+/// A matched pose and its score.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EndpointMatch {
+    /// The pose (world frame).
+    pub pose: Pose2,
+    /// Its score under the fine model.
+    pub score: EndpointScore,
+}
+
+/// Hill-climbing parameters (GMapping's `lstep`, `astep`, `iterations`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HillClimbSteps {
+    /// Initial translation step, metres.
+    pub linear_step: f64,
+    /// Initial rotation step, radians.
+    pub angular_step: f64,
+    /// Step halvings before stopping.
+    pub refinements: usize,
+}
+
+/// Most iterations (tries of the six moves) of one [`hill_climb`]: a hard cap that keeps
+/// pathological inputs bounded (≈ GMapping's ~121 evaluations).
+const CLIMB_BUDGET: u32 = 64;
+
+/// GMapping-style hill climbing from `initial` (the crate's climber, Grisetti et al. 2007
+/// §VI) in two phases: while the steps are at least a quarter of the initial ones, the
+/// coarse subset scores under `capture` (4× cheaper evaluations, the wide truncation's
+/// capture range); then every point under `model`, which also scores the result.
+pub fn hill_climb(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    capture: &EndpointModel,
+    model: &EndpointModel,
+    steps: &HillClimbSteps,
+) -> EndpointMatch {
+    let mut c = Climb {
+        pose: *initial,
+        linear_step: steps.linear_step,
+        angular_step: steps.angular_step,
+        halvings: 0,
+        budget: CLIMB_BUDGET,
+    };
+    let refinements = u32::try_from(steps.refinements).unwrap_or(u32::MAX);
+    if scan.has_coarse_subset() {
+        let points = &scan.coarse[..];
+        let start = score(field, points, &c.pose, capture);
+        climb(
+            &mut c,
+            2.min(refinements),
+            start,
+            |s| s.log_likelihood,
+            |p| score(field, points, p, capture),
+        );
+    }
+    let start = score(field, &scan.points, &c.pose, model);
+    let best = climb(
+        &mut c,
+        refinements.saturating_add(1),
+        start,
+        |s| s.log_likelihood,
+        |p| score(field, &scan.points, p, model),
+    );
+    EndpointMatch {
+        pose: c.pose,
+        score: best,
+    }
+}
+
+/// The window of [`grid_search`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchWindow {
+    /// ± this in x and y around the initial pose, metres.
+    pub range_xy: f64,
+    /// Translation step, metres (> 0).
+    pub step_xy: f64,
+    /// ± this in θ, radians.
+    pub range_theta: f64,
+    /// Rotation step, radians (> 0).
+    pub step_theta: f64,
+    /// R⁻¹, the inverse of the motion model's covariance at the initial pose (the prior).
+    pub information: Matrix3,
+}
+
+impl SearchWindow {
+    /// The log motion prior −½ eᵀR⁻¹e of `candidate` = `initial` ⊕ δ, with
+    /// e = (x − x₀, y − y₀, δθ): it keeps ambiguous directions (corridors) at the
+    /// prediction.
+    #[inline]
+    pub fn log_prior(&self, initial: &Pose2, candidate: &Pose2, dtheta: f64) -> f64 {
+        let e = Vector3::new(candidate.x - initial.x, candidate.y - initial.y, dtheta);
+        -0.5 * e.dot(&(self.information * e))
+    }
+}
+
+/// Exhaustive coarse search (Olson's correlative matching, ICRA 2009, at one coarse
+/// resolution) over the poses `initial` ⊕ (dx, dy, dθ) with |dx|, |dy| ≤ `range_xy` in
+/// steps of `step_xy` and |dθ| ≤ `range_theta` in steps of `step_theta`, scored with the
+/// coarse subset (times the subsampling factor) plus the log motion prior
+/// −½ eᵀR⁻¹e: the mode of likelihood × motion model on the lattice. Returns the best pose
+/// (the initial pose wins ties).
+pub fn grid_search(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    model: &EndpointModel,
+    window: &SearchWindow,
+) -> Pose2 {
+    let points = scan.coarse_points();
+    let mut best = *initial;
+    let scale = scan.points.len() as f64 / points.len().max(1) as f64;
+    let mut top = scale * score(field, points, initial, model).log_likelihood;
+    let nxy = (window.range_xy / window.step_xy).floor() as i32;
+    let nth = (window.range_theta / window.step_theta).floor() as i32;
+    for it in -nth..=nth {
+        for iy in -nxy..=nxy {
+            for ix in -nxy..=nxy {
+                if ix == 0 && iy == 0 && it == 0 {
+                    continue;
+                }
+                let delta = Pose2::new(
+                    ix as f64 * window.step_xy,
+                    iy as f64 * window.step_xy,
+                    it as f64 * window.step_theta,
+                );
+                let cand = initial.compose(&delta);
+                let prior = window.log_prior(initial, &cand, delta.theta);
+                let s = scale * score(field, points, &cand, model).log_likelihood + prior;
+                if s > top {
+                    top = s;
+                    best = cand;
+                }
+            }
+        }
+    }
+    best
+}
+
+/// The outcome of a [`wide_search`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WideMatch {
+    /// The best pose of the lattice (world frame).
+    pub pose: Pose2,
+    /// Its objective: the scaled coarse log-likelihood (cell look-ups) plus the log prior.
+    pub score: f64,
+    /// Cells of one pyramid level (the cost of building it: one distance look-up each, and
+    /// as many max operations per level).
+    pub pyramid_cells: usize,
+}
+
+/// The wide search of a poor match: branch and bound over a coarse-to-fine max-pyramid
+/// (Olson, ICRA 2009, §IV-C; Hess et al., ICRA 2016, §V: Cartographer's fast correlative
+/// matcher) of the endpoint model, with the motion prior, returning the same optimum as
+/// brute force over the same lattice:
+///
+/// * translations (x₀ + i·m·res, y₀ + j·m·res) (world axes), |i|, |j| ≤ ⌊`range_xy`/(m·res)⌋,
+///   with m = max(1, round(`step_xy`/res)) cells and res the field's cell size;
+/// * rotations θ₀ + k·`step_theta`, |k| ≤ ⌊`range_theta`/`step_theta`⌋;
+/// * objective f = s·Σᵢ v(cell of pᵢ) − ½eᵀR⁻¹e over the coarse subset p
+///   ([`PreparedScan::coarse_points`]), with v(c) = −k·min(d(c), r)² the endpoint model at
+///   the centre of the end point's cell (no interpolation), s the subsampling factor, and
+///   e = (i·m·res, j·m·res, k·δθ) the offset from `initial`.
+///
+/// The pyramid is built here, over the cells the lattice can reach, because a particle's
+/// map changes with every scan: one distance look-up per cell, then one max per cell and
+/// level. A block's bound adds to the pyramid's the prior's maximum over the block bounded
+/// from above by its tangent plane at the block's centre (the prior is concave), so every
+/// bound is an upper bound and the search exact.
+///
+/// Errors when the lattice is too large for a pyramid ([`super::MAX_PYRAMID_CELLS`] cells)
+/// or has too many rotations; the caller may then search by brute force ([`grid_search`]).
+pub fn wide_search(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    model: &EndpointModel,
+    window: &SearchWindow,
+) -> Result<WideMatch, GridError> {
+    ensure_config(
+        window.step_xy > 0.0 && window.step_theta > 0.0,
+        "wide search step",
+        window.step_xy.min(window.step_theta),
+        "> 0",
+    )?;
+    if !initial.is_finite() {
+        return Err(GridError::NonFinite {
+            what: "wide search initial pose",
+            value: f64::NAN,
+        });
+    }
+    let frame = field.frame();
+    let res = frame.resolution;
+    let stride = (window.step_xy / res).round().max(1.0) as i32;
+    let step = stride as f64 * res;
+    let half_steps = (window.range_xy / step).floor().clamp(0.0, 1e6) as i32;
+    let k_max = (window.range_theta / window.step_theta).floor().max(0.0);
+    let points = scan.coarse_points();
+    let scale = scan.points.len() as f64 / points.len().max(1) as f64;
+    let lat = Lattice::new(
+        &frame,
+        points,
+        initial,
+        window.step_theta,
+        k_max,
+        half_steps,
+    )?;
+    // The coarsest level's blocks span the whole translation window.
+    let span = (2 * half_steps + 1) as u32;
+    let depth = (span.next_power_of_two().trailing_zeros() + 1).min(MAX_PYRAMID_DEPTH);
+    let (lo, hi) = lat.reach(stride);
+    let unit = field.metres_per_unit();
+    let cell_value = |d: u8| {
+        let d = (d as f64 * unit).min(model.radius);
+        (-scale * model.k * d * d) as f32
+    };
+    // Distances are whole units: one value per unit, looked up per cell.
+    let values: Vec<f32> = (0..=u8::MAX).map(cell_value).collect();
+    let far = (-scale * model.k * model.radius * model.radius) as f32;
+    let mut cells = 0;
+    let levels = Levels::build(lo, hi, depth, stride, far, |origin, w, h| {
+        cells = w * h;
+        let mut out = Vec::with_capacity(w * h);
+        for y in 0..h as i32 {
+            for x in 0..w as i32 {
+                out.push(values[field.dist(CellIndex::new(origin.x + x, origin.y + y)) as usize]);
+            }
+        }
+        out
+    })?;
+    let info = &window.information;
+    let k0 = lat.k_max;
+    let dtheta = lat.dtheta;
+    // log prior of the block of 2^level × 2^level lattice steps from (dx, dy): exact at
+    // level 0, else bounded by the tangent plane of q = eᵀR⁻¹e at the block's centre.
+    let bonus = |rotation: u32, dx: i32, dy: i32, level: u32| -> f32 {
+        let half = ((1i64 << level) - 1) as f64 * 0.5;
+        let e = Vector3::new(
+            (dx as f64 + half) * step,
+            (dy as f64 + half) * step,
+            (rotation as i32 - k0) as f64 * dtheta,
+        );
+        let ie = info * e;
+        let q = e.dot(&ie);
+        let h = half * step;
+        let lower = (q - 2.0 * (ie[0].abs() + ie[1].abs()) * h).max(0.0);
+        (-0.5 * if level == 0 { q } else { lower }) as f32
+    };
+    let top = depth - 1;
+    let Some(best) = branch_and_bound(&levels, &lat, top, f32::NEG_INFINITY, bonus) else {
+        // Unreachable: the window always holds the initial pose.
+        return Ok(WideMatch {
+            pose: *initial,
+            score: f64::NEG_INFINITY,
+            pyramid_cells: cells,
+        });
+    };
+    Ok(WideMatch {
+        pose: Pose2::new(
+            initial.x + best.dx as f64 * step,
+            initial.y + best.dy as f64 * step,
+            initial.theta + (best.rotation as i32 - k0) as f64 * dtheta,
+        ),
+        score: best.score as f64,
+        pyramid_cells: cells,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testutil::SegmentWorld;
+    use crate::{InverseSensorModel, OccupancyGrid};
+
+    /// The office map (5 cm cells) with a 4-cell incremental distance field.
+    fn office_map() -> OccupancyGrid {
+        let world = SegmentWorld::office();
+        let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+            .with_incremental_distance(4)
+            .unwrap();
+        for &(x, y) in &[(1.5, 3.0), (5.0, 3.5), (10.5, 2.0), (2.0, 6.5), (9.0, 6.5)] {
+            let pose = Pose2::new(x, y, 0.0);
+            g.integrate_scan(
+                &pose,
+                &world.scan(&pose, 720, std::f64::consts::TAU * 0.999, 30.0),
+            );
+        }
+        g
+    }
+
+    /// Exactness: the branch-and-bound wide search returns the brute-force optimum of the
+    /// same lattice and objective (coarse end points at cell centres, scaled, plus the
+    /// motion prior), both the best cell and its score, computed here independently from
+    /// the distance field cell by cell, with a lattice stride of one and of two cells.
+    #[test]
+    fn wide_search_finds_the_brute_force_optimum() {
+        let g = office_map();
+        let field = g.distance_field().unwrap();
+        let world = SegmentWorld::office();
+        let model = EndpointModel::new(0.05, 0.2, 3.0);
+        let unit = field.metres_per_unit();
+        for (truth, off, step_xy, info) in [
+            (Pose2::new(2.5, 3.2, 0.3), (0.6, -0.5, 0.12), 0.05, 0.0),
+            (Pose2::new(5.2, 3.8, -1.2), (-0.7, 0.3, -0.1), 0.1, 2.0),
+            (Pose2::new(9.5, 2.5, 2.8), (0.2, 0.8, 0.0), 0.1, 0.5),
+            (Pose2::new(3.0, 6.3, -2.9), (-0.4, -0.4, 0.08), 0.05, 8.0),
+        ] {
+            let scan =
+                PreparedScan::new(&world.scan(&truth, 361, std::f64::consts::PI, 30.0)).unwrap();
+            let initial = Pose2::new(truth.x + off.0, truth.y + off.1, truth.theta + off.2);
+            let window = SearchWindow {
+                range_xy: 1.0,
+                step_xy,
+                range_theta: 0.16,
+                step_theta: 0.02,
+                information: Matrix3::from_diagonal(&Vector3::new(info, info, 4.0 * info)),
+            };
+            let got = wide_search(&field, &scan, &initial, &model, &window).unwrap();
+            // Brute force over the same lattice.
+            let points = scan.coarse_points();
+            let scale = scan.points().len() as f64 / points.len() as f64;
+            let m = (step_xy / 0.05_f64).round() as i32;
+            let step = m as f64 * 0.05;
+            let n = (1.0 / step).floor() as i32;
+            let v = |c: CellIndex| {
+                let d = (field.dist(c) as f64 * unit).min(0.2);
+                (-scale * model.k * d * d) as f32
+            };
+            let mut best = (f32::NEG_INFINITY, 0, 0, 0);
+            let mut second = f32::NEG_INFINITY;
+            for k in -8..=8 {
+                let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * 0.02);
+                let cells: Vec<CellIndex> = points
+                    .iter()
+                    .map(|p| g.world_to_cell(&pose.transform_point(p)))
+                    .collect();
+                for j in -n..=n {
+                    for i in -n..=n {
+                        let sum: f32 = cells
+                            .iter()
+                            .map(|c| v(CellIndex::new(c.x + i * m, c.y + j * m)))
+                            .sum();
+                        let e = Vector3::new(i as f64 * step, j as f64 * step, k as f64 * 0.02);
+                        let s = sum + (-0.5 * e.dot(&(window.information * e))) as f32;
+                        if s > best.0 {
+                            second = best.0;
+                            best = (s, i, j, k);
+                        } else if s > second {
+                            second = s;
+                        }
+                    }
+                }
+            }
+            assert_eq!(got.score as f32, best.0, "score against brute force");
+            if second < best.0 {
+                let expected = Pose2::new(
+                    initial.x + best.1 as f64 * step,
+                    initial.y + best.2 as f64 * step,
+                    initial.theta + best.3 as f64 * 0.02,
+                );
+                assert!(
+                    got.pose.distance(&expected) < 1e-9
+                        && (got.pose.theta - expected.theta).abs() < 1e-9,
+                    "{:?} against brute force {expected:?}",
+                    got.pose
+                );
+            }
+            // A weak prior leaves the truth's neighbourhood the winner.
+            if info <= 0.5 {
+                assert!(
+                    got.pose.distance(&truth) < 0.1,
+                    "{:?} vs {truth:?}",
+                    got.pose
+                );
+            }
+        }
+    }
+}
