@@ -976,7 +976,10 @@ mod tests {
         assert_eq!(r.map.resolution, Some(0.05));
         // Indoors the heading windows cover odometry that turned in place (±0.9 rad).
         assert_eq!(
-            (r.matching.search_range_theta, r.matching.recovery.range_theta),
+            (
+                r.matching.search_range_theta,
+                r.matching.recovery.range_theta
+            ),
             (Some(0.9), Some(0.9))
         );
         // Open ground: median return 25 m.
@@ -989,7 +992,10 @@ mod tests {
         assert_eq!(r.map.resolution, Some(0.2));
         assert_eq!(r.matching.field_radius, Some(0.8));
         assert_eq!(
-            (r.matching.search_range_theta, r.matching.recovery.range_theta),
+            (
+                r.matching.search_range_theta,
+                r.matching.recovery.range_theta
+            ),
             (Some(0.3), Some(0.4))
         );
         // Everything the preset sets is set.
