@@ -336,26 +336,36 @@ fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
 }
 
 /// The other half of the fast subset: Intel's corrected scans with odometry perturbed at
-/// the `moderate` profile by the shared tool (`perturb-odometry --seed 1 --profile
-/// moderate`, as the suite does), first 400 scans, exact ground truth (the corrected poses).
-/// Lost, in the suite's terms, is an aligned ATE above 1 m; a kept run is within 3 cells.
-/// (At the `hard` profile the filter is lost on this log, before and after issue 21's
-/// changes: docs/results.md.)
+/// the `moderate` and `hard` profiles by the shared tool (`perturb-odometry --seed 1
+/// --profile …`, as the suite does), first 400 scans, exact ground truth (the corrected
+/// poses). Lost, in the suite's terms, is an aligned ATE above 1 m. At the `hard` profile
+/// the odometry of keyframes that turned in place is up to 0.88 rad off in heading; with
+/// the earlier ±0.3 rad coarse search the filter was lost on this prefix from scan 238 on
+/// (32 m off at scan 400, filter seed 0: docs/gridfast.md).
 #[test]
 fn perturbed_intel_prefix_is_not_lost() {
+    for (profile, bound) in [("moderate", 0.15), ("hard", 0.3)] {
+        perturbed_intel_prefix(profile, bound);
+    }
+}
+
+fn perturbed_intel_prefix(profile: &str, bound: f64) {
     let (Some(corrected), Some(tool)) = (
         common::dataset("radish-corrected/intel-corrected.log.gz"),
         common::dataset("../tools/perturb-odometry"),
     ) else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("slam-gridfast-perturbed-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!(
+        "slam-gridfast-perturbed-{profile}-{}",
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).unwrap();
-    let prefix = dir.join("intel-moderate");
+    let prefix = dir.join("intel");
     let status = std::process::Command::new(&tool)
         .arg(&corrected)
         .arg(&prefix)
-        .args(["--seed", "1", "--profile", "moderate"])
+        .args(["--seed", "1", "--profile", profile])
         .status()
         .unwrap();
     assert!(status.success());
@@ -363,7 +373,7 @@ fn perturbed_intel_prefix_is_not_lost() {
         .unwrap()
         .dataset
         .records;
-    let truth = slam::io::tum::read_tum(&dir.join("intel-moderate.gt.tum")).unwrap();
+    let truth = slam::io::tum::read_tum(&dir.join("intel.gt.tum")).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     // One ODOM and one FLASER record per scan.
     let records = &records[..800];
@@ -372,11 +382,11 @@ fn perturbed_intel_prefix_is_not_lost() {
     let run = common::run_scans(&mut slam, records);
     let e = slam::eval::metrics::ate(&run.trajectory, &truth).unwrap();
     eprintln!(
-        "intel-moderate prefix: ATE aligned {:.3} m (dead reckoning {:.3} m)",
+        "intel-{profile} prefix: ATE aligned {:.3} m (dead reckoning {:.3} m)",
         e.rmse_aligned, odometry.rmse_aligned
     );
     assert!(odometry.rmse_aligned > 0.3, "{odometry:?}");
-    assert!(e.rmse_aligned < 0.15, "{e:?}");
+    assert!(e.rmse_aligned < bound, "{profile}: {e:?}");
 }
 
 /// A far odometry jump is noticed and answered by the wide (branch-and-bound) search: the

@@ -1077,6 +1077,11 @@ mod tests {
                 ..Default::default()
             };
             config.matching.recovery.trigger_fraction = trigger;
+            // The heading windows of the outdoor preset (±0.3 rad coarse, ±0.4 rad
+            // recovery): the indoor ±0.9 rad coarse search alone finds this jump, and the
+            // test is about what answers a jump the coarse search misses.
+            config.matching.search_range_theta = Some(0.3);
+            config.matching.recovery.range_theta = Some(0.4);
             let mut f = GridFastSlam::new(config, Pose2::IDENTITY, 3).unwrap();
             let (mut recovered, mut failed) = (0, 0);
             for (k, p) in truth.iter().enumerate() {

@@ -46,14 +46,20 @@
 //! laser's maximum code for every beam without an echo (81.83, 81.91, 51.1, … in the Radish
 //! logs), so it is a reading of at least 20 m that **recurs**: the largest far reading
 //! (≥ 20 m) that occurs at least twice and at least 1/100 as often as the most frequent far
-//! reading. `max_range` = that value; readings at or above it are no-return, readings below
-//! it hits. A reading that occurs once (a glitch, a corrupted value) therefore never moves
-//! the threshold of the whole log: above the code it is itself no-return, below it a hit.
-//! When no far reading recurs that often, the most frequent one is taken (the larger on a
-//! tie); when no reading reaches 20 m the log is taken to hold no no-return reading and
-//! `max_range` = 81.91 m (the SICK code). On the Radish logs this gives the tables' values
-//! except for Acapulco, whose largest reading, 51.25 m, occurs once among 9,264 readings of
-//! 51.15 m, the value chosen.
+//! reading: the no-return **code**. A reading that occurs once (a glitch, a corrupted
+//! value) therefore never moves the threshold of the whole log. When no far reading recurs
+//! that often, the most frequent one is taken (the larger on a tie); when no reading
+//! reaches 20 m the log is taken to hold no no-return reading and the code is 81.91 m (the
+//! SICK one). Some loggers write the code with **jitter**: the Edmonton log's no-return
+//! readings are 51.09 … 51.16 m (2,991 at 51.15, 211 at 51.14, 94 at 51.10, 61 at 51.16),
+//! FHW's 51.05 and 51.10 m, Acapulco's 51.09 … 51.16 m, and Freiburg-101 writes 81.83
+//! beside 81.91 m; the nearest other reading is 0.2 m or more below such a band on every
+//! Radish log. So every far reading within 0.15 m below the code is taken as no return
+//! too: `max_range` = the smallest reading in [code − 0.15 m, code]; readings at or above
+//! it are no-return, readings below it hits. On the Radish logs the code is the tables'
+//! value (except Acapulco, whose largest reading, 51.25 m, occurs once among 9,264 readings
+//! of 51.15 m, the code), and `max_range` is 81.83 (Intel, Freiburg-101), 81.91 (CSAIL,
+//! Belgioioso), 51.05 (FHW) and 51.09 m (Edmonton, Acapulco).
 //!
 //! **Bounds** ([`crate::bounds`]): poses within ±10⁶ m and headings within ±10⁴ rad;
 //! readings and `max_range` within 0 … 1000 m (`max_range` > 0); a stated start angle within
@@ -84,6 +90,9 @@ const NO_RETURN_MIN: f64 = 20.0;
 const NO_RETURN_SHARE: usize = 100;
 /// The SICK LMS no-return reading, used when a log shows none, m.
 const SICK_NO_RETURN: f64 = 81.91;
+/// Far readings this close below the no-return code are the code written with jitter, m
+/// (the widest band seen, Edmonton's and Acapulco's 51.09 … 51.16 m, is 0.07 m wide).
+const NO_RETURN_JITTER: f64 = 0.15;
 /// Largest field of view of a stated beam geometry, rad: one turn plus a beam's width.
 const MAX_FOV: f64 = TAU + 0.1;
 /// Largest `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM, m.
@@ -106,7 +115,8 @@ pub struct CarmenLog {
     pub not_used: BTreeMap<String, String>,
     /// PARAM name → value (the last one wins).
     pub params: BTreeMap<String, String>,
-    /// The no-return value used for FLASER/RLASER scans, if the log has any.
+    /// The no-return threshold of the FLASER/RLASER scans (their `max_range`: a reading at
+    /// or above it is no return), if the log has any; see the module docs.
     pub flaser_max_range: Option<f64>,
 }
 
@@ -137,7 +147,7 @@ impl CarmenLog {
             }
         );
         if let Some(m) = self.flaser_max_range {
-            s.push_str(&format!(", no-return reading {m} m"));
+            s.push_str(&format!(", no return at or above {m} m"));
         }
         s.push_str(match &self.dataset.ground_truth {
             Some(_) => ", TRUEPOS ground truth",
@@ -214,12 +224,25 @@ fn ranges(l: &mut Line<'_>, n: usize) -> Result<Vec<f64>, IoError> {
     Ok(r)
 }
 
-/// The no-return value of a FLASER/RLASER log (see the module docs): the largest reading
-/// of at least [`NO_RETURN_MIN`] that occurs at least `max(2, mode_count / 100)` times,
-/// where `mode_count` is how often the most frequent such reading occurs; the most frequent
-/// reading itself (the larger on a tie) when none does; [`SICK_NO_RETURN`] when no reading
-/// is that far. Deterministic: the choice depends on the counts only.
+/// The no-return threshold of a FLASER/RLASER log (see the module docs): the smallest far
+/// reading within [`NO_RETURN_JITTER`] below the log's no-return code ([`no_return_code`]),
+/// so that a code written with jitter is no return in all its variants; the code itself
+/// when no reading is that far. Deterministic: the choice depends on the counts only.
 fn no_return_value(far_readings: &HashMap<u64, usize>) -> f64 {
+    let code = no_return_code(far_readings);
+    far_readings
+        .keys()
+        .map(|&bits| f64::from_bits(bits))
+        .filter(|&v| v <= code && v >= code - NO_RETURN_JITTER)
+        .fold(code, f64::min)
+}
+
+/// The no-return code of a FLASER/RLASER log: the largest reading of at least
+/// [`NO_RETURN_MIN`] that occurs at least `max(2, mode_count / 100)` times, where
+/// `mode_count` is how often the most frequent such reading occurs; the most frequent
+/// reading itself (the larger on a tie) when none does; [`SICK_NO_RETURN`] when no reading
+/// is that far.
+fn no_return_code(far_readings: &HashMap<u64, usize>) -> f64 {
     let by_count = |a: &(usize, f64), b: &(usize, f64)| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1));
     let counted = || {
         far_readings
@@ -705,6 +728,43 @@ mod tests {
             Some("0.0")
         );
         assert_eq!(log.record_counts.get("FLASER"), Some(&2));
+    }
+
+    /// A no-return code written with jitter (as in the Edmonton and FHW logs): every far
+    /// reading within 0.15 m below the code is no return, the readings further below are
+    /// hits, and a single larger reading moves nothing.
+    #[test]
+    fn a_jittered_no_return_code_is_no_return_in_all_its_variants() {
+        // Code 51.15 (40 times), jitter 51.09 … 51.16 below and above it; genuine returns
+        // at 50.95 and 50.75 (0.20 and 0.40 m below the code); one glitch at 51.25.
+        let mut text = String::new();
+        for k in 0..10 {
+            let far = if k == 0 { "51.25" } else { "51.16" };
+            let _ = writeln!(
+                text,
+                "FLASER 6 51.15 51.15 51.15 51.15 {} {} 0 0 0 0 0 0 {k} h {k}",
+                ["51.14", "51.09", "51.1", "50.95", "50.75"][k % 5],
+                far
+            );
+        }
+        let log = parse_carmen(&from_str("j.log", &text)).unwrap();
+        assert_eq!(log.flaser_max_range, Some(51.09));
+        let hits: Vec<(f64, bool)> = log
+            .dataset
+            .records
+            .iter()
+            .filter_map(|r| r.scan.as_ref())
+            .flat_map(|s| (0..s.len()).map(move |k| (s.ranges[k], s.is_hit(k))))
+            .collect();
+        for (r, hit) in hits {
+            assert_eq!(hit, r < 51.0, "reading {r}");
+        }
+        // Without jitter the code itself is the threshold (Intel: 81.83, nothing near it).
+        let text = "FLASER 3 81.83 81.83 24.07 0 0 0 0 0 0 1 h 1\n\
+            FLASER 3 81.83 81.6 81.83 0 0 0 0 0 0 2 h 2\n";
+        let log = parse_carmen(&from_str("i.log", text)).unwrap();
+        assert_eq!(log.flaser_max_range, Some(81.83));
+        assert!(log.dataset.records[1].scan.as_ref().unwrap().is_hit(1));
     }
 
     #[test]
