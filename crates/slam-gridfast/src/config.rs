@@ -191,8 +191,7 @@ pub struct MapConfig {
     /// Log-odds added to a cell where a beam ended. Default 0.85 (p = 0.7).
     pub log_odds_hit: f32,
     /// Log-odds added to a cell a beam passed through (negative). Default −0.2 (p = 0.45):
-    /// walls survive more grazing pass-throughs (on intel.log −0.2 scored 0.0555 m against
-    /// 0.0578 m for −0.4).
+    /// walls survive more grazing pass-throughs (docs/results/defaults.md).
     pub log_odds_miss: f32,
     /// Log-odds clamping bounds (lower, upper). Default (−2.0, 3.5).
     pub log_odds_clamp: [f32; 2],
@@ -226,15 +225,9 @@ pub struct MatchingConfig {
     /// than r from any occupied cell counts as an outlier with the constant penalty
     /// −r²/(2σ²), metres, in (0, `field_radius`]. It applies where the pose is decided and
     /// weighed: the hill climber's fine phase, the improved proposal's samples, and every
-    /// proposal's weights. Default from the preset: 0.6 outdoor; 0.15 indoor: on intel.log
-    /// (30 particles, filter seeds 0–31) it lowers the relations error from 0.0557 m /
-    /// 2.301° (r = 0.2 m, the field's reach) to 0.0544 m / 2.295°, and on the simulated
-    /// office (seeds 1–80, ATE after SE(2) alignment, 1 / 10 / 30 particles) from 0.134 /
-    /// 0.078 / 0.076 m to 0.095 / 0.074 / 0.072 m. Shrinking the capture range with it
-    /// (`field_radius` 0.15) scores the same on Intel but 0.144 / 0.085 / 0.081 m on the
-    /// office. The cost: with 8–10 particles a few more office runs (7 of 40 against 2,
-    /// filter seed 42) end with a consistent map whose long corridors came out short,
-    /// where only door jambs fix the position along them.
+    /// proposal's weights. Default from the preset: 0.6 outdoor; 0.15 indoor, below the
+    /// field's reach, because outliers then stop pulling the pose on Intel and the office
+    /// while the capture range stays (docs/results/defaults.md).
     pub likelihood_radius: Option<f64>,
     /// The summed beam log-likelihood is divided by this in the particle weights (every
     /// proposal) and in the coarse search's trade-off against the motion prior: a

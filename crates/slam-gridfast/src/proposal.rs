@@ -90,14 +90,8 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// The likelihood gain g (`likelihood_gain`) tempers the weights only, as GMapping's
 /// `obsSigmaGain` does (it enters `GridSlamProcessor::normalize` and nothing else): η is
 /// summed over τⱼ with p(z | m, xⱼ)^(1/g), while μ and Σ are fitted to τⱼ with the
-/// untempered p(z | m, xⱼ). Fitting them to the tempered likelihood widens the proposal by
-/// √g; on intel.log (30 particles, filter seeds 0–31) that extra spread cost 0.0026 m of
-/// mean translational relations error (0.0583 m against 0.0557 m) and produced the only
-/// two runs above 0.06 m (0.110 m, with loop relations off by up to 1.2 m, and 0.075 m);
-/// the untempered fit's worst of the 32 runs is 0.059 m. On the simulated `office`
-/// (seeds 1–40, ATE mean / median; 1: 0.294 / 0.217 → 0.222 / 0.161 m; 10: 0.118 / 0.090
-/// → 0.105 / 0.081 m; 30: 0.112 / 0.075 → 0.117 / 0.101 m; 100: 0.097 / 0.077 → 0.103 /
-/// 0.073 m) it is neutral: paired by seed, it wins 22, 21, 17 and 22 of the 40 runs.
+/// untempered p(z | m, xⱼ): fitting them to the tempered likelihood widens the proposal by
+/// √g, which made Intel worse and the office no better (docs/results/defaults.md).
 ///
 /// A poor match (fewer inliers than [`Recovery::trigger_inliers`]: the prediction was too
 /// far off for the hill climber's capture range, e.g. after an odometry jump) is answered

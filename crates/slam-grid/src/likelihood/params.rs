@@ -42,14 +42,8 @@ pub struct LikelihoodParams {
     /// boundary scatters its hits between the two sides), are not pushed off the wall.
     /// The same idea as point-to-line ICP (Censi, "An ICP variant using a point-to-line
     /// metric", ICRA 2008) with the lines taken from the map's hit means. Default false:
-    /// on clean maps of straight walls it removes the refinement's bias (simulated office,
-    /// 5 cm grid: 99.9 % of matches within 1 cm and 0.5° of the truth instead of 94.7 %),
-    /// but on real data it is no clear gain: scan-matching odometry on the Intel log with
-    /// perturbed odometry (seeds 1–8) failed fewer matches with it (38 against 60) at about
-    /// the same mean RPE (0.053 m / 0.72° against 0.054 m / 0.71°), and its ATE, which one
-    /// bad early match can ruin, was better on 3 seeds and worse on 5 (median 2.8 m against
-    /// 1.0 m; seed 7: 0.59 m against 0.37 m). Matching Intel scans against a map built at the
-    /// reference poses gave the same errors both ways.
+    /// it removes the refinement's bias on clean simulated walls but was no clear gain on
+    /// real data (docs/results/defaults.md).
     pub surface_lines: bool,
 }
 

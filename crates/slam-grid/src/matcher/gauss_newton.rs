@@ -37,9 +37,8 @@ pub struct GaussNewtonMatcher {
     pub interpolation: Interpolation,
     /// σ of M = exp(−D/(2σ²)) for the bicubic interpolant, metres; 0 (the default) uses
     /// the grid's [`crate::LikelihoodParams::sigma`]. A narrower σ than the field's sharpens
-    /// the optimum on clean maps (simulated office, 5 cm grid: 94 % of matches within 1 cm
-    /// and 0.5° with 0.02 m against 78 % with the field's 0.05 m) but made scan-matching
-    /// odometry on the real Intel log worse (ATE 2.1 m against 0.37 m).
+    /// the optimum on clean simulated maps but made scan-matching odometry on the real
+    /// Intel log worse (docs/results/defaults.md).
     pub sigma: f64,
 }
 
