@@ -174,17 +174,56 @@ fn test_all() -> Result<(), String> {
             ])
             .env("CARGO_TARGET_DIR", &target),
     )?;
-    for (bin, arg) in [
-        ("ekf_alone", None),
-        ("grid_alone", None),
-        ("scan_match_alone", None),
-        ("filter_swap", Some("ekf")),
-        ("filter_swap", Some("fastslam2")),
-    ] {
+    let tests_dir = std::env::current_dir().map_err(|e| e.to_string())?;
+    let configs = tests_dir.join("tests/downstream/configs");
+    let data = std::env::var_os("SLAM_DATASETS")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("../shared/datasets"));
+    let ci = std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
+    // Each program with its arguments; a path under the datasets folder is checked first
+    // (missing: a failure under CI=true, a skip with a message otherwise).
+    let programs: Vec<(&str, Vec<std::ffi::OsString>, Option<&str>)> = vec![
+        ("ekf_alone", vec![], None),
+        ("grid_alone", vec![], None),
+        ("scan_match_alone", vec![], None),
+        ("filter_swap", vec!["ekf".into()], None),
+        ("filter_swap", vec!["fastslam2".into()], None),
+        (
+            "filter_swap",
+            vec!["--config".into(), configs.join("ekf.toml").into()],
+            None,
+        ),
+        (
+            "filter_swap",
+            vec!["--config".into(), configs.join("fastslam2.toml").into()],
+            None,
+        ),
+        ("grid_io", vec![], Some("freiburg-robot-mapping/csail.log")),
+        ("gridfast_io", vec![], Some("bench/intel.log")),
+    ];
+    for (bin, mut args, dataset) in programs {
+        if let Some(rel) = dataset {
+            let path = data.join(rel);
+            if !path.exists() {
+                if ci {
+                    return Err(format!(
+                        "downstream {bin}: dataset {} is missing and CI=true",
+                        path.display()
+                    ));
+                }
+                println!(
+                    "xtask: SKIPPED downstream {bin}: {} not found",
+                    path.display()
+                );
+                continue;
+            }
+            args.insert(0, path.into());
+        }
         let mut command = Command::new(target.join("release").join(bin));
-        command.args(arg);
+        command.args(&args);
+        let shown: Vec<_> = args.iter().map(|a| a.to_string_lossy()).collect();
         run(
-            &format!("downstream {bin} {}", arg.unwrap_or("")),
+            &format!("downstream {bin} {}", shown.join(" ")),
             &mut command,
         )?;
     }

@@ -1,7 +1,10 @@
 //! slam-ekf + slam-fastslam + slam-sim: the simulator's `loop` through EKF-SLAM behind
 //! `Box<dyn LandmarkSlam>`, or FastSLAM 2.0 by changing the one line that builds the
-//! filter (`filter_swap fastslam2` takes the other arm), scored against the simulator's
-//! true poses and landmarks. Only these three crates' re-exports are used.
+//! filter (`filter_swap fastslam2` takes the other arm), or by a config file
+//! (`filter_swap --config FILE`: its `filter` key picks the filter, its other keys are that
+//! filter's config, e.g. tests/downstream/configs/*.toml), scored against the simulator's
+//! true poses and landmarks. Only these three crates' re-exports are used (and `toml` to
+//! read the file).
 use slam_ekf::prelude::*;
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
@@ -25,6 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start = sim.dataset.initial_pose;
     // The one line that picks the filter; nothing below depends on which.
     let mut filter: Box<dyn LandmarkSlam> = match which.as_str() {
+        "--config" => from_file(std::env::args().nth(2).ok_or("--config FILE")?, &sim)?,
         "fastslam2" => Box::new(FastSlam::new(fastslam2, start, 0)?),
         _ => Box::new(EkfSlam::new(ekf, start, 0)?),
     };
@@ -77,4 +81,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mapped.len()
     );
     Ok(())
+}
+
+/// The filter a config file names: `filter = "ekf" | "fastslam1" | "fastslam2"` and that
+/// filter's own keys (kebab-case, unknown keys refused by the filter's config), with the
+/// simulator's noise models applied as for the built-in arms.
+fn from_file(
+    path: String,
+    sim: &slam_sim::LandmarkSimRun,
+) -> Result<Box<dyn LandmarkSlam>, Box<dyn std::error::Error>> {
+    let mut table: toml::Table = std::fs::read_to_string(&path)?.parse()?;
+    let kind = match table.remove("filter") {
+        Some(toml::Value::String(s)) => s,
+        _ => return Err(format!("{path}: a `filter = \"...\"` key is required").into()),
+    };
+    let noise = sim.noise_models();
+    let start = sim.dataset.initial_pose;
+    Ok(match kind.as_str() {
+        "ekf" => {
+            let mut c: EkfConfig = table.try_into()?;
+            noise.apply_to(&mut c.motion, &mut c.sensor, false, false);
+            Box::new(EkfSlam::new(c, start, 0)?)
+        }
+        "fastslam1" | "fastslam2" => {
+            let mut c: FastSlamConfig = table.try_into()?;
+            c.variant = if kind == "fastslam1" {
+                Variant::FastSlam1
+            } else {
+                Variant::FastSlam2
+            };
+            noise.apply_to(&mut c.motion, &mut c.sensor, false, false);
+            Box::new(FastSlam::new(c, start, 0)?)
+        }
+        other => return Err(format!("{path}: unknown filter {other:?}").into()),
+    })
 }
