@@ -310,8 +310,9 @@ impl OccupancyGrid {
             .count()
     }
 
-    /// Bytes held by one tile (log-odds and mean hit positions of its cells; a grid whose
-    /// [`crate::LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
+    /// Bytes held by one tile (log-odds, a bit per cell marking the lower clamp, and mean
+    /// hit positions of its cells; a grid whose [`crate::LikelihoodParams::subcell`] is off keeps
+    /// no hit positions: 4 KiB + 128 bytes).
     pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
     /// Inclusive range of cells covered by the tile table (`None` while empty): the
