@@ -42,6 +42,33 @@ impl OccupancyGrid {
         robot_pose: &Pose2,
         scan: &PreparedScan,
     ) -> Result<(), GridError> {
+        let Footprint {
+            start,
+            segs,
+            lo,
+            hi,
+        } = self.footprint(robot_pose, scan)?;
+        self.ensure_covers(lo, hi)?;
+        self.integrate_footprint(start, &segs, lo, hi);
+        Ok(())
+    }
+
+    /// Whether [`OccupancyGrid::try_integrate_prepared`] would accept this scan at this
+    /// pose, without changing the grid: the same checks (a finite pose, finite end points
+    /// within ±2³⁰ cells, the map extent limits), so that a caller can report an error at
+    /// the scan that caused it and integrate later.
+    pub fn check_integrable(
+        &self,
+        robot_pose: &Pose2,
+        scan: &PreparedScan,
+    ) -> Result<(), GridError> {
+        let f = self.footprint(robot_pose, scan)?;
+        self.check_extent(f.lo, f.hi).map(|_| ())
+    }
+
+    /// The beams of `scan` at `robot_pose` as segments in continuous cell coordinates and
+    /// the cells they need covered, or the error the integration reports.
+    fn footprint(&self, robot_pose: &Pose2, scan: &PreparedScan) -> Result<Footprint, GridError> {
         if !robot_pose.is_finite() {
             return Err(GridError::NonFinite {
                 what: "robot pose",
@@ -116,7 +143,23 @@ impl OccupancyGrid {
             CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
             CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
         );
-        self.ensure_covers(lo, hi)?;
+        Ok(Footprint {
+            start,
+            segs,
+            lo,
+            hi,
+        })
+    }
+
+    /// The integration proper of a [`Footprint`] whose cells `lo ..= hi` are covered.
+    fn integrate_footprint(
+        &mut self,
+        start: CellPoint,
+        segs: &[(CellPoint, CellPoint, bool)],
+        lo: CellIndex,
+        hi: CellIndex,
+    ) {
+        let m = self.model;
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
         // written under one copy-on-write check. The slots are this scan's own, row-major
         // over the tiles it touches (one tile of border): sorting by them sorts by
@@ -137,7 +180,7 @@ impl OccupancyGrid {
                 v.push((slot as u32, local as u16));
             }
         };
-        for &(free_end, end, hit) in &segs {
+        for &(free_end, end, hit) in segs {
             let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
             if hit {
                 let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
@@ -188,7 +231,6 @@ impl OccupancyGrid {
             d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
             self.distance = Some(d);
         }
-        Ok(())
     }
 
     /// Cell `local` of the tile in `slot`.
@@ -360,6 +402,16 @@ impl OccupancyGrid {
             }
         }
     }
+}
+
+/// A scan placed on the grid: the sensor's position and per beam (end of the free stretch,
+/// end point, hit?) in continuous cell coordinates, and the cells `lo ..= hi` the
+/// integration needs covered.
+struct Footprint {
+    start: CellPoint,
+    segs: Vec<(CellPoint, CellPoint, bool)>,
+    lo: CellIndex,
+    hi: CellIndex,
 }
 
 /// One bit per cell of a tile (bit `l & 63` of word `l >> 6` for cell `l`).
