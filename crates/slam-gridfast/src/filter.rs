@@ -140,11 +140,20 @@ pub struct GridFastSlam {
     guard: OdometryJumpGuard,
     /// Set when a full update failed half-way: every later record is refused.
     failed: Option<String>,
-    /// The last processed scan, not yet integrated into the maps of these groups of
-    /// particles ((first index, count): identical particles, integrated once and copied).
-    /// The best particle's group is integrated at once; the others at the next update,
-    /// while the coarse search runs on the best particle's map (see [`GridFastSlam::flush`]).
-    pending: Option<(usize, slam_grid::PreparedScan, Vec<(usize, usize)>)>,
+    /// The last processed scan where some particles' maps do not hold it yet.
+    pending: Option<Pending>,
+}
+
+/// A processed scan not yet integrated into the maps of some groups of particles: the
+/// best particle's group takes it at once, the others at the next update, while the coarse
+/// search runs on the best particle's map (see [`flush`]).
+struct Pending {
+    /// The scan's index among the processed scans (for an error).
+    k: usize,
+    scan: PreparedScan,
+    /// (first index, count) of each group of identical particles, integrated once and
+    /// copied.
+    groups: Vec<(usize, usize)>,
 }
 
 /// What the filter derives from its effective configuration.
@@ -783,7 +792,11 @@ impl GridFastSlam {
         // the map is refused by the grid), so that the filter stays usable.
         self.particles = particles;
         integrated.map_err(|e| numerical(k, e))?;
-        self.pending = Some((k, prepared, later));
+        self.pending = Some(Pending {
+            k,
+            scan: prepared,
+            groups: later,
+        });
         self.best = best;
         self.n_eff = n_eff;
         Ok(ScanUpdateInfo {
@@ -805,13 +818,13 @@ impl GridFastSlam {
 fn flush<F>(
     particles: &mut [Particle],
     best: usize,
-    pending: Option<(usize, slam_grid::PreparedScan, Vec<(usize, usize)>)>,
+    pending: Option<Pending>,
     search: F,
 ) -> (Pose2, Result<(), GridFastError>)
 where
     F: FnOnce(&Particle) -> Pose2 + Send,
 {
-    let Some((k, scan, groups)) = pending else {
+    let Some(Pending { k, scan, groups }) = pending else {
         return (search(&particles[best]), Ok(()));
     };
     // Split the particles into the pending groups' slices and the rest (holding `best`).
