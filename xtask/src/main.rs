@@ -13,10 +13,16 @@
 //!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
 //!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
+//! * `cargo xtask eval speed [--pairs N] [--other-pairs M] [--only NAME,…]
+//!   [--gmapping-src DIR]`: grid FastSLAM (1 and 2 threads) and GMapping side by side under
+//!   `/usr/bin/time -v` on the bench logs (see [`speed::speed`]), writing into
+//!   `slam-out/speed/`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
 use std::time::Instant;
+
+mod speed;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -38,10 +44,13 @@ fn main() -> ExitCode {
         Some("bench") => bench(args.get(1).map(String::as_str)),
         Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("mcap") => mcap_check(),
+        Some("eval") if args.get(1).map(String::as_str) == Some("speed") => {
+            speed::speed(&args[2..])
+        }
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed]>"
             );
             return ExitCode::from(2);
         }

@@ -140,6 +140,20 @@ pub struct GridFastSlam {
     guard: OdometryJumpGuard,
     /// Set when a full update failed half-way: every later record is refused.
     failed: Option<String>,
+    /// The last processed scan where some particles' maps do not hold it yet.
+    pending: Option<Pending>,
+}
+
+/// A processed scan not yet integrated into the maps of some groups of particles: the
+/// best particle's group takes it at once, the others at the next update, while the coarse
+/// search runs on the best particle's map (see [`flush`]).
+struct Pending {
+    /// The scan's index among the processed scans (for an error).
+    k: usize,
+    scan: PreparedScan,
+    /// (first index, count) of each group of identical particles, integrated once and
+    /// copied.
+    groups: Vec<(usize, usize)>,
 }
 
 /// What the filter derives from its effective configuration.
@@ -262,6 +276,7 @@ impl GridFastSlam {
             acc_angular: 0.0,
             motion_reference: None,
             failed: None,
+            pending: None,
             guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
                 ConfigError::new(
                     "grid FastSLAM",
@@ -554,8 +569,10 @@ impl GridFastSlam {
         // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
         // particle a second starting point for its hill climbing.
         let search = cfg.search_range_xy > 0.0 || cfg.search_range_theta > 0.0;
-        let correction = if search && cfg.proposal == Proposal::Improved {
-            let best = &self.particles[self.best];
+        let coarse_search = |best: &Particle| {
+            if !(search && cfg.proposal == Proposal::Improved) {
+                return Pose2::IDENTITY;
+            }
             let predicted = cfg.motion.predict(&best.pose, &u);
             let r = cfg.motion.noise_covariance(&best.pose, &u)
                 + slam_models::Matrix3::from_diagonal(&Vector3::new(
@@ -577,9 +594,20 @@ impl GridFastSlam {
                 &self.d.capture,
                 &window,
             ))
-        } else {
-            Pose2::IDENTITY
         };
+        // The other particles' maps take the previous scan meanwhile.
+        let (correction, flushed) = flush(
+            &mut self.particles,
+            self.best,
+            self.pending.take(),
+            coarse_search,
+        );
+        if let Err(e) = flushed {
+            // The maps no longer all hold the same scans: refuse further records.
+            self.failed = Some(e.to_string());
+            return Err(e);
+        }
+        let cfg = &self.p;
         let ctx = StepContext {
             scan: &prepared,
             lk: self.d.lk,
@@ -729,11 +757,32 @@ impl GridFastSlam {
         } else {
             groups = old.into_iter().map(|p| (p, 1)).collect();
         }
+        // Every group's integration is checked now, so that a refused scan (kilometres off
+        // the map) is reported at this scan; the best particle's group is integrated now
+        // (its map is the output and the next coarse search's), the others at the next
+        // update, overlapped with that search (the same maps in the end, for any number
+        // of threads).
+        let best_group = groups
+            .iter()
+            .scan(0, |start, (_, n)| {
+                *start += n;
+                Some(*start - n)
+            })
+            .position(|start| start == best)
+            .unwrap_or(0);
         let integrated = groups
-            .par_iter_mut()
-            .try_for_each(|(p, _)| p.map.try_integrate_prepared(&p.pose, &prepared));
+            .par_iter()
+            .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared))
+            .and_then(|()| {
+                let (p, _) = &mut groups[best_group];
+                p.map.try_integrate_prepared(&p.pose, &prepared)
+            });
         let mut particles = Vec::with_capacity(m);
-        for (p, n) in groups {
+        let mut later = Vec::with_capacity(groups.len());
+        for (g, (p, n)) in groups.into_iter().enumerate() {
+            if g != best_group {
+                later.push((particles.len(), n));
+            }
             for _ in 1..n {
                 particles.push(p.clone());
             }
@@ -743,6 +792,11 @@ impl GridFastSlam {
         // the map is refused by the grid), so that the filter stays usable.
         self.particles = particles;
         integrated.map_err(|e| numerical(k, e))?;
+        self.pending = Some(Pending {
+            k,
+            scan: prepared,
+            groups: later,
+        });
         self.best = best;
         self.n_eff = n_eff;
         Ok(ScanUpdateInfo {
@@ -754,6 +808,60 @@ impl GridFastSlam {
             odometry_jumps_skipped: 0,
         })
     }
+}
+
+/// Runs `search` on the best particle and, meanwhile (two rayon tasks), integrates the
+/// pending scan into the maps of the pending groups of `particles`: each group's first
+/// particle integrates it, the others of the group take copies of that map (as they were
+/// copies of it before). The best particle is in no pending group. Returns the search's
+/// result and the integration's outcome (an error names the pending scan).
+fn flush<F>(
+    particles: &mut [Particle],
+    best: usize,
+    pending: Option<Pending>,
+    search: F,
+) -> (Pose2, Result<(), GridFastError>)
+where
+    F: FnOnce(&Particle) -> Pose2 + Send,
+{
+    let Some(Pending { k, scan, groups }) = pending else {
+        return (search(&particles[best]), Ok(()));
+    };
+    // Split the particles into the pending groups' slices and the rest (holding `best`).
+    let mut slices: Vec<&mut [Particle]> = Vec::with_capacity(groups.len());
+    let mut best_particle = None;
+    let mut rest: &mut [Particle] = particles;
+    let mut offset = 0;
+    for &(start, n) in &groups {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(start - offset);
+        let (group, tail) = tail.split_at_mut(n);
+        if (offset..start).contains(&best) {
+            best_particle = Some(&head[best - offset]);
+        }
+        slices.push(group);
+        rest = tail;
+        offset = start + n;
+    }
+    let best_particle = match best_particle {
+        Some(p) => p,
+        None => &rest[best - offset],
+    };
+    let (pose, integrated) = join(
+        || search(best_particle),
+        || {
+            slices.par_iter_mut().try_for_each(|group| {
+                let Some((first, copies)) = group.split_first_mut() else {
+                    return Ok(());
+                };
+                first.map.try_integrate_prepared(&first.pose, &scan)?;
+                for c in copies {
+                    c.map = first.map.clone();
+                }
+                Ok(())
+            })
+        },
+    );
+    (pose, integrated.map_err(|e| numerical(k, e)))
 }
 
 impl FromConfig for GridFastSlam {

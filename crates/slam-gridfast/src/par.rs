@@ -1,11 +1,18 @@
-//! `par_iter` / `par_iter_mut` with or without the `parallel` feature.
+//! `par_iter` / `par_iter_mut` and `join` with or without the `parallel` feature.
 //!
 //! With `parallel` (the default) these are rayon's; without it, the same method names on
 //! slices return std's sequential iterators, so the per-particle code is written once and
 //! every particle draws from its own stream either way (same seed, same bytes).
 
 #[cfg(feature = "parallel")]
-pub(crate) use rayon::prelude::*;
+pub(crate) use rayon::{join, prelude::*};
+
+/// rayon's `join` without the `parallel` feature: `a`, then `b`.
+#[cfg(not(feature = "parallel"))]
+pub(crate) fn join<RA, RB>(a: impl FnOnce() -> RA, b: impl FnOnce() -> RB) -> (RA, RB) {
+    let ra = a();
+    (ra, b())
+}
 
 /// Sequential stand-ins for rayon's `par_iter` and `par_iter_mut` (a crate may use only one).
 #[cfg(not(feature = "parallel"))]

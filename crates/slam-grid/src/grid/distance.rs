@@ -66,12 +66,6 @@ impl Kernel {
             values,
         }
     }
-
-    #[inline]
-    fn at(&self, dx: i32, dy: i32) -> u8 {
-        let w = 2 * self.radius + 1;
-        self.values[((dy + self.radius) * w + dx + self.radius) as usize]
-    }
 }
 
 /// The distance tiles of one grid, one per occupancy tile slot (same slot numbers).
@@ -157,23 +151,13 @@ impl IncrementalDistance {
         Arc::make_mut(t)
     }
 
-    #[inline]
-    fn get(&self, table: &TileTable, c: CellIndex) -> Option<(usize, usize, u8)> {
-        let ((tx, ty), local) = split(c);
-        let slot = table.slot(tx, ty)?;
-        let v = match &self.tiles[slot] {
-            Some(t) => t.dist[local],
-            None => self.kernel.max,
-        };
-        Some((slot, local, v))
-    }
-
     /// dist ← min(dist, kernel) around obstacle cell `c`, optionally only inside the
     /// inclusive window `clip` = (min, max). Shared tiles are copied only where a value
     /// actually decreases.
     fn stamp(&mut self, table: &TileTable, c: CellIndex, clip: Option<(CellIndex, CellIndex)>) {
         let kernel = Arc::clone(&self.kernel);
-        let rad = kernel.radius;
+        let (rad, max) = (kernel.radius, kernel.max);
+        let w = (2 * rad + 1) as usize;
         let (mut x0, mut y0, mut x1, mut y1) = (c.x - rad, c.y - rad, c.x + rad, c.y + rad);
         if let Some((lo, hi)) = clip {
             x0 = x0.max(lo.x);
@@ -182,17 +166,52 @@ impl IncrementalDistance {
             y1 = y1.min(hi.y);
         }
         for y in y0..=y1 {
-            for x in x0..=x1 {
-                let k = kernel.at(x - c.x, y - c.y);
-                if k >= kernel.max {
-                    continue;
-                }
-                if let Some((slot, local, cur)) = self.get(table, CellIndex::new(x, y)) {
-                    if k < cur {
-                        self.tile_mut(slot).dist[local] = k;
+            let row = &kernel.values[(y - c.y + rad) as usize * w..][..w];
+            let k_at = |x: i32| row[(x - c.x + rad) as usize];
+            self.rewrite_row(table, y, x0, x1, |x, cur| {
+                let k = k_at(x);
+                (k < max && k < cur).then_some(k)
+            });
+        }
+    }
+
+    /// For the cells (x, y), x0 ≤ x ≤ x1, of stored tiles: writes `f(x, current value)`
+    /// where it is `Some`, one tile look-up per tile the row crosses; a tile is made
+    /// private (created all-far, or copied if shared) only when a value is written to it.
+    #[inline]
+    fn rewrite_row(
+        &mut self,
+        table: &TileTable,
+        y: i32,
+        x0: i32,
+        x1: i32,
+        f: impl Fn(i32, u8) -> Option<u8>,
+    ) {
+        let ty = y >> TILE_BITS;
+        let row = (y & TILE_MASK) as usize * TILE_SIZE;
+        let mut xa = x0;
+        while xa <= x1 {
+            let tx = xa >> TILE_BITS;
+            // The last cell of this tile on the row, or x1.
+            let xb = x1.min(xa | TILE_MASK);
+            if let Some(slot) = table.slot(tx, ty) {
+                let local = |x: i32| row + (x & TILE_MASK) as usize;
+                // The first write, found on the tile as stored.
+                let first = match &self.tiles[slot] {
+                    Some(t) => (xa..=xb).find_map(|x| f(x, t.dist[local(x)]).map(|v| (x, v))),
+                    None => (xa..=xb).find_map(|x| f(x, self.kernel.max).map(|v| (x, v))),
+                };
+                if let Some((xf, v)) = first {
+                    let tile = self.tile_mut(slot);
+                    tile.dist[local(xf)] = v;
+                    for x in xf + 1..=xb {
+                        if let Some(v) = f(x, tile.dist[local(x)]) {
+                            tile.dist[local(x)] = v;
+                        }
                     }
                 }
             }
+            xa = xb + 1;
         }
     }
 
@@ -207,13 +226,9 @@ impl IncrementalDistance {
         let rad = self.kernel.radius;
         let max = self.kernel.max;
         for y in c.y - rad..=c.y + rad {
-            for x in c.x - rad..=c.x + rad {
-                if let Some((slot, local, cur)) = self.get(table, CellIndex::new(x, y)) {
-                    if cur != max {
-                        self.tile_mut(slot).dist[local] = max;
-                    }
-                }
-            }
+            self.rewrite_row(table, y, c.x - rad, c.x + rad, |_, cur| {
+                (cur != max).then_some(max)
+            });
         }
         let clip = (
             CellIndex::new(c.x - rad, c.y - rad),

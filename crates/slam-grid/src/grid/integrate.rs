@@ -42,6 +42,33 @@ impl OccupancyGrid {
         robot_pose: &Pose2,
         scan: &PreparedScan,
     ) -> Result<(), GridError> {
+        let Footprint {
+            start,
+            segs,
+            lo,
+            hi,
+        } = self.footprint(robot_pose, scan)?;
+        self.ensure_covers(lo, hi)?;
+        self.integrate_footprint(start, &segs, lo, hi);
+        Ok(())
+    }
+
+    /// Whether [`OccupancyGrid::try_integrate_prepared`] would accept this scan at this
+    /// pose, without changing the grid: the same checks (a finite pose, finite end points
+    /// within ±2³⁰ cells, the map extent limits), so that a caller can report an error at
+    /// the scan that caused it and integrate later.
+    pub fn check_integrable(
+        &self,
+        robot_pose: &Pose2,
+        scan: &PreparedScan,
+    ) -> Result<(), GridError> {
+        let f = self.footprint(robot_pose, scan)?;
+        self.check_extent(f.lo, f.hi).map(|_| ())
+    }
+
+    /// The beams of `scan` at `robot_pose` as segments in continuous cell coordinates and
+    /// the cells they need covered, or the error the integration reports.
+    fn footprint(&self, robot_pose: &Pose2, scan: &PreparedScan) -> Result<Footprint, GridError> {
         if !robot_pose.is_finite() {
             return Err(GridError::NonFinite {
                 what: "robot pose",
@@ -116,7 +143,23 @@ impl OccupancyGrid {
             CellIndex::new(lo_x.floor() as i32 - margin, lo_y.floor() as i32 - margin),
             CellIndex::new(hi_x.floor() as i32 + margin, hi_y.floor() as i32 + margin),
         );
-        self.ensure_covers(lo, hi)?;
+        Ok(Footprint {
+            start,
+            segs,
+            lo,
+            hi,
+        })
+    }
+
+    /// The integration proper of a [`Footprint`] whose cells `lo ..= hi` are covered.
+    fn integrate_footprint(
+        &mut self,
+        start: CellPoint,
+        segs: &[(CellPoint, CellPoint, bool)],
+        lo: CellIndex,
+        hi: CellIndex,
+    ) {
+        let m = self.model;
         // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
         // written under one copy-on-write check. The slots are this scan's own, row-major
         // over the tiles it touches (one tile of border): sorting by them sorts by
@@ -137,7 +180,7 @@ impl OccupancyGrid {
                 v.push((slot as u32, local as u16));
             }
         };
-        for &(free_end, end, hit) in &segs {
+        for &(free_end, end, hit) in segs {
             let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
             if hit {
                 let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
@@ -155,19 +198,19 @@ impl OccupancyGrid {
         }
         let mut changed: Vec<usize> = Vec::new();
         let mut flips: Vec<(u32, u16)> = Vec::new();
-        let protected: &[(u32, u16, i8, i8)] = if m.protect_scan_hits {
-            // Sorted by cell so that a tile's hits are found by binary search and a cell's
-            // repeated hits are adjacent.
+        let protected: Vec<(u32, TileMask)> = if m.protect_scan_hits {
+            // Sorted by cell so that a cell's repeated hits are adjacent; one mask per tile
+            // with hits, found by binary search for each run of free cells.
             hits.sort_unstable_by_key(|h| (h.0, h.1));
-            &hits
+            protected_masks(&hits)
         } else {
-            &[]
+            Vec::new()
         };
         self.apply(
             &layout,
             &free,
             m.l_free,
-            protected,
+            &protected,
             &mut changed,
             &mut flips,
         );
@@ -188,7 +231,6 @@ impl OccupancyGrid {
             d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
             self.distance = Some(d);
         }
-        Ok(())
     }
 
     /// Cell `local` of the tile in `slot`.
@@ -212,7 +254,7 @@ impl OccupancyGrid {
         scan: &TileLayout,
         updates: &[(u32, u16)],
         delta: f32,
-        protected: &[(u32, u16, i8, i8)],
+        protected: &[(u32, TileMask)],
         changed: &mut Vec<usize>,
         flips: &mut Vec<(u32, u16)>,
     ) {
@@ -222,18 +264,24 @@ impl OccupancyGrid {
             self.model.l_max,
             self.params.occupied_threshold,
         );
-        // Updates come sorted by tile slot: handle each tile's run at once.
+        let use_floor = delta <= 0.0;
+        // Updates come in runs of one tile (a beam's cells in a tile): handle each at once.
         for run in updates.chunk_by(|a, b| a.0 == b.0) {
             let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
             let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
             let mask = protected_mask(protected, run[0].0);
             let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
+            // A cell at the lower clamp cannot change under a negative step (its floor bit
+            // is read instead of its value).
+            let floored = |t: &Tile, l: u16| use_floor && t.at_floor(l as usize);
             // Skip the copy entirely when no value in the run would change (saturated cells).
             let needs_write = match stored {
                 None => run.iter().any(|&(_, l)| !skip(l)),
                 Some(t) => run.iter().any(|&(_, l)| {
-                    let v = t.cells[l as usize];
-                    !skip(l) && (v + delta).clamp(lmin, lmax) != v
+                    !skip(l) && !floored(t, l) && {
+                        let v = t.cells[l as usize];
+                        (v + delta).clamp(lmin, lmax) != v
+                    }
                 }),
             };
             if !needs_write {
@@ -243,14 +291,14 @@ impl OccupancyGrid {
             let tile = self.tile_for_write(slot);
             let mut status_changed = false;
             for &(_, l) in run {
-                if skip(l) {
+                if skip(l) || floored(tile, l) {
                     continue;
                 }
-                let v = &mut tile.cells[l as usize];
-                let nv = (*v + delta).clamp(lmin, lmax);
-                let flip = (*v > thr) != (nv > thr);
+                let v = tile.cells[l as usize];
+                let nv = (v + delta).clamp(lmin, lmax);
+                let flip = (v > thr) != (nv > thr);
                 status_changed |= flip;
-                *v = nv;
+                tile.set(l as usize, nv, lmin);
                 if flip && track {
                     flips.push((slot as u32, l));
                 }
@@ -331,7 +379,7 @@ impl OccupancyGrid {
                 if flip && track {
                     flips.push((slot as u32, l as u16));
                 }
-                tile.cells[l] = nv;
+                tile.set(l, nv, lmin);
                 let Some(h) = tile.hit.as_deref_mut() else {
                     continue;
                 };
@@ -356,17 +404,38 @@ impl OccupancyGrid {
     }
 }
 
-/// The cells of tile `slot` among `protected` (sorted by slot) as a 1024-bit mask, or
-/// `None` when it has none.
+/// A scan placed on the grid: the sensor's position and per beam (end of the free stretch,
+/// end point, hit?) in continuous cell coordinates, and the cells `lo ..= hi` the
+/// integration needs covered.
+struct Footprint {
+    start: CellPoint,
+    segs: Vec<(CellPoint, CellPoint, bool)>,
+    lo: CellIndex,
+    hi: CellIndex,
+}
+
+/// One bit per cell of a tile (bit `l & 63` of word `l >> 6` for cell `l`).
+type TileMask = [u64; TILE_CELLS / 64];
+
+/// Per scan tile slot with hits, the mask of its hit cells, sorted by slot (`hits` sorted by
+/// slot): built once per scan rather than once per run of free cells.
+fn protected_masks(hits: &[(u32, u16, i8, i8)]) -> Vec<(u32, TileMask)> {
+    hits.chunk_by(|a, b| a.0 == b.0)
+        .map(|run| {
+            let mut m = [0u64; TILE_CELLS / 64];
+            for &(_, l, _, _) in run {
+                m[l as usize >> 6] |= 1 << (l & 63);
+            }
+            (run[0].0, m)
+        })
+        .collect()
+}
+
+/// The mask of tile `slot` among `protected` (sorted by slot), or `None` when it has no hit.
 #[inline]
-fn protected_mask(protected: &[(u32, u16, i8, i8)], slot: u32) -> Option<[u64; TILE_CELLS / 64]> {
-    let a = protected.partition_point(|h| h.0 < slot);
-    let b = a + protected[a..].partition_point(|h| h.0 == slot);
-    (a < b).then(|| {
-        let mut m = [0u64; TILE_CELLS / 64];
-        for &(_, l, _, _) in &protected[a..b] {
-            m[l as usize >> 6] |= 1 << (l & 63);
-        }
-        m
-    })
+fn protected_mask(protected: &[(u32, TileMask)], slot: u32) -> Option<&TileMask> {
+    protected
+        .binary_search_by_key(&slot, |p| p.0)
+        .ok()
+        .map(|i| &protected[i].1)
 }

@@ -310,8 +310,9 @@ impl OccupancyGrid {
             .count()
     }
 
-    /// Bytes held by one tile (log-odds and mean hit positions of its cells; a grid whose
-    /// [`crate::LikelihoodParams::subcell`] is off keeps no hit positions: 4 KiB).
+    /// Bytes held by one tile (log-odds, a bit per cell marking the lower clamp, and mean
+    /// hit positions of its cells; a grid whose [`crate::LikelihoodParams::subcell`] is off keeps
+    /// no hit positions: 4 KiB + 128 bytes).
     pub const TILE_BYTES: usize = tiles::TILE_BYTES_WITH_HITS;
 
     /// Inclusive range of cells covered by the tile table (`None` while empty): the
@@ -328,13 +329,14 @@ impl OccupancyGrid {
         ))
     }
 
-    /// Grows the covered rectangle so that it holds cells `min ..= max` (keeps existing
-    /// tiles; stores nothing: tiles are stored when written).
-    ///
-    /// Fails with [`GridError::MapTooLarge`], changing nothing, when the bounding box of
-    /// every cell covered so far and these would be wider or higher than
-    /// [`MAX_MAP_EXTENT_CELLS`] or hold more than [`MAX_MAP_CELLS`] cells.
-    pub fn ensure_covers(&mut self, min: CellIndex, max: CellIndex) -> Result<(), GridError> {
+    /// The span (bounding box of every cell covered so far) once cells `min ..= max` are
+    /// covered too, or [`GridError::MapTooLarge`] when it would break the extent limits
+    /// ([`OccupancyGrid::ensure_covers`] without the change).
+    fn check_extent(
+        &self,
+        min: CellIndex,
+        max: CellIndex,
+    ) -> Result<(CellIndex, CellIndex), GridError> {
         let (min, max) = (
             CellIndex::new(min.x.min(max.x), min.y.min(max.y)),
             CellIndex::new(min.x.max(max.x), min.y.max(max.y)),
@@ -358,7 +360,22 @@ impl OccupancyGrid {
                 resolution: self.frame.resolution,
             });
         }
+        Ok((lo, hi))
+    }
+
+    /// Grows the covered rectangle so that it holds cells `min ..= max` (keeps existing
+    /// tiles; stores nothing: tiles are stored when written).
+    ///
+    /// Fails with [`GridError::MapTooLarge`], changing nothing, when the bounding box of
+    /// every cell covered so far and these would be wider or higher than
+    /// [`MAX_MAP_EXTENT_CELLS`] or hold more than [`MAX_MAP_CELLS`] cells.
+    pub fn ensure_covers(&mut self, min: CellIndex, max: CellIndex) -> Result<(), GridError> {
+        let (lo, hi) = self.check_extent(min, max)?;
         self.span = Some((lo, hi));
+        let (min, max) = (
+            CellIndex::new(min.x.min(max.x), min.y.min(max.y)),
+            CellIndex::new(min.x.max(max.x), min.y.max(max.y)),
+        );
         let (t0, _) = split(min);
         let (t1, _) = split(max);
         if self.table.rect().len() > 0

@@ -368,9 +368,9 @@ fn without_subcell_fields_tiles_keep_no_hit_statistics() {
     c.reset_copy_stats();
     c.integrate_scan(&Pose2::new(0.2, 0.1, 0.0), &s);
     let st = c.copy_stats();
-    // Log-odds only: 4 KiB per copied tile.
+    // Log-odds only: 4 KiB per copied tile, and 128 bytes of lower-clamp bits.
     assert!(st.tiles_copied >= 1, "{st:?}");
-    assert_eq!(st.bytes_copied, st.tiles_copied * 4096);
+    assert_eq!(st.bytes_copied, st.tiles_copied * (4096 + 128));
     // Every obstacle is at its cell centre for the field.
     let (lo, hi) = g.known_bounds().unwrap();
     let (w, h) = ((hi.x - lo.x + 1) as usize, (hi.y - lo.y + 1) as usize);
@@ -469,4 +469,34 @@ fn a_scan_beyond_the_maximum_extent_is_refused_and_changes_nothing() {
     // The grid still takes scans near the map.
     g.try_integrate_scan(&Pose2::new(1.0, 0.0, 0.0), &s)
         .unwrap();
+}
+
+/// `check_integrable` refuses exactly what the integration refuses (a non-finite pose, a
+/// scan beyond the maximum extent, NaN-free input otherwise accepted) and changes nothing:
+/// grid FastSLAM checks every particle's integration at its scan and integrates later.
+#[test]
+fn check_integrable_agrees_with_the_integration() {
+    let near = Pose2::new(0.3, -0.2, 0.1);
+    let s = room_scan(&near, 2.0, 360);
+    let prepared = crate::PreparedScan::new(&s).unwrap();
+    let mut g = grid_with_distance();
+    g.try_integrate_prepared(&near, &prepared).unwrap();
+    let map_before = g.to_grid_map();
+    for pose in [
+        near,
+        Pose2::new(1.0, 0.5, -0.3),
+        Pose2::new(f64::NAN, 0.0, 0.0),
+        Pose2::new(10_000.0, 0.0, 0.0),
+        Pose2::new(2_000.0, 2_000.0, 0.0),
+    ] {
+        let checked = g.check_integrable(&pose, &prepared);
+        assert_eq!(g.to_grid_map(), map_before, "the check changed the grid");
+        let mut copy = g.clone();
+        let done = copy.try_integrate_prepared(&pose, &prepared);
+        assert_eq!(
+            checked.as_ref().err().map(ToString::to_string),
+            done.as_ref().err().map(ToString::to_string),
+            "{pose:?}"
+        );
+    }
 }

@@ -26,11 +26,18 @@ const TILE_MASK: i32 = (TILE_SIZE as i32) - 1;
 /// leaves a shared tile shared).
 pub(crate) const HIT_CAP: u8 = 16;
 
-/// One tile, row-major (index = ly·TILE_SIZE + lx): log-odds values, and, for grids whose
-/// likelihood field measures to sub-cell hit positions, the hit statistics of its cells.
+/// One tile, row-major (index = ly·TILE_SIZE + lx): log-odds values, a bit per cell that
+/// marks cells at the lower clamp, and, for grids whose likelihood field measures to
+/// sub-cell hit positions, the hit statistics of its cells.
 #[derive(Clone)]
 pub(crate) struct Tile {
     pub(crate) cells: [f32; TILE_CELLS],
+    /// Bit `l` set ⇒ `cells[l]` equals the grid's `l_min`: a free-space update (a negative
+    /// log-odds step) cannot change such a cell, so integration skips it after reading
+    /// 1 bit instead of 4 bytes (most cells a scan crosses are free and saturated, and the
+    /// 4 KiB of log-odds of 30 particles' tiles do not stay in cache). A clear bit says
+    /// nothing: the bit is set when a write stores `l_min` and cleared by any other write.
+    pub(crate) floor: [u64; TILE_CELLS / 64],
     pub(crate) hit: Option<Box<HitStats>>,
 }
 
@@ -44,15 +51,22 @@ pub(crate) struct HitStats {
     pub(crate) hits: [u8; TILE_CELLS],
 }
 
-/// Bytes of a tile's data with hit statistics (log-odds + mean hit positions + counts).
+/// Bytes of a tile's log-odds and lower-clamp bits.
+pub(crate) const TILE_BYTES_LOG_ODDS: usize =
+    std::mem::size_of::<[f32; TILE_CELLS]>() + std::mem::size_of::<[u64; TILE_CELLS / 64]>();
+
+/// Bytes of a tile's data with hit statistics (log-odds and their lower-clamp bits + mean
+/// hit positions + counts).
 pub(crate) const TILE_BYTES_WITH_HITS: usize =
-    std::mem::size_of::<[f32; TILE_CELLS]>() + std::mem::size_of::<HitStats>();
+    TILE_BYTES_LOG_ODDS + std::mem::size_of::<HitStats>();
 
 impl Tile {
-    /// An all-unknown tile (log-odds 0, no hits), with hit statistics when `with_hits`.
+    /// An all-unknown tile (log-odds 0, no floor bits, no hits), with hit statistics when
+    /// `with_hits`.
     pub(crate) fn unknown(with_hits: bool) -> Self {
         Self {
             cells: [0.0; TILE_CELLS],
+            floor: [0; TILE_CELLS / 64],
             hit: with_hits.then(|| {
                 Box::new(HitStats {
                     hit_x: [0; TILE_CELLS],
@@ -68,7 +82,27 @@ impl Tile {
         if self.hit.is_some() {
             TILE_BYTES_WITH_HITS
         } else {
-            std::mem::size_of::<[f32; TILE_CELLS]>()
+            TILE_BYTES_LOG_ODDS
+        }
+    }
+}
+
+impl Tile {
+    /// Whether `cells[l]` is known to be at the lower clamp.
+    #[inline(always)]
+    pub(crate) fn at_floor(&self, l: usize) -> bool {
+        (self.floor[l >> 6] >> (l & 63)) & 1 == 1
+    }
+
+    /// Stores `v` in cell `l` and keeps its floor bit (`v == l_min`).
+    #[inline(always)]
+    pub(crate) fn set(&mut self, l: usize, v: f32, l_min: f32) {
+        self.cells[l] = v;
+        let bit = 1u64 << (l & 63);
+        if v == l_min {
+            self.floor[l >> 6] |= bit;
+        } else {
+            self.floor[l >> 6] &= !bit;
         }
     }
 }
