@@ -102,6 +102,21 @@ pub struct RunArgs {
     #[arg(long, value_name = "N", requires = "sim", conflicts_with = "dataset", value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: Option<u64>,
 
+    /// Number of landmarks of a landmark scenario (`loop`, `figure8`, `clutter`, `city`),
+    /// instead of its own. Only with --sim.
+    #[arg(long, value_name = "N", requires = "sim", conflicts_with = "dataset")]
+    pub landmarks: Option<usize>,
+
+    /// Laps of a closed-loop scenario when --steps is not given (0–10,000; default 1.1 for
+    /// the landmark loops, 2 for `office`). Only with --sim.
+    #[arg(
+        long,
+        value_name = "LAPS",
+        requires = "sim",
+        conflicts_with = "dataset"
+    )]
+    pub laps: Option<f64>,
+
     /// Dataset: a Freiburg folder (world.dat + sensor_data.dat), a CARMEN log (.log, .clf,
     /// .gz), an MRCLAM folder (with --robot), or a ROS bag (an .mcap or .db3 file, a folder
     /// with metadata.yaml, or a ROS 1 .bag file).

@@ -141,6 +141,13 @@ impl From<slam_eval::InputError> for CliError {
                 "--steps {want}: scenario {name} (seed {seed}) gives {got} {what}, its path ends \
                  there; ask for at most {got}"
             )),
+            InputError::NotApplicable {
+                option,
+                scenario,
+                honoured_by,
+            } => CliError::InvalidArgument(format!(
+                "--{option} does not apply to scenario {scenario}; it applies to {honoured_by}"
+            )),
             e @ (InputError::ReplayNeedsMap
             | InputError::ReplayNeedsYaml { .. }
             | InputError::NoArgument { .. }) => CliError::InvalidArgument(e.to_string()),

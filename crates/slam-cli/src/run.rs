@@ -273,10 +273,15 @@ fn default_name(args: &RunArgs) -> String {
 /// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]).
 fn load_input(args: &RunArgs) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
-        return Ok(input::simulate(
+        let params = input::ScenarioParams {
+            landmarks: args.landmarks,
+            laps: args.laps,
+        };
+        return Ok(input::simulate_with(
             spec,
             args.seed,
             args.steps.map(|s| s as usize),
+            params,
         )?);
     }
     let Some(path) = &args.dataset else {

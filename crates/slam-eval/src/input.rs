@@ -81,6 +81,18 @@ pub enum InputError {
         /// `"steps"` or `"scans"`.
         what: &'static str,
     },
+    /// A scenario parameter given for a scenario that does not use it.
+    #[error(
+        "scenario {scenario} does not use the parameter `{option}`; it applies to {honoured_by}"
+    )]
+    NotApplicable {
+        /// The parameter (`landmarks`, `laps`).
+        option: &'static str,
+        /// The scenario.
+        scenario: String,
+        /// The scenarios that use it.
+        honoured_by: String,
+    },
 }
 
 /// A run's data, by kind.
@@ -224,7 +236,53 @@ pub fn scenario_base_name(spec: &str) -> String {
 
 /// Generates the scenario `spec` ([`scenario_options`], [`generate_exact`]) as an input.
 pub fn simulate(spec: &str, seed: u64, steps: Option<usize>) -> Result<Input, InputError> {
-    let (name, opts) = scenario_options(spec, seed, steps)?;
+    simulate_with(spec, seed, steps, ScenarioParams::default())
+}
+
+/// Scenario parameters a user sets beside the name, seed and step count (`slam run
+/// --landmarks N --laps L`); `None` keeps the scenario's own. slam-sim checks their bounds.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ScenarioParams {
+    /// Number of landmarks of a landmark scenario ([`ScenarioOptions::landmarks`]).
+    pub landmarks: Option<usize>,
+    /// Laps of a closed-loop scenario when the step count is not given
+    /// ([`ScenarioOptions::laps`]).
+    pub laps: Option<f64>,
+}
+
+/// [`simulate`] with scenario parameters.
+pub fn simulate_with(
+    spec: &str,
+    seed: u64,
+    steps: Option<usize>,
+    params: ScenarioParams,
+) -> Result<Input, InputError> {
+    // Which scenarios read which parameter (slam-sim's scenario builders): a parameter the
+    // scenario would ignore is refused rather than dropped.
+    let name = scenario_base_name(spec);
+    for (option, given, honoured_by) in [
+        (
+            "landmarks",
+            params.landmarks.is_some(),
+            &["loop", "figure8", "clutter", "city"][..],
+        ),
+        (
+            "laps",
+            params.laps.is_some(),
+            &["loop", "figure8", "clutter", "office", "campus"][..],
+        ),
+    ] {
+        if given && !honoured_by.contains(&name.as_str()) {
+            return Err(InputError::NotApplicable {
+                option,
+                scenario: name,
+                honoured_by: honoured_by.join(", "),
+            });
+        }
+    }
+    let (name, mut opts) = scenario_options(spec, seed, steps)?;
+    opts.landmarks = params.landmarks;
+    opts.laps = params.laps;
     Ok(match generate_exact(&name, &opts)? {
         SimOutput::Landmark(run) => {
             let d = &run.dataset;
@@ -341,6 +399,72 @@ mod tests {
         assert_eq!(dataset_stem(Path::new("/d/intel.log.gz")), "intel");
         assert_eq!(dataset_stem(Path::new("/d/run.mcap")), "run");
         assert_eq!(dataset_stem(Path::new("/")), "dataset");
+    }
+
+    /// `--landmarks` and `--laps` reach the simulator (the truth has that many landmarks,
+    /// the run that many laps' steps), and a parameter the scenario would ignore is refused.
+    #[test]
+    fn scenario_params_reach_the_simulator_or_are_refused() {
+        let count = |p: ScenarioParams| {
+            let InputData::Landmark { dataset, .. } =
+                simulate_with("loop", 1, None, p).unwrap().data
+            else {
+                panic!("loop is landmark data")
+            };
+            (
+                dataset.landmarks.map_or(0, |l| l.len()),
+                dataset.steps.len(),
+            )
+        };
+        let (n, steps_default) = count(ScenarioParams::default());
+        let (n17, _) = count(ScenarioParams {
+            landmarks: Some(17),
+            laps: None,
+        });
+        let (_, steps_two) = count(ScenarioParams {
+            landmarks: None,
+            laps: Some(2.2),
+        });
+        assert_eq!((n, n17), (50, 17));
+        assert!(
+            steps_two.abs_diff(2 * steps_default) <= 2,
+            "{steps_two} vs 2 × {steps_default}"
+        );
+        let e = simulate_with(
+            "office",
+            1,
+            None,
+            ScenarioParams {
+                landmarks: Some(5),
+                laps: None,
+            },
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                InputError::NotApplicable {
+                    option: "landmarks",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        let e = simulate_with(
+            "city",
+            1,
+            None,
+            ScenarioParams {
+                landmarks: None,
+                laps: Some(1.0),
+            },
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("scenario city does not use the parameter `laps`"),
+            "{e}"
+        );
     }
 
     #[test]
