@@ -146,6 +146,22 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     if let Some(mcap) = &args.mcap {
         crate::mcap::check_path(mcap, &inputs, &out_dir)?;
     }
+    // The filter against the kind of data, before anything is generated or read.
+    if let Some(kind) = input::kind_before_loading(args.sim.as_deref(), args.dataset.as_deref()) {
+        if !both && kind != info.kind {
+            return Err(CliError::WrongDataKind {
+                filter: info.name.to_string(),
+                needs: info.kind.as_str(),
+                input: match (&args.sim, &args.dataset) {
+                    (Some(spec), _) => format!("scenario {spec}"),
+                    (None, Some(path)) => path.display().to_string(),
+                    (None, None) => String::new(),
+                },
+                found: kind.as_str(),
+                suggest: filters::names_of(kind),
+            });
+        }
+    }
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let input = load_input(args)?;
     let _ = writeln!(out, "input: {}", input.description);

@@ -234,6 +234,27 @@ pub fn scenario_base_name(spec: &str) -> String {
     spec.split_once(':').map_or(spec, |(b, _)| b).to_string()
 }
 
+/// The kind of data a `--sim` spec or a `--dataset` path will give, told without generating
+/// or reading it (slam-sim's scenario list, [`slam_io::dataset_kind`]), so that a filter of
+/// the other kind is refused before a long input is loaded; `None` when it cannot be told
+/// (an unknown scenario or path: loading it then says why).
+pub fn kind_before_loading(sim: Option<&str>, dataset: Option<&Path>) -> Option<DataKind> {
+    if let Some(spec) = sim {
+        let name = scenario_base_name(spec);
+        return slam_sim::scenario::list()
+            .into_iter()
+            .find(|s| s.name == name)
+            .map(|s| match s.kind {
+                slam_sim::scenario::ScenarioKind::Landmark => DataKind::Landmark,
+                slam_sim::scenario::ScenarioKind::Laser => DataKind::Laser,
+            });
+    }
+    dataset.and_then(slam_io::dataset_kind).map(|k| match k {
+        slam_io::DatasetKind::Landmark => DataKind::Landmark,
+        slam_io::DatasetKind::Scan => DataKind::Laser,
+    })
+}
+
 /// Generates the scenario `spec` ([`scenario_options`], [`generate_exact`]) as an input.
 pub fn simulate(spec: &str, seed: u64, steps: Option<usize>) -> Result<Input, InputError> {
     simulate_with(spec, seed, steps, ScenarioParams::default())
@@ -399,6 +420,41 @@ mod tests {
         assert_eq!(dataset_stem(Path::new("/d/intel.log.gz")), "intel");
         assert_eq!(dataset_stem(Path::new("/d/run.mcap")), "run");
         assert_eq!(dataset_stem(Path::new("/")), "dataset");
+    }
+
+    /// The data kind is told before loading: scenarios by slam-sim's list, folders by their
+    /// files, anything else as a CARMEN log; unknown names and missing paths are `None`.
+    #[test]
+    fn kind_before_loading_matches_what_loading_gives() {
+        assert_eq!(
+            kind_before_loading(Some("loop"), None),
+            Some(DataKind::Landmark)
+        );
+        assert_eq!(
+            kind_before_loading(Some("office"), None),
+            Some(DataKind::Laser)
+        );
+        assert_eq!(
+            kind_before_loading(Some("replay:x.yaml"), None),
+            Some(DataKind::Laser)
+        );
+        assert_eq!(kind_before_loading(Some("nowhere"), None), None);
+        let dir = std::env::temp_dir().join(format!("slam-eval-kind-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        assert_eq!(kind_before_loading(None, Some(&dir)), None);
+        std::fs::write(dir.join("sensor_data.dat"), "").unwrap();
+        assert_eq!(
+            kind_before_loading(None, Some(&dir)),
+            Some(DataKind::Landmark)
+        );
+        let log = dir.join("a.log");
+        std::fs::write(&log, "ODOM 0 0 0 0 0 0 0 host 0\n").unwrap();
+        assert_eq!(kind_before_loading(None, Some(&log)), Some(DataKind::Laser));
+        assert_eq!(
+            kind_before_loading(None, Some(&dir.join("missing.log"))),
+            None
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// `--landmarks` and `--laps` reach the simulator (the truth has that many landmarks,

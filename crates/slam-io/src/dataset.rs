@@ -33,6 +33,32 @@ impl DatasetOptions {
     }
 }
 
+/// The two kinds of data [`open_dataset_with`] returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DatasetKind {
+    /// Range-bearing landmark data ([`Dataset::Landmark`]).
+    Landmark,
+    /// Odometry and laser scans ([`Dataset::Scan`]).
+    Scan,
+}
+
+/// The kind of data [`open_dataset_with`] would read at `path`, told from the path alone (a
+/// folder's listing, a file's first 16 bytes), so that a filter given the wrong kind of data
+/// is refused before a large input is read: a Freiburg or MRCLAM folder holds landmark data,
+/// a ROS bag or any other file (read as a CARMEN log) laser data; `None` for a missing path
+/// or a folder that is neither (opening it then says why).
+pub fn dataset_kind(path: &Path) -> Option<DatasetKind> {
+    if is_bag(path) {
+        return Some(DatasetKind::Scan);
+    }
+    if path.is_dir() {
+        let landmark =
+            path.join("sensor_data.dat").is_file() || path.join("Barcodes.dat").is_file();
+        return landmark.then_some(DatasetKind::Landmark);
+    }
+    path.is_file().then_some(DatasetKind::Scan)
+}
+
 /// True when `path` is a ROS bag: a folder with `metadata.yaml` (rosbag2), or a file that
 /// starts like an MCAP file, an SQLite database (rosbag2's `.db3`) or a ROS 1 bag.
 fn is_bag(path: &Path) -> bool {

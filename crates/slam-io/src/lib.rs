@@ -50,8 +50,8 @@ pub(crate) mod text;
 pub mod tum;
 
 pub use dataset::{
-    dataset_info, dead_reckoning, odometry_trajectory, open_dataset, open_dataset_with, Dataset,
-    DatasetOptions,
+    dataset_info, dataset_kind, dead_reckoning, odometry_trajectory, open_dataset,
+    open_dataset_with, Dataset, DatasetKind, DatasetOptions,
 };
 pub use error::IoError;
 pub use report::Skipped;
