@@ -7,45 +7,6 @@ mod common;
 
 use slam::graph::laser::{LaserGraphConfig, LaserGraphSlam};
 use slam::models::{Pose2, ScanRecord, ScanSlam, TimedPose};
-use slam::sim::scenario::{generate, ScenarioOptions};
-use slam::sim::SimOutput;
-
-/// The simulated `office` run of `seed` (defaults: two laps, 181-beam laser): its records
-/// and its ground truth (one pose per record).
-fn office(seed: u64) -> (Vec<ScanRecord>, Vec<TimedPose>) {
-    let opts = ScenarioOptions {
-        seed,
-        ..Default::default()
-    };
-    let Ok(SimOutput::Laser(run)) = generate("office", &opts) else {
-        panic!("office scenario did not generate a laser run");
-    };
-    let truth = run.dataset.ground_truth.expect("office has ground truth");
-    (run.dataset.records, truth)
-}
-
-/// Position RMSE after expressing both trajectories relative to their first pose (the
-/// front end's world frame is the odometry frame of record 0).
-fn rmse(est: &[TimedPose], truth: &[TimedPose]) -> f64 {
-    assert_eq!(est.len(), truth.len());
-    let (e0, t0) = (est[0].pose, truth[0].pose);
-    let s: f64 = est
-        .iter()
-        .zip(truth)
-        .map(|(e, t)| e0.between(&e.pose).distance(&t0.between(&t.pose)).powi(2))
-        .sum();
-    (s / est.len() as f64).sqrt()
-}
-
-fn dead_reckoning(records: &[ScanRecord]) -> Vec<TimedPose> {
-    records
-        .iter()
-        .map(|r| TimedPose {
-            t: r.t,
-            pose: r.odometry,
-        })
-        .collect()
-}
 
 fn run(records: &[ScanRecord], config: LaserGraphConfig) -> LaserGraphSlam {
     let mut slam = LaserGraphSlam::new(config, Pose2::IDENTITY, 0).unwrap();
@@ -74,11 +35,11 @@ fn assert_closures_true(slam: &LaserGraphSlam, truth: &[TimedPose]) {
 #[test]
 fn office_loop_is_closed() {
     for seed in [3, 5] {
-        let (records, truth) = office(seed);
+        let (records, truth) = common::office(seed);
         let slam = run(&records, LaserGraphConfig::default());
         let stats = slam.stats();
-        let err = rmse(&slam.trajectory(), &truth);
-        let odo = rmse(&dead_reckoning(&records), &truth);
+        let err = common::rmse(&slam.trajectory(), &truth);
+        let odo = common::rmse(&common::dead_reckoning(&records), &truth);
         eprintln!("office seed {seed}: {stats:?}, RMSE {err:.3} m, odometry {odo:.3} m");
         assert!(stats.loop_closures > 0, "no loop closure found");
         // Closures join the second lap to the first: records far apart in time.
@@ -105,7 +66,7 @@ fn office_loop_is_closed() {
 #[test]
 fn default_closures_are_all_true() {
     for seed in [1, 2, 4] {
-        let (records, truth) = office(seed);
+        let (records, truth) = common::office(seed);
         let slam = run(&records, LaserGraphConfig::default());
         eprintln!("office seed {seed}: {:?}", slam.stats());
         assert!(slam.stats().loop_closures > 0);
@@ -134,7 +95,7 @@ fn intel_prefix_relations_error() {
         .cloned()
         .collect();
     assert!(inside.len() > 300, "{} relations", inside.len());
-    let odo = slam::eval::metrics::relations_error(&dead_reckoning(records), &inside);
+    let odo = slam::eval::metrics::relations_error(&common::dead_reckoning(records), &inside);
     let slam = run(records, LaserGraphConfig::default());
     let traj = slam.trajectory();
     assert_eq!(traj.len(), records.len());
@@ -183,7 +144,7 @@ fn intel_whole_log() {
 /// Same input, same bytes: two runs give identical trajectories (no randomness).
 #[test]
 fn deterministic() {
-    let (records, _) = office(7);
+    let (records, _) = common::office(7);
     let records = &records[..600];
     let a = run(records, LaserGraphConfig::default()).trajectory();
     let b = run(records, LaserGraphConfig::default()).trajectory();
@@ -197,7 +158,7 @@ fn deterministic() {
 #[test]
 fn constructor_shape() {
     use slam::models::FromConfig;
-    let (records, _) = office(7);
+    let (records, _) = common::office(7);
     let records = &records[..200];
     let mut a = <LaserGraphSlam as FromConfig>::from_config(
         LaserGraphConfig::default(),
@@ -248,7 +209,7 @@ fn constructor_shape() {
 /// grids.
 #[test]
 fn loop_map_cache_size_does_not_change_the_result() {
-    let (records, _) = office(3);
+    let (records, _) = common::office(3);
     let small = run(
         &records,
         LaserGraphConfig {

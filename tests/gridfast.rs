@@ -19,44 +19,6 @@ use slam::models::{Pose2, ScanRecord, TimedPose};
 use slam::sim::scenario::{generate, ScenarioOptions};
 use slam::sim::SimOutput;
 
-/// The simulated `office` run of `seed` (defaults: two laps, 181-beam laser, odometry noise
-/// α = (0.02, 0.002, 0.02, 0.001)): its records and its ground truth (one pose per record).
-fn office(seed: u64) -> (Vec<ScanRecord>, Vec<TimedPose>) {
-    let opts = ScenarioOptions {
-        seed,
-        ..Default::default()
-    };
-    let Ok(SimOutput::Laser(run)) = generate("office", &opts) else {
-        panic!("office scenario did not generate a laser run");
-    };
-    let truth = run.dataset.ground_truth.expect("office has ground truth");
-    (run.dataset.records, truth)
-}
-
-/// Position RMSE of an estimate against the truth after expressing both relative to
-/// their first pose (the filter's world frame is the odometry frame of record 0).
-fn rmse(est: &[TimedPose], truth: &[TimedPose]) -> f64 {
-    assert_eq!(est.len(), truth.len());
-    let (e0, t0) = (est[0].pose, truth[0].pose);
-    let s: f64 = est
-        .iter()
-        .zip(truth)
-        .map(|(e, t)| e0.between(&e.pose).distance(&t0.between(&t.pose)).powi(2))
-        .sum();
-    (s / est.len() as f64).sqrt()
-}
-
-/// The odometry of the records as a trajectory (dead reckoning).
-fn dead_reckoning(records: &[ScanRecord]) -> Vec<TimedPose> {
-    records
-        .iter()
-        .map(|r| TimedPose {
-            t: r.t,
-            pose: r.odometry,
-        })
-        .collect()
-}
-
 /// Runs the filter (seed 42) over `records` on a pool of `threads` threads: its trajectory
 /// and the number of processed scans.
 fn run(records: &[ScanRecord], config: GridFastConfig, threads: usize) -> (Vec<TimedPose>, usize) {
@@ -91,8 +53,8 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// [`every_proposal_beats_dead_reckoning_in_the_office`] (one run is a lottery).
 #[test]
 fn office_output_is_thread_count_independent() {
-    let (records, truth) = office(3);
-    let odo_err = rmse(&dead_reckoning(&records), &truth);
+    let (records, truth) = common::office(3);
+    let odo_err = common::rmse(&common::dead_reckoning(&records), &truth);
     let config = GridFastConfig {
         particles: 8,
         ..Default::default()
@@ -110,7 +72,7 @@ fn office_output_is_thread_count_independent() {
         .iter()
         .zip(&two)
         .all(|(a, b)| a.pose == b.pose && a.t == b.t));
-    let err = rmse(&one, &truth);
+    let err = common::rmse(&one, &truth);
     eprintln!("office: odometry RMSE {odo_err:.3} m, gridfast improved RMSE {err:.3} m");
     assert!(
         odo_err > 1.0,
@@ -128,8 +90,8 @@ fn office_output_is_thread_count_independent() {
 /// proposal closes the loop (its median is held to [`LOOP_CLOSED_RMSE`]).
 #[test]
 fn every_proposal_beats_dead_reckoning_in_the_office() {
-    let (records, truth) = office(3);
-    let odo_err = rmse(&dead_reckoning(&records), &truth);
+    let (records, truth) = common::office(3);
+    let odo_err = common::rmse(&common::dead_reckoning(&records), &truth);
     eprintln!("dead reckoning: RMSE {odo_err:.3} m");
     assert!(
         odo_err > 1.0,
@@ -149,7 +111,7 @@ fn every_proposal_beats_dead_reckoning_in_the_office() {
             ..Default::default()
         };
         let errs: Vec<f64> = (1..=5)
-            .map(|seed| rmse(&run_seeded(&records, config.clone(), 2, seed).0, &truth))
+            .map(|seed| common::rmse(&run_seeded(&records, config.clone(), 2, seed).0, &truth))
             .collect();
         eprintln!("{proposal:?} with {particles} particles: RMSE {errs:.3?} m");
         let med = median(errs);
@@ -183,7 +145,7 @@ fn intel_prefix_relations_error() {
         "{} relations in the prefix",
         inside.len()
     );
-    let odo = slam::eval::metrics::relations_error(&dead_reckoning(records), &inside);
+    let odo = slam::eval::metrics::relations_error(&common::dead_reckoning(records), &inside);
     let config = GridFastConfig {
         particles: 10,
         ..Default::default()
@@ -310,7 +272,7 @@ fn campus_prefix_takes_outdoor_settings_from_the_data_and_holds() {
     };
     let truth = run.dataset.ground_truth.expect("campus has ground truth");
     let records = run.dataset.records;
-    let odometry = slam::eval::metrics::ate(&dead_reckoning(&records), &truth).unwrap();
+    let odometry = slam::eval::metrics::ate(&common::dead_reckoning(&records), &truth).unwrap();
     for seed in [0, 1] {
         let mut slam = GridFastSlam::new(
             GridFastConfig {
@@ -377,7 +339,7 @@ fn perturbed_intel_prefix(profile: &str, bound: f64) {
     std::fs::remove_dir_all(&dir).unwrap();
     // One ODOM and one FLASER record per scan.
     let records = &records[..800];
-    let odometry = slam::eval::metrics::ate(&dead_reckoning(records), &truth).unwrap();
+    let odometry = slam::eval::metrics::ate(&common::dead_reckoning(records), &truth).unwrap();
     let mut slam = GridFastSlam::new(GridFastConfig::default(), Pose2::IDENTITY, 0).unwrap();
     let run = common::run_scans(&mut slam, records);
     let e = slam::eval::metrics::ate(&run.trajectory, &truth).unwrap();
@@ -398,7 +360,7 @@ fn perturbed_intel_prefix(profile: &str, bound: f64) {
 /// test can fail.
 #[test]
 fn a_far_odometry_jump_in_the_office_is_recovered() {
-    let (mut records, truth) = office(3);
+    let (mut records, truth) = common::office(3);
     let k0 = records.len() / 3;
     let before = records[k0 - 1].odometry;
     let jump = Pose2::new(0.9, -0.8, 0.15);
@@ -417,7 +379,7 @@ fn a_far_odometry_jump_in_the_office_is_recovered() {
         let mut slam = GridFastSlam::new(config, Pose2::IDENTITY, 1).unwrap();
         let run = common::run_scans(&mut slam, &records);
         let recovered: usize = run.updates.iter().map(|u| u.match_recoveries).sum();
-        (rmse(&run.trajectory, &truth), recovered)
+        (common::rmse(&run.trajectory, &truth), recovered)
     };
     let (with, recovered) = run(0.4);
     let (without, none) = run(0.0);

@@ -47,3 +47,42 @@ pub fn run_scans(
     };
     slam::eval::run_scans(filter, &data, &Default::default()).expect("the run")
 }
+
+/// The simulated `office` run of `seed` (defaults: two laps, 181-beam laser): its records
+/// and its ground truth (one pose per record).
+pub fn office(seed: u64) -> (Vec<slam::models::ScanRecord>, Vec<slam::models::TimedPose>) {
+    let opts = slam::sim::scenario::ScenarioOptions {
+        seed,
+        ..Default::default()
+    };
+    let Ok(slam::sim::SimOutput::Laser(run)) = slam::sim::scenario::generate("office", &opts)
+    else {
+        panic!("office scenario did not generate a laser run");
+    };
+    let truth = run.dataset.ground_truth.expect("office has ground truth");
+    (run.dataset.records, truth)
+}
+
+/// Position RMSE of an estimate against the truth after expressing both relative to
+/// their first pose (a filter's world frame is the odometry frame of record 0).
+pub fn rmse(est: &[slam::models::TimedPose], truth: &[slam::models::TimedPose]) -> f64 {
+    assert_eq!(est.len(), truth.len());
+    let (e0, t0) = (est[0].pose, truth[0].pose);
+    let s: f64 = est
+        .iter()
+        .zip(truth)
+        .map(|(e, t)| e0.between(&e.pose).distance(&t0.between(&t.pose)).powi(2))
+        .sum();
+    (s / est.len() as f64).sqrt()
+}
+
+/// The odometry of the records as a trajectory (dead reckoning).
+pub fn dead_reckoning(records: &[slam::models::ScanRecord]) -> Vec<slam::models::TimedPose> {
+    records
+        .iter()
+        .map(|r| slam::models::TimedPose {
+            t: r.t,
+            pose: r.odometry,
+        })
+        .collect()
+}
