@@ -52,7 +52,7 @@ pub use matcher::{
     MaxPyramid, RefinedCorrelativeMatcher, ScanMatcher,
 };
 pub mod scanmatch;
-pub use scanmatch::{ScanMatchConfig, ScanMatchOdometry};
+pub use scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// the occupancy grid and scan matchers compiles with this crate alone (sophus-rs style).

@@ -1,14 +1,178 @@
-//! Scan-matching odometry: every scan matched against the map built so far.
+//! Scan-matching odometry: every scan matched against the map built so far, with the one
+//! scan-scoring model of the crate (the truncated endpoint model of
+//! [`crate::matcher::endpoint`], grid FastSLAM's).
 
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
-use crate::likelihood::LikelihoodParams;
-use crate::matcher::RefinedCorrelativeMatcher;
+use crate::matcher::check_input;
+use crate::matcher::endpoint::{
+    hill_climb, wide_search, EndpointModel, HillClimbSteps, SearchWindow,
+};
 use crate::scan::PreparedScan;
-use crate::InverseSensorModel;
+use crate::{InverseSensorModel, MAX_DISTANCE_RADIUS};
 use serde::{Deserialize, Serialize};
+use slam_models::Vector3;
 use slam_models::{normalize_angle, FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam};
-use slam_models::{OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
+use slam_models::{Matrix3, OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
+
+/// The matching of [`ScanMatchOdometry`]: the truncated endpoint model (PR §6.4; the
+/// parameters of grid FastSLAM's `[matching]` table, defaults its indoor preset's), a
+/// window search around the odometry prediction and the hill climber.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+pub struct EndpointMatchingConfig {
+    /// Standard deviation σ of the endpoint model: a beam ending at distance d from the
+    /// nearest occupied cell contributes −d²/(2σ²) to the log-likelihood, metres. Default
+    /// 0.05 (grid FastSLAM's indoor preset: one 5 cm cell).
+    pub sigma: f64,
+    /// Reach of the map's incrementally repaired distance field, metres, a whole number
+    /// of 1 to 15 cells: the capture range of the window search and of the hill climber's
+    /// coarse phase, which score with the model truncated here. Default 0.2 (four 5 cm
+    /// cells, grid FastSLAM's indoor preset).
+    pub field_radius: f64,
+    /// The model's truncation r (the outlier floor −r²/(2σ²)) where the pose is decided:
+    /// the hill climber's fine phase and the inlier count, metres, in (0, `field_radius`].
+    /// Default 0.15 (grid FastSLAM's indoor preset).
+    pub likelihood_radius: f64,
+    /// The summed beam log-likelihood is divided by this where it is weighed against the
+    /// search's prior (GMapping's `ogain`; it changes nothing without a prior). Default 3
+    /// (grid FastSLAM's).
+    pub gain: f64,
+    /// Hill climber: initial translation step, metres. Default 0.1 (grid FastSLAM's indoor
+    /// preset).
+    pub linear_step: f64,
+    /// Hill climber: initial rotation step, radians. Default 0.1.
+    pub angular_step: f64,
+    /// Hill climber: how often the steps are halved (0 to 30). Default 6 (final steps
+    /// 1.6 mm / 1.6 mrad).
+    pub refinements: usize,
+    /// Window search before the climb: ± this in x and y around the prediction, metres
+    /// (0 with `search_range_theta` 0 switches the search off). Default 0.4 (the window the
+    /// correlative matcher searched before, issue 21).
+    pub search_range_xy: f64,
+    /// Window search translation step, metres, rounded to whole map cells (at least one).
+    /// Default 0.05 (one cell).
+    pub search_step_xy: f64,
+    /// Window search: ± this in θ, radians, in [0, π]. Default 0.21 (12°, the correlative
+    /// matcher's window before).
+    pub search_range_theta: f64,
+    /// Window search rotation step, radians (> 0). Default 0.01.
+    pub search_step_theta: f64,
+    /// Standard deviations of the Gaussian prior N(prediction, diag(s_xy², s_xy², s_θ²))
+    /// that weighs the window search, (metres, radians); 0 for none (the plain maximum of
+    /// the likelihood over the window). Default (0, 0).
+    pub search_prior_std: [f64; 2],
+    /// A match counts as failed, and the odometry prediction is kept, when fewer than this
+    /// fraction of the matching end points end within `likelihood_radius` of an occupied
+    /// cell at the matched pose, in [0, 1]. Default 0.25 (grid FastSLAM's).
+    pub min_inlier_fraction: f64,
+    /// Fewer matching end points than this is a failed match. Default 10.
+    pub min_points: usize,
+}
+
+impl Default for EndpointMatchingConfig {
+    fn default() -> Self {
+        Self {
+            sigma: 0.05,
+            field_radius: 0.2,
+            likelihood_radius: 0.15,
+            gain: 3.0,
+            linear_step: 0.1,
+            angular_step: 0.1,
+            refinements: 6,
+            search_range_xy: 0.4,
+            search_step_xy: 0.05,
+            search_range_theta: 0.21,
+            search_step_theta: 0.01,
+            search_prior_std: [0.0, 0.0],
+            min_inlier_fraction: 0.25,
+            min_points: 10,
+        }
+    }
+}
+
+/// Most lattice steps per side of the window search in each dimension: beyond it the
+/// search's tables (one cell per end point and rotation) grow past tens of megabytes.
+pub const MAX_SEARCH_STEPS: f64 = 1000.0;
+
+impl EndpointMatchingConfig {
+    /// Checks every value (finite, in its range; the field's reach 1 to 15 cells of
+    /// `resolution`, the truncation within it).
+    pub fn validate(&self, resolution: f64) -> Result<(), GridError> {
+        let positive = |v: f64| v > 0.0 && v.is_finite();
+        ensure_config(positive(self.sigma), "matching.sigma", self.sigma, "> 0 m")?;
+        let cells = self.field_radius / resolution;
+        ensure_config(
+            (1.0..=MAX_DISTANCE_RADIUS as f64).contains(&cells),
+            "matching.field-radius",
+            self.field_radius,
+            "between 1 and 15 cells of resolution",
+        )?;
+        ensure_config(
+            self.likelihood_radius > 0.0 && self.likelihood_radius <= self.field_radius,
+            "matching.likelihood-radius",
+            self.likelihood_radius,
+            "in (0, matching.field-radius] m",
+        )?;
+        ensure_config(positive(self.gain), "matching.gain", self.gain, "> 0")?;
+        ensure_config(
+            positive(self.linear_step),
+            "matching.linear-step",
+            self.linear_step,
+            "> 0 m",
+        )?;
+        ensure_config(
+            positive(self.angular_step),
+            "matching.angular-step",
+            self.angular_step,
+            "> 0 rad",
+        )?;
+        ensure_config(
+            self.refinements <= 30,
+            "matching.refinements",
+            self.refinements as f64,
+            "<= 30",
+        )?;
+        ensure_config(
+            positive(self.search_step_xy),
+            "matching.search-step-xy",
+            self.search_step_xy,
+            "> 0 m",
+        )?;
+        ensure_config(
+            positive(self.search_step_theta),
+            "matching.search-step-theta",
+            self.search_step_theta,
+            "> 0 rad",
+        )?;
+        ensure_config(
+            self.search_range_xy >= 0.0
+                && self.search_range_xy / self.search_step_xy <= MAX_SEARCH_STEPS,
+            "matching.search-range-xy",
+            self.search_range_xy,
+            ">= 0 m and at most 1000 search-step-xy",
+        )?;
+        ensure_config(
+            (0.0..=std::f64::consts::PI).contains(&self.search_range_theta)
+                && self.search_range_theta / self.search_step_theta <= MAX_SEARCH_STEPS,
+            "matching.search-range-theta",
+            self.search_range_theta,
+            "in [0, π] rad and at most 1000 search-step-theta",
+        )?;
+        for (v, name) in self.search_prior_std.into_iter().zip([
+            "matching.search-prior-std[0]",
+            "matching.search-prior-std[1]",
+        ]) {
+            ensure_config(v >= 0.0 && v.is_finite(), name, v, ">= 0 (0: no prior)")?;
+        }
+        ensure_config(
+            (0.0..=1.0).contains(&self.min_inlier_fraction),
+            "matching.min-inlier-fraction",
+            self.min_inlier_fraction,
+            "in [0, 1]",
+        )
+    }
+}
 
 /// Configuration of [`ScanMatchOdometry`].
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -18,16 +182,11 @@ pub struct ScanMatchConfig {
     pub resolution: f64,
     /// Inverse sensor model of the map updates.
     pub sensor_model: InverseSensorModel,
-    /// Likelihood field used by the matcher.
-    pub likelihood: LikelihoodParams,
-    /// The matcher: correlative search around the odometry prediction, then Gauss-Newton.
-    pub matcher: RefinedCorrelativeMatcher,
+    /// The endpoint model and the matching.
+    pub matching: EndpointMatchingConfig,
     /// End points farther than this from the sensor are not used for matching, metres.
     /// Default 20 m.
     pub match_max_range: f64,
-    /// Matches whose mean field value is below this are rejected (the odometry prediction
-    /// is kept instead). Default 0.2.
-    pub min_score: f64,
     /// A scan is processed only once the robot moved this far since the last processed
     /// scan (by odometry), metres. Default 0.1 m. The first scan is always processed.
     pub linear_update: f64,
@@ -43,10 +202,8 @@ impl Default for ScanMatchConfig {
         Self {
             resolution: 0.05,
             sensor_model: InverseSensorModel::default(),
-            likelihood: LikelihoodParams::default(),
-            matcher: RefinedCorrelativeMatcher::default(),
+            matching: EndpointMatchingConfig::default(),
             match_max_range: 20.0,
-            min_score: 0.2,
             linear_update: 0.1,
             angular_update: 0.1,
             odometry_jump: OdometryJumpLimit::default(),
@@ -54,11 +211,65 @@ impl Default for ScanMatchConfig {
     }
 }
 
+/// The matching parameters in the form the endpoint functions take.
+#[derive(Debug, Clone, Copy)]
+struct Matching {
+    /// The model truncated at `likelihood_radius`: the climb's fine phase, the inliers.
+    lk: EndpointModel,
+    /// The model truncated at the field's reach: the window search, the coarse phase.
+    capture: EndpointModel,
+    hc: HillClimbSteps,
+    /// `None` when the window is empty (no search).
+    window: Option<SearchWindow>,
+    min_inlier_fraction: f64,
+    min_points: usize,
+}
+
+impl Matching {
+    fn new(m: &EndpointMatchingConfig, field_cells: u32, resolution: f64) -> Self {
+        let lk = EndpointModel::new(m.sigma, m.likelihood_radius, m.gain);
+        let information = |s: f64| if s > 0.0 { 1.0 / (s * s) } else { 0.0 };
+        let [s_xy, s_theta] = m.search_prior_std;
+        Self {
+            lk,
+            capture: EndpointModel {
+                radius: field_cells as f64 * resolution,
+                ..lk
+            },
+            hc: HillClimbSteps {
+                linear_step: m.linear_step,
+                angular_step: m.angular_step,
+                refinements: m.refinements,
+            },
+            window: (m.search_range_xy > 0.0 || m.search_range_theta > 0.0).then(|| SearchWindow {
+                range_xy: m.search_range_xy,
+                step_xy: m.search_step_xy,
+                range_theta: m.search_range_theta,
+                step_theta: m.search_step_theta,
+                information: Matrix3::from_diagonal(&Vector3::new(
+                    information(s_xy),
+                    information(s_xy),
+                    information(s_theta),
+                )),
+            }),
+            min_inlier_fraction: m.min_inlier_fraction,
+            min_points: m.min_points,
+        }
+    }
+}
+
 /// Scan-matching odometry, the baseline of the SLAM benchmarks: each processed scan is
-/// matched ([`RefinedCorrelativeMatcher`]) against the map built from all earlier processed
-/// scans, starting from the last corrected pose composed with the odometry increment since;
-/// the scan is then written into the map at the matched pose. No loop closure: errors
-/// accumulate, more slowly than with odometry alone.
+/// matched against the map built from all earlier processed scans, starting from the last
+/// corrected pose composed with the odometry increment since; the scan is then written
+/// into the map at the matched pose. No loop closure: errors accumulate, more slowly than
+/// with odometry alone.
+///
+/// The match uses the one scan-scoring model of the crate, grid FastSLAM's
+/// ([`crate::matcher::endpoint`]): the truncated endpoint log-likelihood on the map's
+/// incrementally repaired distance field; a branch-and-bound search of a window around the
+/// prediction ([`wide_search`], the exact optimum of its lattice, weighed by an optional
+/// Gaussian prior), then the hill climber ([`hill_climb`]) from its best pose. A match with
+/// too few beams on the map keeps the prediction.
 ///
 /// Every record gets a pose: the last corrected pose ⊕ (odometry since that scan), so
 /// [`ScanSlam::trajectory`] has one entry per record. The first record defines the world
@@ -66,6 +277,7 @@ impl Default for ScanMatchConfig {
 #[derive(Debug, Clone)]
 pub struct ScanMatchOdometry {
     config: ScanMatchConfig,
+    matching: Matching,
     grid: OccupancyGrid,
     /// World pose of the first record.
     initial_pose: Pose2,
@@ -77,6 +289,10 @@ pub struct ScanMatchOdometry {
     failures: usize,
     guard: OdometryJumpGuard,
 }
+
+/// The farthest a pose may move in the hill climb, in initial linear steps: more than the
+/// climber's budget of moves, for the range check of [`check_input`].
+const CLIMB_REACH_STEPS: f64 = 100.0;
 
 impl ScanMatchOdometry {
     /// A filter with an empty map whose first record is at `initial_pose` (world frame);
@@ -95,16 +311,16 @@ impl ScanMatchOdometry {
             });
         }
         ensure_config(
+            config.resolution > 0.0 && config.resolution.is_finite(),
+            "resolution",
+            config.resolution,
+            "> 0 m",
+        )?;
+        ensure_config(
             config.match_max_range > 0.0,
             "match_max_range",
             config.match_max_range,
             "> 0 m",
-        )?;
-        ensure_config(
-            (0.0..=1.0).contains(&config.min_score),
-            "min_score",
-            config.min_score,
-            "in [0, 1]",
         )?;
         ensure_config(
             config.linear_update >= 0.0,
@@ -118,12 +334,14 @@ impl ScanMatchOdometry {
             config.angular_update,
             ">= 0 rad",
         )?;
+        config.matching.validate(config.resolution)?;
         let guard = OdometryJumpGuard::new(config.odometry_jump)?;
-        config.matcher.correlative.validate()?;
-        config.matcher.refine.validate()?;
+        // In 1..=15 by the validation above.
+        let field_cells = (config.matching.field_radius / config.resolution).round() as u32;
         let grid = OccupancyGrid::try_new(config.resolution, config.sensor_model)?
-            .with_likelihood(config.likelihood)?;
+            .with_incremental_distance(field_cells)?;
         Ok(Self {
+            matching: Matching::new(&config.matching, field_cells, config.resolution),
             config,
             grid,
             initial_pose,
@@ -144,6 +362,33 @@ impl ScanMatchOdometry {
     /// Processed scans whose match was rejected or failed (odometry used instead).
     pub fn match_failures(&self) -> usize {
         self.failures
+    }
+
+    /// The matched pose of `scan` around `predicted`, or `None` when the match fails: too
+    /// few end points, a prediction out of the matchers' range, or too few inliers at the
+    /// best pose. Errors only when the window is too large for the search's pyramid.
+    fn match_scan(
+        &self,
+        scan: &PreparedScan,
+        predicted: &Pose2,
+    ) -> Result<Option<Pose2>, GridError> {
+        let m = &self.matching;
+        let reach = self.config.matching.search_range_xy
+            + CLIMB_REACH_STEPS * self.config.matching.linear_step;
+        if check_input(&self.grid, scan, predicted, m.min_points, reach).is_err() {
+            return Ok(None);
+        }
+        let Some(field) = self.grid.distance_field() else {
+            // Unreachable: the grid is made with its distance field in `new`.
+            return Ok(None);
+        };
+        let start = match &m.window {
+            Some(window) => wide_search(&field, scan, predicted, &m.capture, window)?.pose,
+            None => *predicted,
+        };
+        let matched = hill_climb(&field, scan, &start, &m.capture, &m.lk, &m.hc);
+        let needed = ((m.min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
+        Ok((matched.score.inliers >= needed).then_some(matched.pose))
     }
 
     fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridError> {
@@ -170,13 +415,9 @@ impl ScanMatchOdometry {
             if due {
                 let prepared = PreparedScan::with_limits(scan, 0.0, self.config.match_max_range)?;
                 let pose = if self.map_has_scan {
-                    match self
-                        .config
-                        .matcher
-                        .match_prepared(&self.grid, &prepared, &predicted)
-                    {
-                        Ok(m) if m.score >= self.config.min_score => m.pose,
-                        _ => {
+                    match self.match_scan(&prepared, &predicted)? {
+                        Some(pose) => pose,
+                        None => {
                             self.failures += 1;
                             info.match_failures = 1;
                             predicted
