@@ -104,26 +104,26 @@ impl EndpointMatchingConfig {
         let cells = self.field_radius / resolution;
         ensure_config(
             (1.0..=MAX_DISTANCE_RADIUS as f64).contains(&cells),
-            "matching.field-radius",
+            "matching.field_radius",
             self.field_radius,
             "between 1 and 15 cells of resolution",
         )?;
         ensure_config(
             self.likelihood_radius > 0.0 && self.likelihood_radius <= self.field_radius,
-            "matching.likelihood-radius",
+            "matching.likelihood_radius",
             self.likelihood_radius,
             "in (0, matching.field-radius] m",
         )?;
         ensure_config(positive(self.gain), "matching.gain", self.gain, "> 0")?;
         ensure_config(
             positive(self.linear_step),
-            "matching.linear-step",
+            "matching.linear_step",
             self.linear_step,
             "> 0 m",
         )?;
         ensure_config(
             positive(self.angular_step),
-            "matching.angular-step",
+            "matching.angular_step",
             self.angular_step,
             "> 0 rad",
         )?;
@@ -135,39 +135,39 @@ impl EndpointMatchingConfig {
         )?;
         ensure_config(
             positive(self.search_step_xy),
-            "matching.search-step-xy",
+            "matching.search_step_xy",
             self.search_step_xy,
             "> 0 m",
         )?;
         ensure_config(
             positive(self.search_step_theta),
-            "matching.search-step-theta",
+            "matching.search_step_theta",
             self.search_step_theta,
             "> 0 rad",
         )?;
         ensure_config(
             self.search_range_xy >= 0.0
                 && self.search_range_xy / self.search_step_xy <= MAX_SEARCH_STEPS,
-            "matching.search-range-xy",
+            "matching.search_range_xy",
             self.search_range_xy,
             ">= 0 m and at most 1000 search-step-xy",
         )?;
         ensure_config(
             (0.0..=std::f64::consts::PI).contains(&self.search_range_theta)
                 && self.search_range_theta / self.search_step_theta <= MAX_SEARCH_STEPS,
-            "matching.search-range-theta",
+            "matching.search_range_theta",
             self.search_range_theta,
             "in [0, π] rad and at most 1000 search-step-theta",
         )?;
         for (v, name) in self.search_prior_std.into_iter().zip([
-            "matching.search-prior-std[0]",
-            "matching.search-prior-std[1]",
+            "matching.search_prior_std[0]",
+            "matching.search_prior_std[1]",
         ]) {
             ensure_config(v >= 0.0 && v.is_finite(), name, v, ">= 0 (0: no prior)")?;
         }
         ensure_config(
             (0.0..=1.0).contains(&self.min_inlier_fraction),
-            "matching.min-inlier-fraction",
+            "matching.min_inlier_fraction",
             self.min_inlier_fraction,
             "in [0, 1]",
         )
@@ -543,6 +543,131 @@ mod tests {
                 Some(GridError::NonFinite { .. })
             ),
             "{e:?}"
+        );
+    }
+
+    /// A filter that processed one scan of the office taken at `first` (world frame),
+    /// its first record placed at `first` + `shift` (the filter's frame: the world moved by
+    /// `shift`).
+    fn after_one_scan(first: &Pose2, shift: (f64, f64)) -> ScanMatchOdometry {
+        let world = SegmentWorld::office();
+        let placed = Pose2::new(first.x + shift.0, first.y + shift.1, first.theta);
+        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default(), placed, 0).unwrap();
+        f.process(&ScanRecord {
+            t: 0.0,
+            odometry: Pose2::IDENTITY,
+            scan: Some(world.scan(first, 181, std::f64::consts::PI, 20.0)),
+        })
+        .unwrap();
+        f
+    }
+
+    /// The match finds the true pose from odometry errors up to 0.35 m and 0.18 rad (within
+    /// the window search's ±0.4 m / ±0.21 rad): the matched pose is within 1 cm and 0.2° of
+    /// the pose the scan was simulated at.
+    ///
+    /// The office's walls lie on whole metres, i.e. on cell boundaries of a 5 cm grid at
+    /// the world origin, where rounding puts a wall's hits on either side and the mapped
+    /// wall moves by up to half a cell (2.5 cm), and the matched pose with it: the filter's
+    /// frame is the world moved by half a cell, so that the walls run through cell centres.
+    #[test]
+    fn recovers_large_odometry_errors() {
+        let world = SegmentWorld::office();
+        let shift = (0.025, 0.025);
+        let first = Pose2::new(2.0, 3.0, 0.2);
+        let truth = Pose2::new(2.5, 3.1, 0.25);
+        let expected = Pose2::new(truth.x + shift.0, truth.y + shift.1, truth.theta);
+        for (dx, dy, dtheta) in [
+            (0.3, -0.25, 0.15),
+            (-0.35, 0.2, -0.18),
+            (0.1, 0.3, 0.0),
+            (0.0, 0.0, 0.0),
+        ] {
+            let mut f = after_one_scan(&first, shift);
+            // The odometry (first record at the identity) reports truth ⊕ error.
+            let reported = Pose2::new(truth.x + dx, truth.y + dy, truth.theta + dtheta);
+            let info = f
+                .process(&ScanRecord {
+                    t: 0.1,
+                    odometry: first.between(&reported),
+                    scan: Some(world.scan(&truth, 181, std::f64::consts::PI, 20.0)),
+                })
+                .unwrap();
+            assert!(info.processed_scan && info.match_failures == 0, "{info:?}");
+            let got = f.pose();
+            assert!(
+                got.distance(&expected) < 0.01
+                    && normalize_angle(got.theta - expected.theta).abs() < 0.0035,
+                "from an error of ({dx}, {dy}, {dtheta}): {got:?} against {expected:?}"
+            );
+        }
+    }
+
+    /// A scan that does not fit the map (a ring of returns 0.3 m around the robot, in the
+    /// middle of a room) is a failed match: counted, and the pose is the odometry's.
+    #[test]
+    fn a_scan_that_does_not_fit_keeps_the_prediction() {
+        let first = Pose2::new(9.0, 6.5, 0.0);
+        let mut f = after_one_scan(&first, (0.0, 0.0));
+        let ring = slam_models::LaserScan {
+            angle_min: -std::f64::consts::PI,
+            angle_increment: std::f64::consts::TAU / 180.0,
+            ranges: vec![0.3; 180],
+            max_range: 20.0,
+            sensor_pose: Pose2::IDENTITY,
+        };
+        let odometry = Pose2::new(0.2, 0.0, 0.0);
+        let info = f
+            .process(&ScanRecord {
+                t: 0.1,
+                odometry,
+                scan: Some(ring),
+            })
+            .unwrap();
+        assert!(info.processed_scan, "{info:?}");
+        assert_eq!((info.match_failures, f.match_failures()), (1, 1));
+        assert_eq!(f.pose(), first.compose(&odometry));
+    }
+
+    /// Every matching value out of its range is refused, naming its key and bound.
+    #[test]
+    fn bad_matching_values_are_refused_by_key() {
+        type Edit = fn(&mut EndpointMatchingConfig);
+        let cases: [(Edit, &str); 9] = [
+            (|m| m.sigma = f64::NAN, "matching.sigma"),
+            // 20 cells of 5 cm: beyond the distance field's 15.
+            (|m| m.field_radius = 1.0, "matching.field_radius"),
+            (|m| m.field_radius = 0.02, "matching.field_radius"),
+            (|m| m.likelihood_radius = 0.25, "matching.likelihood_radius"),
+            (|m| m.refinements = 31, "matching.refinements"),
+            (
+                |m| m.search_range_theta = 4.0,
+                "matching.search_range_theta",
+            ),
+            (|m| m.search_range_xy = 100.0, "matching.search_range_xy"),
+            (
+                |m| m.search_prior_std[1] = -0.1,
+                "matching.search_prior_std[1]",
+            ),
+            (
+                |m| m.min_inlier_fraction = 1.5,
+                "matching.min_inlier_fraction",
+            ),
+        ];
+        for (edit, key) in cases {
+            let mut config = ScanMatchConfig::default();
+            edit(&mut config.matching);
+            let e = ScanMatchOdometry::new(config, Pose2::IDENTITY, 0).unwrap_err();
+            assert!(
+                matches!(&e, GridError::InvalidConfig(c) if c.field == key),
+                "{key}: {e}"
+            );
+        }
+        // The defaults are grid FastSLAM's indoor preset's.
+        let m = EndpointMatchingConfig::default();
+        assert_eq!(
+            (m.sigma, m.field_radius, m.likelihood_radius, m.gain),
+            (0.05, 0.2, 0.15, 3.0)
         );
     }
 
