@@ -18,9 +18,10 @@
 //!   reusable max-pyramid (Cartographer's fast correlative matcher) for loop closures;
 //!   [`matcher::endpoint`]: the truncated endpoint model as a log-likelihood on the
 //!   incremental distance field, with the same hill climber and an exhaustive search under a
-//!   motion prior (grid FastSLAM's matching). Every matcher takes the one [`PreparedScan`].
-//! * [`ScanMatchOdometry`]: each scan matched against the map built so far (`ScanSlam`,
-//!   name `"scanmatch"`).
+//!   motion prior (the matching of grid FastSLAM and of scan-matching odometry). Every
+//!   matcher takes the one [`PreparedScan`].
+//! * [`ScanMatchOdometry`]: each scan matched against the map built so far with
+//!   [`matcher::endpoint`] (`ScanSlam`, name `"scanmatch"`).
 //!
 //! Units: metres, radians; world frame right-handed, θ counter-clockwise.
 

@@ -19,7 +19,9 @@
 //! [`endpoint`] scores the same endpoint model as a truncated log-likelihood on a grid's
 //! incrementally repaired distance field, with the same hill climber and an exhaustive
 //! search under a motion prior: the matching of grid FastSLAM (slam-gridfast), which needs
-//! log-likelihoods for its weights.
+//! log-likelihoods for its weights, and of scan-matching odometry
+//! ([`crate::ScanMatchOdometry`]). The mean-field matchers above serve the pose-graph front
+//! end (slam-graph: local matching, loop closures, the response covariance).
 
 mod branch_bound;
 mod correlative;
