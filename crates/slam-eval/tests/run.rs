@@ -283,6 +283,17 @@ fn bad_configs_are_clear_errors() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("variant") && e.contains("fastslam1"), "{e}");
+    // scanmatch's keys from before it used the endpoint model (issue 21) are unknown now.
+    let e = err("filter = \"scanmatch\"\nmin-score = 0.2\n");
+    assert!(e.contains("min-score") && e.contains("line 2"), "{e}");
+    let e = err("filter = \"scanmatch\"\n[matcher.correlative]\nlinear-window = 0.4\n");
+    assert!(e.contains("matcher"), "{e}");
+    // Its endpoint model's reach beyond the distance field's 15 cells names the key.
+    let parsed =
+        FilterConfig::from_toml("filter = \"scanmatch\"\n[matching]\nfield-radius = 1.0\n")
+            .unwrap();
+    let e = parsed.config.build_scan(0).err().unwrap().to_string();
+    assert!(e.contains("matching.field-radius = 1"), "{e}");
     let mut ekf = FilterConfig::default_for("ekf").unwrap();
     assert!(matches!(
         ekf.set_particles(10),

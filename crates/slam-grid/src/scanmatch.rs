@@ -11,8 +11,8 @@ use crate::matcher::endpoint::{
 use crate::scan::PreparedScan;
 use crate::{InverseSensorModel, MAX_DISTANCE_RADIUS};
 use serde::{Deserialize, Serialize};
-use slam_models::Vector3;
 use slam_models::{normalize_angle, FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam};
+use slam_models::{ConfigError, Vector3};
 use slam_models::{Matrix3, OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
 
 /// The matching of [`ScanMatchOdometry`]: the truncated endpoint model (PR §6.4; the
@@ -383,7 +383,22 @@ impl ScanMatchOdometry {
             return Ok(None);
         };
         let start = match &m.window {
-            Some(window) => wide_search(&field, scan, predicted, &m.capture, window)?.pose,
+            Some(window) => {
+                wide_search(&field, scan, predicted, &m.capture, window)
+                    .map_err(|e| match e {
+                        // The pyramid over the window and the scan is too large: say which
+                        // setting makes it so.
+                        GridError::InvalidConfig(_) => GridError::InvalidConfig(ConfigError::new(
+                            "grid",
+                            "matching.search_range_xy",
+                            window.range_xy,
+                            "small enough that the window and the scan (match-max-range) fit \
+                             a search pyramid of 16e6 cells",
+                        )),
+                        other => other,
+                    })?
+                    .pose
+            }
             None => *predicted,
         };
         let matched = hill_climb(&field, scan, &start, &m.capture, &m.lk, &m.hc);
@@ -550,9 +565,18 @@ mod tests {
     /// its first record placed at `first` + `shift` (the filter's frame: the world moved by
     /// `shift`).
     fn after_one_scan(first: &Pose2, shift: (f64, f64)) -> ScanMatchOdometry {
+        after_one_scan_with(first, shift, ScanMatchConfig::default())
+    }
+
+    /// [`after_one_scan`] with `config`.
+    fn after_one_scan_with(
+        first: &Pose2,
+        shift: (f64, f64),
+        config: ScanMatchConfig,
+    ) -> ScanMatchOdometry {
         let world = SegmentWorld::office();
         let placed = Pose2::new(first.x + shift.0, first.y + shift.1, first.theta);
-        let mut f = ScanMatchOdometry::new(ScanMatchConfig::default(), placed, 0).unwrap();
+        let mut f = ScanMatchOdometry::new(config, placed, 0).unwrap();
         f.process(&ScanRecord {
             t: 0.0,
             odometry: Pose2::IDENTITY,
@@ -663,6 +687,27 @@ mod tests {
                 "{key}: {e}"
             );
         }
+        // A window too large for the search's pyramid is refused at the first match, by key.
+        let mut config = ScanMatchConfig::default();
+        config.matching.search_range_xy = 400.0;
+        config.matching.search_step_xy = 0.5;
+        let mut f = after_one_scan_with(&Pose2::new(2.0, 3.0, 0.0), (0.0, 0.0), config);
+        let e = f
+            .process(&ScanRecord {
+                t: 0.1,
+                odometry: Pose2::new(0.2, 0.0, 0.0),
+                scan: Some(SegmentWorld::office().scan(
+                    &Pose2::new(2.2, 3.0, 0.0),
+                    181,
+                    std::f64::consts::PI,
+                    20.0,
+                )),
+            })
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("search-range-xy") && e.to_string().contains("16e6"),
+            "{e}"
+        );
         // The defaults are grid FastSLAM's indoor preset's.
         let m = EndpointMatchingConfig::default();
         assert_eq!(
