@@ -317,6 +317,27 @@ impl<'a> DistanceField<'a> {
         }
     }
 
+    /// The distances of the cells `start`, `start` + (1, 0), …, one per element of `out`
+    /// (a row of cells read tile by tile: the same values as [`DistanceField::dist`]).
+    pub fn read_row(&self, start: CellIndex, out: &mut [u8]) {
+        let ((_, ty), _) = split(start);
+        let mut x = start.x;
+        let mut rest = out;
+        while !rest.is_empty() {
+            let ((tx, _), local) = split(CellIndex::new(x, start.y));
+            let lx = (x & TILE_MASK) as usize;
+            let n = (TILE_SIZE - lx).min(rest.len());
+            let (head, tail) = rest.split_at_mut(n);
+            match self.tile(tx, ty) {
+                Some(t) => head.copy_from_slice(&t.dist[local..local + n]),
+                None => head.fill(self.max),
+            }
+            rest = tail;
+            // Wrapping: a row running past i32::MAX reads on from i32::MIN, never overflows.
+            x = x.wrapping_add(n as i32);
+        }
+    }
+
     /// The four distances [d(i, j), d(i+1, j), d(i, j+1), d(i+1, j+1)] around `c` = (i, j),
     /// the corners of a bilinear interpolation between cell centres; one tile look-up when
     /// all four lie in one tile.
@@ -492,6 +513,27 @@ mod tests {
         assert!(OccupancyGrid::new(0.05, InverseSensorModel::default())
             .with_incremental_distance(16)
             .is_err());
+    }
+
+    #[test]
+    fn read_row_reads_what_dist_reads() {
+        let mut g = grid(4);
+        g.integrate_scan(&Pose2::new(0.012, 0.013, 0.0), &scan(vec![3.02; 181]));
+        let f = g.distance_field().unwrap();
+        let mut seen = [false; 2];
+        // Rows across stored and missing tiles, starting anywhere in a tile.
+        for y in (-80..80).step_by(7) {
+            for (x0, n) in [(-100, 250), (-33, 1), (31, 2), (5, 64), (-1, 97)] {
+                let mut row = vec![1u8; n];
+                f.read_row(CellIndex::new(x0, y), &mut row);
+                for (i, &d) in row.iter().enumerate() {
+                    let c = CellIndex::new(x0 + i as i32, y);
+                    assert_eq!(d, f.dist(c), "{c:?}");
+                    seen[usize::from(d == f.max_units())] = true;
+                }
+            }
+        }
+        assert_eq!(seen, [true, true], "rows read near and far cells");
     }
 
     #[test]

@@ -587,6 +587,151 @@ fn descend(
 
 /// Sorts by decreasing score; ties keep their order (a stable sort), so the search is
 /// deterministic.
+/// Most cells of a [`MinPyramid`] level: beyond this the coarse search falls back to brute
+/// force (4 MB per level; an indoor scan's window needs about 10⁵ cells).
+pub(crate) const MAX_MIN_PYRAMID_CELLS: usize = 4_000_000;
+
+/// Min-pooled truncated distances of a rectangle of cells, a two-dimensional sparse table of
+/// square blocks (the distance analogue of [`MaxPyramid`]):
+///
+/// Q₀(c) = d(c), and Q_L(x, y) = min of d over [x, x + 2^L) × [y, y + 2^L),
+///
+/// computed level by level as Q_L(x, y) = min(Q_{L−1}(x, y), Q_{L−1}(x + h, y),
+/// Q_{L−1}(x, y + h), Q_{L−1}(x + h, y + h)) with h = 2^(L−1), separably (rows, then
+/// columns), on `u8` distances so the passes vectorise. Any box of cells is the union of
+/// squares of the side 2^L ≤ its shorter side, so [`MinPyramid::min_over`] is the exact
+/// minimum of d over the box in a few look-ups. Since the endpoint model's cost min(d, r)²
+/// grows with d, that minimum bounds from above every beam whose bilinear read (a blend of
+/// four cells, never below the smallest) lies in the box: the bound the coarse search
+/// ([`super::endpoint::grid_search`]) prunes with.
+#[derive(Debug, Clone)]
+pub(crate) struct MinPyramid {
+    origin: CellIndex,
+    width: usize,
+    height: usize,
+    /// Level L holds Q_L at row-major index (y − origin.y)·width + (x − origin.x) for the
+    /// squares inside the rectangle; entries whose square leaves it are 0 (never read).
+    levels: Vec<Vec<u8>>,
+}
+
+impl MinPyramid {
+    /// Levels 0 ..= `top` of the inclusive rectangle `min … max`, the distances read a row
+    /// at a time: `row(start, out)` fills `out` with d(start), d(start + (1, 0)), ….
+    ///
+    /// Errors for an empty rectangle, a `top` above [`MAX_PYRAMID_DEPTH`] − 1, or more than
+    /// [`MAX_MIN_PYRAMID_CELLS`] cells.
+    pub(crate) fn build(
+        min: CellIndex,
+        max: CellIndex,
+        top: u32,
+        mut row: impl FnMut(CellIndex, &mut [u8]),
+    ) -> Result<Self, GridError> {
+        ensure_config(
+            top < MAX_PYRAMID_DEPTH,
+            "min-pyramid top level",
+            top as f64,
+            "below 12",
+        )?;
+        let w = max.x as i64 - min.x as i64 + 1;
+        let h = max.y as i64 - min.y as i64 + 1;
+        ensure_config(
+            w > 0 && h > 0,
+            "min-pyramid rectangle (cells)",
+            w.min(h) as f64,
+            "max ≥ min in x and y",
+        )?;
+        ensure_config(
+            w.saturating_mul(h) <= MAX_MIN_PYRAMID_CELLS as i64,
+            "min-pyramid level (cells)",
+            w as f64 * h as f64,
+            "at most 4e6 cells",
+        )?;
+        let (w, h) = (w as usize, h as usize);
+        let mut base = vec![0u8; w * h];
+        for (y, out) in base.chunks_exact_mut(w).enumerate() {
+            row(CellIndex::new(min.x, min.y + y as i32), out);
+        }
+        let mut levels = Vec::with_capacity(top as usize + 1);
+        levels.push(base);
+        let mut rows = vec![0u8; w * h];
+        for level in 1..=top as usize {
+            let half = 1usize << (level - 1);
+            let prev = &levels[level - 1];
+            // Rows: min of the cell and the one `half` to its right.
+            for (out, src) in rows.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
+                out.fill(0);
+                if half < w {
+                    for ((o, a), b) in out.iter_mut().zip(src).zip(&src[half..]) {
+                        *o = (*a).min(*b);
+                    }
+                }
+            }
+            // Columns: the same between a row and the one `half` above it.
+            let mut next = vec![0u8; w * h];
+            if half < h {
+                for y in 0..h - half {
+                    let (a, b) = (&rows[y * w..(y + 1) * w], &rows[(y + half) * w..]);
+                    for ((o, a), b) in next[y * w..(y + 1) * w].iter_mut().zip(a).zip(b) {
+                        *o = (*a).min(*b);
+                    }
+                }
+            }
+            levels.push(next);
+        }
+        Ok(Self {
+            origin: min,
+            width: w,
+            height: h,
+            levels,
+        })
+    }
+
+    /// The highest level built.
+    #[inline]
+    pub(crate) fn top(&self) -> u32 {
+        self.levels.len() as u32 - 1
+    }
+
+    /// min d over the inclusive box `lo … hi` (lo ≤ hi), or 0 (the least distance, so
+    /// still a valid lower bound) when the box leaves the rectangle.
+    #[inline]
+    pub(crate) fn min_over(&self, lo: CellIndex, hi: CellIndex) -> u8 {
+        let x0 = lo.x as i64 - self.origin.x as i64;
+        let y0 = lo.y as i64 - self.origin.y as i64;
+        let x1 = hi.x as i64 - self.origin.x as i64;
+        let y1 = hi.y as i64 - self.origin.y as i64;
+        if x0 < 0 || y0 < 0 || x1 >= self.width as i64 || y1 >= self.height as i64 {
+            return 0;
+        }
+        let side = (x1 - x0).min(y1 - y0) + 1;
+        if side <= 0 {
+            return 0;
+        }
+        // The largest square that fits: 2^level ≤ the shorter side.
+        let level = (63 - side.leading_zeros()).min(self.top());
+        let size = 1i64 << level;
+        let q = &self.levels[level as usize];
+        let mut m = u8::MAX;
+        let mut y = y0;
+        loop {
+            let row = &q[(y as usize) * self.width..];
+            let mut x = x0;
+            loop {
+                m = m.min(row[x as usize]);
+                if x + size > x1 {
+                    break;
+                }
+                x = (x + size).min(x1 + 1 - size);
+            }
+            if y + size > y1 {
+                break;
+            }
+            y = (y + size).min(y1 + 1 - size);
+        }
+        m
+    }
+}
+
 fn sort_descending(c: &mut [Candidate]) {
     c.sort_by(|a, b| b.score.total_cmp(&a.score));
 }
@@ -777,5 +922,45 @@ mod tests {
         assert!(err.to_string().contains("depth"), "{err}");
         let pyramid = MaxPyramid::covering(&g, 3).unwrap().unwrap();
         assert!(m.match_in(&pyramid, &scan, &truth).is_err());
+    }
+
+    /// The min-pyramid's box minimum equals the brute-force minimum over the box, for boxes
+    /// of every shape (thin, square, wider than the top level's squares) on random values,
+    /// and reads 0 for a box that leaves the rectangle.
+    #[test]
+    fn min_pyramid_box_minimum_is_exact() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+        let values: Vec<u8> = (0..70 * 50).map(|_| rng.random_range(3..=255)).collect();
+        let (lo, hi) = (CellIndex::new(-20, 5), CellIndex::new(49, 54));
+        let d = |c: CellIndex| values[((c.y - 5) * 70 + c.x + 20) as usize];
+        let rows = |start: CellIndex, out: &mut [u8]| {
+            for (x, v) in out.iter_mut().enumerate() {
+                *v = d(CellIndex::new(start.x + x as i32, start.y));
+            }
+        };
+        let p = MinPyramid::build(lo, hi, 3, rows).unwrap();
+        assert_eq!(p.top(), 3);
+        for _ in 0..20_000 {
+            let x0 = rng.random_range(-20..=49);
+            let y0 = rng.random_range(5..=54);
+            let x1 = rng.random_range(x0..=(x0 + 40).min(49));
+            let y1 = rng.random_range(y0..=(y0 + 40).min(54));
+            let mut m = u8::MAX;
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    m = m.min(d(CellIndex::new(x, y)));
+                }
+            }
+            let (a, b) = (CellIndex::new(x0, y0), CellIndex::new(x1, y1));
+            assert_eq!(p.min_over(a, b), m, "box {a:?} … {b:?}");
+        }
+        assert_eq!(p.min_over(CellIndex::new(-21, 5), CellIndex::new(0, 6)), 0);
+        assert_eq!(
+            p.min_over(CellIndex::new(40, 50), CellIndex::new(45, 55)),
+            0
+        );
+        assert!(MinPyramid::build(hi, lo, 3, rows).is_err());
+        assert!(MinPyramid::build(lo, CellIndex::new(3000, 3000), 3, rows).is_err());
     }
 }

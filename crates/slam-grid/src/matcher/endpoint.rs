@@ -18,7 +18,7 @@
 //! that a pose several centimetres off still feels the walls; the fine phase with the
 //! model's own r, so that beams ending on clutter pull the mode less.
 
-use super::branch_bound::{branch_and_bound, Lattice, Levels};
+use super::branch_bound::{branch_and_bound, Lattice, Levels, MinPyramid};
 use super::hill_climb::{climb, Climb};
 use super::MAX_PYRAMID_DEPTH;
 use crate::cell::CellIndex;
@@ -228,13 +228,44 @@ impl SearchWindow {
     }
 }
 
-/// Exhaustive coarse search (Olson's correlative matching, ICRA 2009, at one coarse
-/// resolution) over the poses `initial` ⊕ (dx, dy, dθ) with |dx|, |dy| ≤ `range_xy` in
-/// steps of `step_xy` and |dθ| ≤ `range_theta` in steps of `step_theta`, scored with the
-/// coarse subset (times the subsampling factor) plus the log motion prior
-/// −½ eᵀR⁻¹e: the mode of likelihood × motion model on the lattice. Returns the best pose
-/// (the initial pose wins ties).
+/// Coarse search (Olson's correlative matching, ICRA 2009, at one coarse resolution) over
+/// the poses `initial` ⊕ (dx, dy, dθ) with |dx|, |dy| ≤ `range_xy` in steps of `step_xy`
+/// and |dθ| ≤ `range_theta` in steps of `step_theta`, scored with the coarse subset (times
+/// the subsampling factor) plus the log motion prior −½ eᵀR⁻¹e: the mode of likelihood ×
+/// motion model on the lattice. Returns the best pose (the initial pose wins ties, then the
+/// first in the order of [`grid_search_exhaustive`]).
+///
+/// The result is that of [`grid_search_exhaustive`], bit for bit, found by branch and bound
+/// (Olson 2009, §IV-C) on the same objective: each rotation's block of translations is
+/// split in four until single poses, which are scored exactly as the exhaustive search does.
+/// A block's bound takes, per end point, the least distance over the cells any of its poses
+/// reads (from a min-pyramid of the distance field, built once per search over the cells
+/// the window reaches: a few look-ups per end point and block), since a
+/// bilinear blend is never below its smallest corner and min(d, r)² grows with d; and the
+/// prior's maximum over the block bounded by its tangent plane at the block's centre (less
+/// the curvature's negative part, should R⁻¹ not be positive semi-definite). A block is dropped only when its bound is below the best score found
+/// so far (less a relative 10⁻⁹ for rounding), so no pose that could win is skipped.
+///
+/// Falls back to the exhaustive search when the window reaches more than 4·10⁶ cells or
+/// the input is not finite.
 pub fn grid_search(
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    initial: &Pose2,
+    model: &EndpointModel,
+    window: &SearchWindow,
+) -> Pose2 {
+    match CoarseSearch::new(field, scan, initial, model, window) {
+        Some(search) => search.run(),
+        None => grid_search_exhaustive(field, scan, initial, model, window),
+    }
+}
+
+/// The exhaustive form of [`grid_search`]: every pose of the lattice scored, in the order
+/// rotation, then y, then x (each from the most negative offset), the initial pose first;
+/// a later pose replaces the best only with a strictly higher score. The reference the
+/// branch-and-bound search is tested against, and its fallback.
+pub fn grid_search_exhaustive(
     field: &DistanceField<'_>,
     scan: &PreparedScan,
     initial: &Pose2,
@@ -253,14 +284,8 @@ pub fn grid_search(
                 if ix == 0 && iy == 0 && it == 0 {
                     continue;
                 }
-                let delta = Pose2::new(
-                    ix as f64 * window.step_xy,
-                    iy as f64 * window.step_xy,
-                    it as f64 * window.step_theta,
-                );
-                let cand = initial.compose(&delta);
-                let prior = window.log_prior(initial, &cand, delta.theta);
-                let s = scale * score(field, points, &cand, model).log_likelihood + prior;
+                let (cand, s) =
+                    lattice_score(field, points, scale, initial, model, window, ix, iy, it);
                 if s > top {
                     top = s;
                     best = cand;
@@ -269,6 +294,348 @@ pub fn grid_search(
         }
     }
     best
+}
+
+/// The pose `initial` ⊕ (ix·step_xy, iy·step_xy, it·step_theta) and its coarse-search
+/// objective: one expression for both searches, so that they agree to the bit.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn lattice_score(
+    field: &DistanceField<'_>,
+    points: &[Point2],
+    scale: f64,
+    initial: &Pose2,
+    model: &EndpointModel,
+    window: &SearchWindow,
+    ix: i32,
+    iy: i32,
+    it: i32,
+) -> (Pose2, f64) {
+    let delta = Pose2::new(
+        ix as f64 * window.step_xy,
+        iy as f64 * window.step_xy,
+        it as f64 * window.step_theta,
+    );
+    let cand = initial.compose(&delta);
+    let prior = window.log_prior(initial, &cand, delta.theta);
+    (
+        cand,
+        scale * score(field, points, &cand, model).log_likelihood + prior,
+    )
+}
+
+/// Cells by which the boxes of the coarse search's bounds are widened on each side of the
+/// continuous positions they are computed from, so that a rounding difference against
+/// [`score`]'s own arithmetic (≈ 10⁻¹¹ cells) never leaves a read cell out.
+const BOX_MARGIN: f64 = 1e-4;
+
+/// Most translation steps per side for the branch-and-bound coarse search (the config allows
+/// 50); beyond, brute force.
+const MAX_COARSE_STEPS: i32 = 1 << 10;
+
+/// One branch-and-bound [`grid_search`]: the lattice, the end points at every rotation in
+/// continuous cell coordinates, and the distance pyramid over the cells they reach.
+struct CoarseSearch<'a, 'f> {
+    field: &'a DistanceField<'f>,
+    points: &'a [Point2],
+    initial: &'a Pose2,
+    model: &'a EndpointModel,
+    window: &'a SearchWindow,
+    scale: f64,
+    nxy: i32,
+    nth: i32,
+    /// One translation step in x and in y of the lattice (rotated by the initial heading),
+    /// in cells and in metres.
+    step_cells: [(f64, f64); 2],
+    step_world: [(f64, f64); 2],
+    /// (u, v) of every end point, rotation by rotation, at translation (0, 0): the
+    /// continuous coordinates [`score`] floors (cell (i, j) centred on (i, j)).
+    rotated: Vec<(f64, f64)>,
+    /// R⁻¹ + R⁻ᵀ: the gradient of eᵀR⁻¹e is this times e.
+    info2: Matrix3,
+    /// The least eigenvalue of `info2` (eᵀR⁻¹e is convex when it is ≥ 0).
+    curvature: f64,
+    pyramid: MinPyramid,
+    /// Side of the top block of translations (a power of two ≥ 2·nxy + 1).
+    top_size: i32,
+}
+
+/// The best pose found so far: score, position in the exhaustive search's order (−1 for
+/// the initial pose), pose.
+struct Best {
+    score: f64,
+    order: i64,
+    pose: Pose2,
+}
+
+impl<'a, 'f> CoarseSearch<'a, 'f> {
+    /// The search, or `None` when the branch-and-bound form does not apply (see
+    /// [`grid_search`]).
+    fn new(
+        field: &'a DistanceField<'f>,
+        scan: &'a PreparedScan,
+        initial: &'a Pose2,
+        model: &'a EndpointModel,
+        window: &'a SearchWindow,
+    ) -> Option<Self> {
+        let frame = field.frame();
+        let res = frame.resolution;
+        let steps_xy = window.range_xy / window.step_xy;
+        let steps_theta = window.range_theta / window.step_theta;
+        let finite = initial.is_finite()
+            && window.information.iter().all(|v| v.is_finite())
+            && model.k.is_finite()
+            && model.radius.is_finite();
+        if !(finite
+            && window.step_xy > 0.0
+            && window.step_theta > 0.0
+            && (0.0..MAX_COARSE_STEPS as f64).contains(&steps_xy)
+            && (0.0..MAX_COARSE_STEPS as f64).contains(&steps_theta))
+        {
+            return None;
+        }
+        let info2 = window.information + window.information.transpose();
+        let curvature = info2.symmetric_eigenvalues().min();
+        if !curvature.is_finite() {
+            return None;
+        }
+        let points = scan.coarse_points();
+        let scale = scan.points.len() as f64 / points.len().max(1) as f64;
+        let nxy = steps_xy.floor() as i32;
+        let nth = steps_theta.floor() as i32;
+        let (s0, c0) = initial.theta.sin_cos();
+        let step = window.step_xy;
+        let step_world = [(c0 * step, s0 * step), (-s0 * step, c0 * step)];
+        let step_cells = [
+            (step_world[0].0 / res, step_world[0].1 / res),
+            (step_world[1].0 / res, step_world[1].1 / res),
+        ];
+        // As `score` computes them.
+        let inv = 1.0 / res;
+        let mut rotated = Vec::with_capacity((2 * nth as usize + 1) * points.len());
+        for it in -nth..=nth {
+            let pose = initial.compose(&Pose2::new(0.0, 0.0, it as f64 * window.step_theta));
+            let (s, c) = pose.theta.sin_cos();
+            let (s, c) = (s * inv, c * inv);
+            let tx = (pose.x - frame.origin.x) * inv - 0.5;
+            let ty = (pose.y - frame.origin.y) * inv - 0.5;
+            rotated.extend(
+                points
+                    .iter()
+                    .map(|p| (c * p.x - s * p.y + tx, s * p.x + c * p.y + ty)),
+            );
+        }
+        let top_size = (2 * nxy as u32 + 1).next_power_of_two() as i32;
+        let mut search = Self {
+            field,
+            points,
+            initial,
+            model,
+            window,
+            scale,
+            nxy,
+            nth,
+            step_cells,
+            step_world,
+            rotated,
+            info2,
+            curvature,
+            // Replaced below, once the reach is known.
+            pyramid: MinPyramid::build(CellIndex::new(0, 0), CellIndex::new(0, 0), 0, |_, _| {})
+                .ok()?,
+            top_size,
+        };
+        // The cells the top blocks read, over every rotation.
+        let ext = search.extent(-nxy, -nxy, top_size);
+        let (mut lo, mut hi) = (
+            CellIndex::new(i32::MAX, i32::MAX),
+            CellIndex::new(i32::MIN, i32::MIN),
+        );
+        for &(u, v) in &search.rotated {
+            let (a, b) = cell_box(u, v, &ext);
+            lo = CellIndex::new(lo.x.min(a.x), lo.y.min(a.y));
+            hi = CellIndex::new(hi.x.max(b.x), hi.y.max(b.y));
+        }
+        if search.rotated.is_empty() {
+            return None;
+        }
+        // Squares up to the top box's shorter side.
+        let side = ((ext[1] - ext[0]).min(ext[3] - ext[2]) + 1.0).max(1.0);
+        let top = (side.log2().floor() as u32).min(MAX_PYRAMID_DEPTH - 1);
+        search.pyramid =
+            MinPyramid::build(lo, hi, top, |start, row| field.read_row(start, row)).ok()?;
+        Some(search)
+    }
+
+    /// The offsets (u_lo, u_hi, v_lo, v_hi), in cells, spanned by the translations of the
+    /// block [i0, i0 + size) × [j0, j0 + size) clipped to the window.
+    fn extent(&self, i0: i32, j0: i32, size: i32) -> [f64; 4] {
+        let i1 = (i0 + size - 1).min(self.nxy);
+        let j1 = (j0 + size - 1).min(self.nxy);
+        let [a, b] = self.step_cells;
+        let mut e = [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        for (i, j) in [(i0, j0), (i1, j0), (i0, j1), (i1, j1)] {
+            let (i, j) = (i as f64, j as f64);
+            let (u, v) = (i * a.0 + j * b.0, i * a.1 + j * b.1);
+            e = [e[0].min(u), e[1].max(u), e[2].min(v), e[3].max(v)];
+        }
+        e
+    }
+
+    /// An upper bound of the objective over rotation `it`'s block of translations
+    /// [i0, i0 + size) × [j0, j0 + size) (clipped to the window).
+    fn bound(&self, it: i32, i0: i32, j0: i32, size: i32) -> f64 {
+        let ext = self.extent(i0, j0, size);
+        let n = self.points.len();
+        let first = (it + self.nth) as usize * n;
+        let unit = self.field.metres_per_unit();
+        let radius = self.model.radius;
+        let mut sum = 0.0;
+        for &(u, v) in &self.rotated[first..first + n] {
+            let (lo, hi) = cell_box(u, v, &ext);
+            let dm = (self.pyramid.min_over(lo, hi) as f64 * unit).min(radius);
+            sum += dm * dm;
+        }
+        self.scale * (-self.model.k * sum) + self.prior_bound(it, i0, j0, size)
+    }
+
+    /// The log prior's maximum over the block, bounded from above: for q(e) = eᵀR⁻¹e,
+    /// q ≥ q(e_c) + ∇q(e_c)·Δ + ½λ|Δ|² (λ the least eigenvalue of R⁻¹ + R⁻ᵀ, Δ = e − e_c)
+    /// ≥ q(e_c) − |∇q·a|·h_i − |∇q·b|·h_j − ½·max(0, −λ)·(h_i² + h_j²)·step² over the
+    /// block, e_c its centre, a and b the lattice steps, h_i and h_j its half-widths in
+    /// steps; and q ≥ 0 when λ ≥ 0.
+    fn prior_bound(&self, it: i32, i0: i32, j0: i32, size: i32) -> f64 {
+        let i1 = (i0 + size - 1).min(self.nxy);
+        let j1 = (j0 + size - 1).min(self.nxy);
+        let (ci, cj) = ((i0 + i1) as f64 * 0.5, (j0 + j1) as f64 * 0.5);
+        let [a, b] = self.step_world;
+        let e = Vector3::new(
+            ci * a.0 + cj * b.0,
+            ci * a.1 + cj * b.1,
+            it as f64 * self.window.step_theta,
+        );
+        let q = e.dot(&(self.window.information * e));
+        let g = self.info2 * e;
+        let (hi, hj) = ((i1 - i0) as f64 * 0.5, (j1 - j0) as f64 * 0.5);
+        let slope = (g[0] * a.0 + g[1] * a.1).abs() * hi + (g[0] * b.0 + g[1] * b.1).abs() * hj;
+        let lower = if self.curvature >= 0.0 {
+            (q - slope).max(0.0)
+        } else {
+            let step2 = self.window.step_xy * self.window.step_xy;
+            q - slope + 0.5 * self.curvature * (hi * hi + hj * hj) * step2
+        };
+        -0.5 * lower
+    }
+
+    /// The exhaustive search's result, by branch and bound.
+    fn run(&self) -> Pose2 {
+        let initial_score =
+            self.scale * score(self.field, self.points, self.initial, self.model).log_likelihood;
+        let mut best = Best {
+            score: initial_score,
+            order: -1,
+            pose: *self.initial,
+        };
+        let (lo, size) = (-self.nxy, self.top_size);
+        let mut rotations: Vec<(f64, i32)> = (-self.nth..=self.nth)
+            .map(|it| (self.bound(it, lo, lo, size), it))
+            .collect();
+        rotations.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for (bound, it) in rotations {
+            if self.prunes(bound, &best) {
+                break;
+            }
+            self.descend(it, lo, lo, size, &mut best);
+        }
+        best.pose
+    }
+
+    /// True when a block bounded by `bound` cannot hold a pose that beats or ties `best`.
+    #[inline]
+    fn prunes(&self, bound: f64, best: &Best) -> bool {
+        bound < best.score - 1e-9 * (1.0 + best.score.abs() + bound.abs())
+    }
+
+    /// Depth first through rotation `it`'s block at (i0, j0) of `size` × `size`
+    /// translations: the four sub-blocks in order of decreasing bound, single poses scored.
+    fn descend(&self, it: i32, i0: i32, j0: i32, size: i32, best: &mut Best) {
+        let half = size / 2;
+        let mut children = [(f64::NEG_INFINITY, 0, 0); 4];
+        let mut n = 0;
+        for (i, j) in [
+            (i0, j0),
+            (i0 + half, j0),
+            (i0, j0 + half),
+            (i0 + half, j0 + half),
+        ] {
+            if i > self.nxy || j > self.nxy {
+                continue;
+            }
+            if half == 1 {
+                self.leaf(it, i, j, best);
+            } else {
+                children[n] = (self.bound(it, i, j, half), i, j);
+                n += 1;
+            }
+        }
+        let children = &mut children[..n];
+        children.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for &(bound, i, j) in children.iter() {
+            if !self.prunes(bound, best) {
+                self.descend(it, i, j, half, best);
+            }
+        }
+    }
+
+    /// Scores the pose (ix, iy, it) exactly as the exhaustive search and keeps it if it wins
+    /// there: a higher score, or an equal one earlier in its order.
+    fn leaf(&self, it: i32, ix: i32, iy: i32, best: &mut Best) {
+        if ix == 0 && iy == 0 && it == 0 {
+            return;
+        }
+        let (cand, s) = lattice_score(
+            self.field,
+            self.points,
+            self.scale,
+            self.initial,
+            self.model,
+            self.window,
+            ix,
+            iy,
+            it,
+        );
+        let side = 2 * self.nxy as i64 + 1;
+        let order = ((it + self.nth) as i64 * side + (iy + self.nxy) as i64) * side
+            + (ix + self.nxy) as i64;
+        if s > best.score || (s == best.score && order < best.order) {
+            *best = Best {
+                score: s,
+                order,
+                pose: cand,
+            };
+        }
+    }
+}
+
+/// The inclusive box of cells read by bilinear look-ups at (u + Δu, v + Δv) for every
+/// (Δu, Δv) in the extent `ext` = (u_lo, u_hi, v_lo, v_hi): the floors and one beyond.
+#[inline]
+fn cell_box(u: f64, v: f64, ext: &[f64; 4]) -> (CellIndex, CellIndex) {
+    (
+        CellIndex::new(
+            fast_floor(u + ext[0] - BOX_MARGIN),
+            fast_floor(v + ext[2] - BOX_MARGIN),
+        ),
+        CellIndex::new(
+            fast_floor(u + ext[1] + BOX_MARGIN).saturating_add(1),
+            fast_floor(v + ext[3] + BOX_MARGIN).saturating_add(1),
+        ),
+    )
 }
 
 /// The outcome of a [`wide_search`].
@@ -508,5 +875,68 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The branch-and-bound coarse search returns exactly the exhaustive search's pose (to
+    /// the bit), over the indoor preset's window and others: lattice steps of one cell and
+    /// of a non-integer number of cells, no prior, weak, strong and correlated priors and
+    /// an indefinite one, poses near the truth, far from it and off the map (where every
+    /// pose scores the same and the tie rule decides).
+    #[test]
+    fn grid_search_equals_the_exhaustive_search() {
+        use rand::{Rng, SeedableRng};
+        let g = office_map();
+        let field = g.distance_field().unwrap();
+        let world = SegmentWorld::office();
+        let model = EndpointModel::new(0.05, 0.2, 3.0);
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(21);
+        let windows = [
+            (0.3, 0.05, 0.9, 0.025),
+            (0.3, 0.07, 0.2, 0.013),
+            (0.5, 0.1, 0.3, 0.02),
+        ];
+        let infos = [
+            Matrix3::zeros(),
+            Matrix3::from_diagonal(&Vector3::new(2.0, 2.0, 10.0)),
+            Matrix3::from_diagonal(&Vector3::new(400.0, 400.0, 900.0)),
+            Matrix3::new(300.0, 120.0, 10.0, 120.0, 80.0, -5.0, 10.0, -5.0, 200.0),
+            Matrix3::new(5.0, 0.0, 0.0, 0.0, -3.0, 0.0, 0.0, 0.0, 20.0),
+        ];
+        let mut cases = 0;
+        let mut moved = 0;
+        for case in 0..40 {
+            let truth = Pose2::new(
+                rng.random_range(1.0..11.0),
+                rng.random_range(0.5..7.5),
+                rng.random_range(-3.1..3.1),
+            );
+            let scan =
+                PreparedScan::new(&world.scan(&truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+            let off = if case % 10 == 9 { 40.0 } else { 0.25 };
+            let initial = Pose2::new(
+                truth.x + rng.random_range(-off..off),
+                truth.y + rng.random_range(-off..off),
+                truth.theta + rng.random_range(-0.6..0.6),
+            );
+            let (range_xy, step_xy, range_theta, step_theta) = windows[case % windows.len()];
+            let window = SearchWindow {
+                range_xy,
+                step_xy,
+                range_theta,
+                step_theta,
+                information: infos[case % infos.len()],
+            };
+            let fast = grid_search(&field, &scan, &initial, &model, &window);
+            let slow = grid_search_exhaustive(&field, &scan, &initial, &model, &window);
+            assert_eq!(
+                [fast.x.to_bits(), fast.y.to_bits(), fast.theta.to_bits()],
+                [slow.x.to_bits(), slow.y.to_bits(), slow.theta.to_bits()],
+                "case {case}: {fast:?} against the exhaustive {slow:?}"
+            );
+            cases += 1;
+            moved += usize::from(slow != initial);
+        }
+        // The cases are not all decided by the initial pose.
+        assert!(moved >= 20, "{moved} of {cases} searches moved");
     }
 }
