@@ -3,7 +3,9 @@
 //! whose field measures to fitted lines (`LikelihoodParams::surface_lines`), and the
 //! field of the whole room computed from scratch both ways; and grid FastSLAM's wide
 //! search of a poor match (indoor window ±1.5 m / ±0.4 rad) by branch and bound over a
-//! pyramid built per search against the brute-force lattice search it replaced.
+//! pyramid built per search against the brute-force lattice search it replaced; and the
+//! best particle's coarse search (indoor window ±0.3 m / ±0.9 rad) by branch and bound
+//! against the exhaustive search over the same lattice.
 // criterion_group! generates undocumented public functions.
 #![allow(missing_docs)]
 
@@ -159,7 +161,7 @@ fn wide_search(c: &mut Criterion) {
         information: Matrix3::from_diagonal(&Vector3::new(1.8, 1.8, 25.0)),
     };
     let w = endpoint::wide_search(&field, &scan, &initial, &capture, &window).expect("search");
-    let b = endpoint::grid_search(&field, &scan, &initial, &capture, &window);
+    let b = endpoint::grid_search_exhaustive(&field, &scan, &initial, &capture, &window);
     println!(
         "wide search: branch and bound {:.3} m off ({} pyramid cells), brute force {:.3} m off",
         w.pose.distance(&truth),
@@ -179,10 +181,61 @@ fn wide_search(c: &mut Criterion) {
         b.iter(|| endpoint::wide_search(&field, &scan, black_box(&initial), &capture, &one))
     });
     g.bench_function("brute_force_180_beams", |b| {
-        b.iter(|| endpoint::grid_search(&field, &scan, black_box(&initial), &capture, &window))
+        b.iter(|| {
+            endpoint::grid_search_exhaustive(&field, &scan, black_box(&initial), &capture, &window)
+        })
     });
     g.finish();
 }
 
-criterion_group!(benches, matching, wide_search);
+/// Grid FastSLAM's coarse search of the best particle (the indoor preset's window: ±0.3 m
+/// in 5 cm steps, ±0.9 rad in 0.025 rad steps, 12 337 poses) by branch and bound over a
+/// min-pyramid built per search, against the exhaustive search over the same lattice; both
+/// return the same pose.
+fn coarse_search(c: &mut Criterion) {
+    use slam_grid::matcher::endpoint::{self, EndpointModel, SearchWindow};
+    use slam_models::{Matrix3, Vector3};
+    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
+        .with_incremental_distance(4)
+        .expect("radius");
+    for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
+        for k in 0..4 {
+            let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
+            grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
+        }
+    }
+    let field = grid.distance_field().expect("incremental field");
+    let truth = Pose2::new(5.2, 2.9, 0.4);
+    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    // A 0.14 m / 0.2 rad odometry error; the indoor preset's capture model (gain 3).
+    let initial = Pose2::new(5.3, 2.8, 0.2);
+    let capture = EndpointModel::new(0.05, 0.2, 3.0);
+    let window = SearchWindow {
+        range_xy: 0.3,
+        step_xy: 0.05,
+        range_theta: 0.9,
+        step_theta: 0.025,
+        information: Matrix3::from_diagonal(&Vector3::new(100.0, 100.0, 25.0)),
+    };
+    let fast = endpoint::grid_search(&field, &scan, &initial, &capture, &window);
+    let slow = endpoint::grid_search_exhaustive(&field, &scan, &initial, &capture, &window);
+    assert_eq!(fast, slow, "branch and bound against exhaustive");
+    println!(
+        "coarse search: {:.3} m, {:.3} rad off the truth",
+        fast.distance(&truth),
+        (fast.theta - truth.theta).abs()
+    );
+    let mut g = c.benchmark_group("coarse_search");
+    g.bench_function("branch_and_bound_indoor_window_180_beams", |b| {
+        b.iter(|| endpoint::grid_search(&field, &scan, black_box(&initial), &capture, &window))
+    });
+    g.bench_function("exhaustive_indoor_window_180_beams", |b| {
+        b.iter(|| {
+            endpoint::grid_search_exhaustive(&field, &scan, black_box(&initial), &capture, &window)
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, matching, wide_search, coarse_search);
 criterion_main!(benches);

@@ -488,20 +488,35 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
     }
 
     /// An upper bound of the objective over rotation `it`'s block of translations
-    /// [i0, i0 + size) × [j0, j0 + size) (clipped to the window).
-    fn bound(&self, it: i32, i0: i32, j0: i32, size: i32) -> f64 {
+    /// [i0, i0 + size) × [j0, j0 + size) (clipped to the window). The sum over the end
+    /// points stops early once the bound falls below `cutoff` (the block is then pruned
+    /// anyway): every partial sum is itself an upper bound, since each term only lowers it.
+    fn bound(&self, it: i32, i0: i32, j0: i32, size: i32, cutoff: f64) -> f64 {
         let ext = self.extent(i0, j0, size);
         let n = self.points.len();
         let first = (it + self.nth) as usize * n;
         let unit = self.field.metres_per_unit();
         let radius = self.model.radius;
+        let prior = self.prior_bound(it, i0, j0, size);
         let mut sum = 0.0;
-        for &(u, v) in &self.rotated[first..first + n] {
-            let (lo, hi) = cell_box(u, v, &ext);
-            let dm = (self.pyramid.min_over(lo, hi) as f64 * unit).min(radius);
-            sum += dm * dm;
+        for chunk in self.rotated[first..first + n].chunks(8) {
+            for &(u, v) in chunk {
+                let (lo, hi) = cell_box(u, v, &ext);
+                let dm = (self.pyramid.min_over(lo, hi) as f64 * unit).min(radius);
+                sum += dm * dm;
+            }
+            let bound = self.scale * (-self.model.k * sum) + prior;
+            if bound < cutoff {
+                return bound;
+            }
         }
-        self.scale * (-self.model.k * sum) + self.prior_bound(it, i0, j0, size)
+        self.scale * (-self.model.k * sum) + prior
+    }
+
+    /// The bound below which a block is pruned (see [`CoarseSearch::prunes`]).
+    #[inline]
+    fn cutoff(best: &Best) -> f64 {
+        best.score - 1e-9 * (1.0 + best.score.abs())
     }
 
     /// The log prior's maximum over the block, bounded from above: for q(e) = eᵀR⁻¹e,
@@ -543,7 +558,7 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
         };
         let (lo, size) = (-self.nxy, self.top_size);
         let mut rotations: Vec<(f64, i32)> = (-self.nth..=self.nth)
-            .map(|it| (self.bound(it, lo, lo, size), it))
+            .map(|it| (self.bound(it, lo, lo, size, Self::cutoff(&best)), it))
             .collect();
         rotations.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         for (bound, it) in rotations {
@@ -558,7 +573,7 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
     /// True when a block bounded by `bound` cannot hold a pose that beats or ties `best`.
     #[inline]
     fn prunes(&self, bound: f64, best: &Best) -> bool {
-        bound < best.score - 1e-9 * (1.0 + best.score.abs() + bound.abs())
+        bound < Self::cutoff(best)
     }
 
     /// Depth first through rotation `it`'s block at (i0, j0) of `size` × `size`
@@ -579,7 +594,7 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
             if half == 1 {
                 self.leaf(it, i, j, best);
             } else {
-                children[n] = (self.bound(it, i, j, half), i, j);
+                children[n] = (self.bound(it, i, j, half, Self::cutoff(best)), i, j);
                 n += 1;
             }
         }
