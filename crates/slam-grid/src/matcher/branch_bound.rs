@@ -611,21 +611,31 @@ pub(crate) struct MinPyramid {
     height: usize,
     /// Level L holds Q_L at row-major index (y − origin.y)·width + (x − origin.x) for the
     /// squares inside the rectangle; entries whose square leaves it are 0 (never read).
+    /// Levels below the bottom one are empty.
     levels: Vec<Vec<u8>>,
 }
 
 impl MinPyramid {
-    /// Levels 0 ..= `top` of the inclusive rectangle `min … max`, the distances read a row
-    /// at a time: `row(start, out)` fills `out` with d(start), d(start + (1, 0)), ….
+    /// Levels `bottom` ..= `top` of the inclusive rectangle `min … max` (the lower ones
+    /// are dropped once built: boxes whose shorter side is below 2^`bottom` read 0), the
+    /// distances read a row at a time: `row(start, out)` fills `out` with d(start),
+    /// d(start + (1, 0)), ….
     ///
-    /// Errors for an empty rectangle, a `top` above [`MAX_PYRAMID_DEPTH`] − 1, or more than
-    /// [`MAX_MIN_PYRAMID_CELLS`] cells.
+    /// Errors for an empty rectangle, `bottom` above `top`, a `top` above
+    /// [`MAX_PYRAMID_DEPTH`] − 1, or more than [`MAX_MIN_PYRAMID_CELLS`] cells.
     pub(crate) fn build(
         min: CellIndex,
         max: CellIndex,
+        bottom: u32,
         top: u32,
         mut row: impl FnMut(CellIndex, &mut [u8]),
     ) -> Result<Self, GridError> {
+        ensure_config(
+            bottom <= top,
+            "min-pyramid bottom level",
+            bottom as f64,
+            "at most the top level",
+        )?;
         ensure_config(
             top < MAX_PYRAMID_DEPTH,
             "min-pyramid top level",
@@ -653,30 +663,38 @@ impl MinPyramid {
         }
         let mut levels = Vec::with_capacity(top as usize + 1);
         levels.push(base);
-        let mut rows = vec![0u8; w * h];
         for level in 1..=top as usize {
             let half = 1usize << (level - 1);
             let prev = &levels[level - 1];
             // Rows: min of the cell and the one `half` to its right.
-            for (out, src) in rows.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
-                out.fill(0);
-                if half < w {
+            let mut next = vec![0u8; w * h];
+            if half < w {
+                for (out, src) in next.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
                     for ((o, a), b) in out.iter_mut().zip(src).zip(&src[half..]) {
                         *o = (*a).min(*b);
                     }
                 }
             }
-            // Columns: the same between a row and the one `half` above it.
-            let mut next = vec![0u8; w * h];
-            if half < h {
-                for y in 0..h - half {
-                    let (a, b) = (&rows[y * w..(y + 1) * w], &rows[(y + half) * w..]);
-                    for ((o, a), b) in next[y * w..(y + 1) * w].iter_mut().zip(a).zip(b) {
-                        *o = (*a).min(*b);
+            // Columns, in place: the same between a row and the one `half` above it (read
+            // before it is overwritten, the rows going up).
+            for y in 0..h {
+                let (low, high) = next.split_at_mut((y + 1) * w);
+                let row = &mut low[y * w..];
+                // Row y + half starts (half − 1) rows into `high`.
+                match high.get((half - 1) * w..half * w) {
+                    Some(above) if y + half < h => {
+                        for (o, b) in row.iter_mut().zip(above) {
+                            *o = (*o).min(*b);
+                        }
                     }
+                    _ => row.fill(0),
                 }
             }
             levels.push(next);
+            // Below `bottom` a level only feeds the next one.
+            if level - 1 < bottom as usize {
+                levels[level - 1] = Vec::new();
+            }
         }
         Ok(Self {
             origin: min,
@@ -711,6 +729,9 @@ impl MinPyramid {
         let level = (63 - side.leading_zeros()).min(self.top());
         let size = 1i64 << level;
         let q = &self.levels[level as usize];
+        if q.is_empty() {
+            return 0;
+        }
         let mut m = u8::MAX;
         let mut y = y0;
         loop {
@@ -939,7 +960,7 @@ mod tests {
                 *v = d(CellIndex::new(start.x + x as i32, start.y));
             }
         };
-        let p = MinPyramid::build(lo, hi, 3, rows).unwrap();
+        let p = MinPyramid::build(lo, hi, 0, 3, rows).unwrap();
         assert_eq!(p.top(), 3);
         for _ in 0..20_000 {
             let x0 = rng.random_range(-20..=49);
@@ -960,7 +981,14 @@ mod tests {
             p.min_over(CellIndex::new(40, 50), CellIndex::new(45, 55)),
             0
         );
-        assert!(MinPyramid::build(hi, lo, 3, rows).is_err());
-        assert!(MinPyramid::build(lo, CellIndex::new(3000, 3000), 3, rows).is_err());
+        // Without levels 0 and 1, boxes narrower than 4 cells read 0, the others the same.
+        let upper = MinPyramid::build(lo, hi, 2, 3, rows).unwrap();
+        let (a, b) = (CellIndex::new(0, 10), CellIndex::new(2, 30));
+        assert_eq!(upper.min_over(a, b), 0);
+        let b = CellIndex::new(3, 30);
+        assert_eq!(upper.min_over(a, b), p.min_over(a, b));
+        assert!(MinPyramid::build(hi, lo, 0, 3, rows).is_err());
+        assert!(MinPyramid::build(lo, hi, 3, 2, rows).is_err());
+        assert!(MinPyramid::build(lo, CellIndex::new(3000, 3000), 0, 3, rows).is_err());
     }
 }

@@ -441,7 +441,7 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
             info2,
             curvature,
             // Replaced below, once the reach is known.
-            pyramid: MinPyramid::build(CellIndex::new(0, 0), CellIndex::new(0, 0), 0, |_, _| {})
+            pyramid: MinPyramid::build(CellIndex::new(0, 0), CellIndex::new(0, 0), 0, 0, |_, _| {})
                 .ok()?,
             top_size,
         };
@@ -459,11 +459,14 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
         if search.rotated.is_empty() {
             return None;
         }
-        // Squares up to the top box's shorter side.
+        // Squares up to the top box's shorter side; every box is at least two cells wide
+        // (the floor and the cell beyond), so level 0 is never read.
         let side = ((ext[1] - ext[0]).min(ext[3] - ext[2]) + 1.0).max(1.0);
         let top = (side.log2().floor() as u32).min(MAX_PYRAMID_DEPTH - 1);
-        search.pyramid =
-            MinPyramid::build(lo, hi, top, |start, row| field.read_row(start, row)).ok()?;
+        search.pyramid = MinPyramid::build(lo, hi, top.min(1), top, |start, row| {
+            field.read_row(start, row)
+        })
+        .ok()?;
         Some(search)
     }
 
