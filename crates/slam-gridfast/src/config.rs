@@ -35,6 +35,23 @@ pub enum Proposal {
     Improved,
 }
 
+/// How the improved proposal chooses between its two starting points, the particle's
+/// prediction x' and x' moved by the best particle's coarse correction c (see
+/// [`MatchingConfig::start_choice`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StartChoice {
+    /// When c reaches beyond the hill climber's first steps, climb from both and keep the
+    /// match with the larger likelihood × motion prior p(z | m, x)·p(x | x', R) — the
+    /// mode the improved proposal approximates (Grisetti et al. 2007, eq. 9), and what the
+    /// particle's weight then scores; otherwise climb once, as with `coarse-score`.
+    #[default]
+    Posterior,
+    /// Climb once, from the start whose coarse-subset likelihood is larger, whatever the
+    /// motion prior says (the rule before 2026-12-02).
+    CoarseScore,
+}
+
 /// The environment the scale-dependent values are chosen for (cell size, the endpoint
 /// model's lengths, search windows). See `docs/gridfast.md`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -264,6 +281,15 @@ pub struct MatchingConfig {
     /// fewer than this fraction of the used beams end within `likelihood_radius` of an
     /// occupied cell at the matched pose. Default 0.25.
     pub min_inlier_fraction: f64,
+    /// How each particle chooses where its hill climbing starts: `posterior` (default)
+    /// climbs from both its prediction and the prediction moved by the best particle's
+    /// coarse correction when the two are farther apart than the climber's first steps,
+    /// and keeps the match with the larger likelihood × motion prior; `coarse-score`
+    /// climbs once from the start whose coarse-subset likelihood is larger. On csail the
+    /// coarse-score rule let a scan looking into space the map had not seen take a pose
+    /// 0.6 rad off the good odometry, because a few dozen more beams found walls there
+    /// (docs/gridfast.md).
+    pub start_choice: StartChoice,
     /// What a poor match triggers before that fallback: a wider search.
     pub recovery: RecoveryConfig,
 }
@@ -283,6 +309,7 @@ impl Default for MatchingConfig {
             search_range_theta: None,
             search_step_theta: None,
             min_inlier_fraction: 0.25,
+            start_choice: StartChoice::Posterior,
             recovery: RecoveryConfig::default(),
         }
     }
@@ -300,6 +327,15 @@ pub struct RecoveryConfig {
     /// A match with fewer than this fraction of its beams within `likelihood_radius` of the
     /// map is poor and triggers the wide search (0 switches it off). Default 0.4.
     pub trigger_fraction: f64,
+    /// Count `trigger_fraction` among the beams whose end point the map can judge — it
+    /// lies in an observed cell or within `likelihood_radius` of an obstacle — rather than
+    /// among all the used beams; a match below `min_inlier_fraction` of all the beams is
+    /// poor either way. Default true: a scan looking into space not yet mapped has most of
+    /// its end points in unknown cells, which says nothing against its pose, while a pose
+    /// that is off puts end points into space the map knows to be free. Counting all the
+    /// beams sent csail's scans into new space to the wide search, which took an aliased
+    /// pose 1.4 m away for every particle (docs/gridfast.md).
+    pub observed_only: bool,
     /// ± this in x and y around the prediction, metres. Default from the preset: 1.5
     /// indoor, 3.0 outdoor.
     pub range_xy: Option<f64>,
@@ -318,6 +354,7 @@ impl Default for RecoveryConfig {
     fn default() -> Self {
         Self {
             trigger_fraction: 0.4,
+            observed_only: true,
             range_xy: None,
             range_theta: None,
             step_xy: None,
@@ -794,7 +831,9 @@ pub(crate) struct Resolved {
     pub search_range_theta: f64,
     pub search_step_theta: f64,
     pub match_min_inlier_fraction: f64,
+    pub start_choice: StartChoice,
     pub recovery_trigger_fraction: f64,
+    pub recovery_observed_only: bool,
     pub recovery_range_xy: f64,
     pub recovery_step_xy: f64,
     pub recovery_range_theta: f64,
@@ -839,7 +878,9 @@ impl From<&GridFastConfig> for Resolved {
             search_range_theta: v(m.search_range_theta),
             search_step_theta: v(m.search_step_theta),
             match_min_inlier_fraction: m.min_inlier_fraction,
+            start_choice: m.start_choice,
             recovery_trigger_fraction: m.recovery.trigger_fraction,
+            recovery_observed_only: m.recovery.observed_only,
             recovery_range_xy: v(m.recovery.range_xy),
             recovery_step_xy: v(m.recovery.step_xy),
             recovery_range_theta: v(m.recovery.range_theta),

@@ -623,9 +623,12 @@ impl GridFastSlam {
             min_inliers,
             offsets: &self.d.offsets,
             correction,
+            start_choice: cfg.start_choice,
             recovery: (cfg.recovery_trigger_fraction > 0.0).then(|| Recovery {
                 trigger_inliers: (cfg.recovery_trigger_fraction * prepared.points().len() as f64)
                     .ceil() as usize,
+                trigger_fraction: cfg.recovery_trigger_fraction,
+                observed_only: cfg.recovery_observed_only,
                 range_xy: cfg.recovery_range_xy,
                 step_xy: cfg.recovery_step_xy,
                 range_theta: cfg.recovery_range_theta,
@@ -673,7 +676,7 @@ impl GridFastSlam {
                 let mut rng = stream(seed, k, i as u64);
                 let f = field(&p.map);
                 match proposal {
-                    Proposal::Improved => improved(&p.pose, &f, &ctx, &mut rng),
+                    Proposal::Improved => improved(&p.pose, &p.map, &f, &ctx, &mut rng),
                     Proposal::Odometry => {
                         motion_and_likelihood(&p.pose, &f, &ctx, &ctx.motion, &ctx.u, &mut rng)
                     }

@@ -47,8 +47,8 @@ mod proposal;
 
 pub use config::{
     median_return_range, GridFastConfig, MapConfig, MatchingConfig, MotionConfig, Preset, Proposal,
-    ProposalConfig, RecoveryConfig, ResamplingConfig, SensorConfig, AUTO_OUTDOOR_MEDIAN_RANGE,
-    MAX_PARTICLES,
+    ProposalConfig, RecoveryConfig, ResamplingConfig, SensorConfig, StartChoice,
+    AUTO_OUTDOOR_MEDIAN_RANGE, MAX_PARTICLES,
 };
 pub use error::GridFastError;
 pub use filter::GridFastSlam;

@@ -1,11 +1,12 @@
 //! The three proposal distributions: how one particle draws its pose at a processed scan
 //! and by how much its weight changes.
 
+use crate::config::StartChoice;
 use nalgebra::Cholesky;
 use rand::Rng;
 use slam_grid::matcher::endpoint::{
-    coarse_score, grid_search, hill_climb, score_scan, wide_search, EndpointModel, HillClimbSteps,
-    SearchWindow,
+    coarse_score, grid_search, hill_climb, score_scan, wide_search, EndpointMatch, EndpointModel,
+    HillClimbSteps, SearchWindow,
 };
 use slam_grid::DistanceField;
 use slam_grid::PreparedScan;
@@ -35,6 +36,8 @@ pub(crate) struct StepContext<'a> {
     pub correction: Pose2,
     /// The answer to a poor match, if any.
     pub recovery: Option<Recovery>,
+    /// How the match's start is chosen ([`crate::MatchingConfig::start_choice`]).
+    pub start_choice: StartChoice,
 }
 
 /// The wide search a poor match triggers ([`crate::RecoveryConfig`]).
@@ -42,6 +45,11 @@ pub(crate) struct StepContext<'a> {
 pub(crate) struct Recovery {
     /// A match with fewer inliers than this is poor.
     pub trigger_inliers: usize,
+    /// The trigger as a fraction ([`crate::RecoveryConfig::trigger_fraction`]).
+    pub trigger_fraction: f64,
+    /// Count the fraction among the beams whose end point the map can judge
+    /// ([`crate::RecoveryConfig::observed_only`]).
+    pub observed_only: bool,
     /// ± window and steps (x/y in metres, θ in radians).
     pub range_xy: f64,
     pub step_xy: f64,
@@ -78,9 +86,12 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 
 /// The improved proposal (Grisetti, Stachniss & Burgard, T-RO 2007, Table I):
 ///
-/// 1. x̂ = argmax p(z | m, x) by hill climbing from x' = xₜ₋₁ ⊕ uₜ (or from x' ⊕ c, with
-///    c the correction a coarse exhaustive search found for the best particle, when that
-///    fits this particle's map better);
+/// 1. x̂ = argmax p(z | m, x) by hill climbing from x' = xₜ₋₁ ⊕ uₜ and, when c — the
+///    correction a coarse exhaustive search found for the best particle — reaches beyond
+///    the climber's first steps, also from x' ⊕ c, keeping the climb with the larger
+///    p(z | m, x̂)·N(x̂; x', R) ([`StartChoice::Posterior`]: the mode of the target
+///    distribution, eq. 9, rather than whichever start fits the map better, which let a
+///    few dozen more beams on the map outweigh a heading 0.6 rad off good odometry);
 /// 2. K samples xⱼ on a grid around x̂; τⱼ = p(z | m, xⱼ)·p(xⱼ | xₜ₋₁, uₜ) with the motion
 ///    density the Gaussian N(x', R) of the linearised odometry model (R = V·M·Vᵀ, PR
 ///    table 5.6, plus a floor);
@@ -93,8 +104,11 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// untempered p(z | m, xⱼ): fitting them to the tempered likelihood widens the proposal by
 /// √g, which made Intel worse and the office no better (docs/results/defaults.md).
 ///
-/// A poor match (fewer inliers than [`Recovery::trigger_inliers`]: the prediction was too
-/// far off for the hill climber's capture range, e.g. after an odometry jump) is answered
+/// A poor match (fewer inliers than [`Recovery::trigger_fraction`] of the beams whose end
+/// points the map can judge, [`observed_beams`], or of all the beams without
+/// [`Recovery::observed_only`]: the prediction was too far off for the hill climber's
+/// capture range, e.g. after an odometry jump; a scan that looks into space not yet
+/// mapped is not poor for that alone) is answered
 /// by a branch-and-bound search of a wide window around the prediction over a max-pyramid
 /// of the capture field, built for this particle's map when the recovery triggers
 /// ([`wide_search`]; the same optimum as brute force over its lattice), under the motion
@@ -110,30 +124,70 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// back to [`motion_and_likelihood`] and the failure is reported.
 pub(crate) fn improved<R: Rng + ?Sized>(
     pose: &Pose2,
+    map: &slam_grid::OccupancyGrid,
     field: &DistanceField<'_>,
     ctx: &StepContext<'_>,
     rng: &mut R,
 ) -> Drawn {
     let predicted = ctx.motion.predict(pose, &ctx.u);
-    // Start from the prediction or from the prediction moved by the best particle's coarse
-    // correction, whichever fits this particle's map better.
     let shifted = predicted.compose(&ctx.correction);
-    let start = if ctx.correction != Pose2::IDENTITY
-        && coarse_score(field, ctx.scan, &shifted, &ctx.capture)
-            > coarse_score(field, ctx.scan, &predicted, &ctx.capture)
-    {
-        shifted
-    } else {
-        predicted
-    };
-    let mut m = hill_climb(field, ctx.scan, &start, &ctx.capture, &ctx.lk, &ctx.hc);
     let mut covariance =
         ctx.motion.noise_covariance(pose, &ctx.u) + Matrix3::from_diagonal(&ctx.min_var);
+    let mut m = match ctx.start_choice {
+        // Both starts, when the correction reaches beyond the climber's first steps (two
+        // climbs from closer starts end in the same mode): the mode of likelihood × motion
+        // prior, which the weights below score too.
+        StartChoice::Posterior
+            if ctx.correction.x.hypot(ctx.correction.y) > ctx.hc.linear_step
+                || ctx.correction.theta.abs() > ctx.hc.angular_step =>
+        {
+            let information = covariance.try_inverse().unwrap_or_else(Matrix3::zeros);
+            let posterior = |m: &EndpointMatch| {
+                let e = Vector3::new(
+                    m.pose.x - predicted.x,
+                    m.pose.y - predicted.y,
+                    normalize_angle(m.pose.theta - predicted.theta),
+                );
+                m.score.log_likelihood - 0.5 * e.dot(&(information * e))
+            };
+            let local = hill_climb(field, ctx.scan, &predicted, &ctx.capture, &ctx.lk, &ctx.hc);
+            let moved = hill_climb(field, ctx.scan, &shifted, &ctx.capture, &ctx.lk, &ctx.hc);
+            if posterior(&moved) > posterior(&local) {
+                moved
+            } else {
+                local
+            }
+        }
+        // One climb, from the start whose coarse score is larger.
+        _ => {
+            let start = if ctx.correction != Pose2::IDENTITY
+                && coarse_score(field, ctx.scan, &shifted, &ctx.capture)
+                    > coarse_score(field, ctx.scan, &predicted, &ctx.capture)
+            {
+                shifted
+            } else {
+                predicted
+            };
+            hill_climb(field, ctx.scan, &start, &ctx.capture, &ctx.lk, &ctx.hc)
+        }
+    };
     let mut recovered = false;
-    if let Some(rc) = ctx
-        .recovery
-        .filter(|rc| m.score.inliers < rc.trigger_inliers)
-    {
+    // Poor: too few beams find the map, counted among all the used beams or among those
+    // whose end point lies where the map can say anything ([`observed_beams`]); a match
+    // that would fail is always poor.
+    let poor = |rc: &Recovery, m: &EndpointMatch| {
+        if rc.observed_only {
+            // (The judged beams are a subset of all: counted only below the plain trigger.)
+            m.score.inliers < ctx.min_inliers
+                || (m.score.inliers < rc.trigger_inliers
+                    && (m.score.inliers as f64)
+                        < rc.trigger_fraction
+                            * observed_beams(map, field, ctx.scan, &m.pose, &ctx.lk) as f64)
+        } else {
+            m.score.inliers < rc.trigger_inliers
+        }
+    };
+    if let Some(rc) = ctx.recovery.filter(|rc| poor(rc, &m)) {
         let wide = covariance
             + Matrix3::from_diagonal(&Vector3::new(
                 (0.5 * rc.range_xy).powi(2),
@@ -155,9 +209,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
         };
         let m2 = hill_climb(field, ctx.scan, &found, &ctx.capture, &ctx.lk, &ctx.hc);
         // Taken when it is no longer poor itself (and better than the local match).
-        if m2.score.inliers > m.score.inliers
-            && m2.score.inliers >= rc.trigger_inliers.max(ctx.min_inliers)
-        {
+        if m2.score.inliers > m.score.inliers && !poor(&rc, &m2) {
             m = m2;
             covariance = wide;
             recovered = true;
@@ -234,6 +286,41 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     }
 }
 
+/// The beams of `scan` at `pose` that the map can judge: the end point lies in an observed
+/// cell (log-odds ≠ 0) or within the model's truncation r of an obstacle, or the beam
+/// passes through an occupied cell (log-odds > 0) more than r before its end — a beam that
+/// ends beyond a mapped wall contradicts the map as much as one that ends in mapped free
+/// space. Only the beams ending in unknown space are walked, in steps of a cell.
+pub(crate) fn observed_beams(
+    map: &slam_grid::OccupancyGrid,
+    field: &DistanceField<'_>,
+    scan: &PreparedScan,
+    pose: &Pose2,
+    model: &EndpointModel,
+) -> usize {
+    let unit = field.metres_per_unit();
+    let step = map.resolution();
+    let origin = pose.compose(&scan.sensor_pose()).translation();
+    scan.points()
+        .iter()
+        .filter(|p| {
+            let end = pose.transform_point(p);
+            let c = map.world_to_cell(&end);
+            if map.log_odds(c) != 0.0 || (field.dist(c) as f64 * unit) < model.radius {
+                return true;
+            }
+            let (dx, dy) = (end.x - origin.x, end.y - origin.y);
+            let length = dx.hypot(dy);
+            let n = ((length - model.radius) / step).floor().max(0.0) as usize;
+            (1..=n).any(|i| {
+                let t = i as f64 * step / length;
+                let q = slam_models::Point2::new(origin.x + t * dx, origin.y + t * dy);
+                map.log_odds(map.world_to_cell(&q)) > 0.0
+            })
+        })
+        .count()
+}
+
 /// The K = n³ sample offsets of the improved proposal: a regular grid spanning
 /// ±`range_xy` in x and y and ±`range_theta` in θ (GMapping's `llsamplerange` /
 /// `lasamplerange`).
@@ -308,9 +395,10 @@ mod tests {
                 offsets: &offsets,
                 correction: Pose2::IDENTITY,
                 recovery: None,
+                start_choice: StartChoice::Posterior,
             };
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
-            (improved(&previous, &field(&map), &ctx, &mut rng), ctx)
+            (improved(&previous, &map, &field(&map), &ctx, &mut rng), ctx)
         };
         let (d1, _) = draw(1.0);
         let (d3, ctx3) = draw(3.0);
@@ -356,6 +444,172 @@ mod tests {
             d3.log_weight
         );
         assert!(d1.log_weight < d3.log_weight);
+    }
+
+    /// A corridor from x = −20 to 20 m whose walls are saw-toothed with a period of one
+    /// metre (y = ±1 at whole metres, ±1.3 half-way): shifted by one metre along x it looks
+    /// the same, and every wall beam says where along the period the robot is. The range
+    /// to the first wall from (x, y) in direction a, radians.
+    fn corridor_cast(x: f64, y: f64, a: f64) -> f64 {
+        let mut segments = vec![((-20.0, -1.0), (-20.0, 1.0)), ((20.0, -1.0), (20.0, 1.0))];
+        for k in -20..20 {
+            let x0 = k as f64;
+            for s in [-1.0, 1.0] {
+                segments.push(((x0, s * 1.0), (x0 + 0.5, s * 1.3)));
+                segments.push(((x0 + 0.5, s * 1.3), (x0 + 1.0, s * 1.0)));
+            }
+        }
+        let d = (a.cos(), a.sin());
+        let mut best = f64::INFINITY;
+        for ((px, py), (qx, qy)) in segments {
+            let e = (qx - px, qy - py);
+            let den = d.0 * e.1 - d.1 * e.0;
+            if den.abs() < 1e-12 {
+                continue;
+            }
+            let w = (px - x, py - y);
+            let t = (w.0 * e.1 - w.1 * e.0) / den;
+            let u = (w.0 * d.1 - w.1 * d.0) / den;
+            if t > 0.0 && (0.0..=1.0).contains(&u) {
+                best = best.min(t);
+            }
+        }
+        best
+    }
+
+    /// A 361-beam, 360° scan of the corridor from `pose`; readings from `max_range` on are
+    /// no returns.
+    fn corridor_scan(pose: &Pose2, max_range: f64) -> slam_models::LaserScan {
+        let n = 361;
+        let inc = std::f64::consts::TAU / n as f64;
+        let ranges = (0..n)
+            .map(|k| {
+                let a = pose.theta - std::f64::consts::PI + k as f64 * inc;
+                corridor_cast(pose.x, pose.y, a).min(max_range)
+            })
+            .collect();
+        slam_models::LaserScan {
+            angle_min: -std::f64::consts::PI,
+            angle_increment: inc,
+            ranges,
+            max_range,
+            sensor_pose: Pose2::IDENTITY,
+        }
+    }
+
+    /// The csail failure in miniature (docs/gridfast.md): the map holds the corridor only up
+    /// to about `last` + 1.3 m (24 scans with a 1.6 m range from x ≤ `last`), the robot
+    /// moved from x = 1.1 to 1.9 m with exact odometry, and its 361-beam scan looks mostly
+    /// into the part not yet mapped. The beams the map can judge fit the true pose, but the
+    /// alias one metre back (every tooth on a tooth) puts more beams on mapped walls.
+    /// Returns the true pose and the particle's draw for the given start rule, coarse
+    /// correction and recovery (min-inlier fraction 5 %).
+    fn corridor_draw(
+        last: f64,
+        start_choice: StartChoice,
+        correction: Pose2,
+        recovery: Option<Recovery>,
+    ) -> (Pose2, Drawn) {
+        let mut map = empty_map();
+        for k in 0..24 {
+            let x = last - 0.5 * k as f64;
+            let p = Pose2::new(x, 0.05, 0.02 * k as f64);
+            map.integrate_scan(&p, &corridor_scan(&p, 1.6));
+        }
+        let truth = Pose2::new(1.9, 0.1, 0.05);
+        let previous = Pose2::new(1.1, 0.05, 0.0);
+        let scan = PreparedScan::with_limits(&corridor_scan(&truth, 30.0), 0.0, 29.9).unwrap();
+        let offsets = sample_offsets(3, 0.01, 0.005);
+        let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
+        let lk = EndpointModel::new(0.05, 0.15, 3.0);
+        let ctx = StepContext {
+            scan: &scan,
+            lk,
+            capture: EndpointModel { radius: 0.2, ..lk },
+            hc: HillClimbSteps {
+                linear_step: 0.1,
+                angular_step: 0.1,
+                refinements: 6,
+            },
+            u: motion.control_from_poses(&previous, &truth),
+            motion,
+            min_var: Vector3::new(1e-4, 1e-4, 2.5e-5),
+            min_inliers: scan.points().len() / 20,
+            offsets: &offsets,
+            correction,
+            recovery,
+            start_choice,
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        (
+            truth,
+            improved(&previous, &map, &field(&map), &ctx, &mut rng),
+        )
+    }
+
+    /// The indoor preset's recovery (±1.5 m, ±0.9 rad), counted among all the beams or
+    /// among the observed ones.
+    fn corridor_recovery(observed_only: bool) -> Option<Recovery> {
+        Some(Recovery {
+            trigger_inliers: (0.4 * 361.0_f64).ceil() as usize,
+            trigger_fraction: 0.4,
+            observed_only,
+            range_xy: 1.5,
+            step_xy: 0.1,
+            range_theta: 0.9,
+            step_theta: 0.02,
+        })
+    }
+
+    /// A scan looking into space not yet mapped is no poor match when the beams the map can
+    /// judge fit: counted among those (`observed-only`), the particle keeps the true pose;
+    /// counted among all the beams, the wide search replaces it by the alias a metre away.
+    #[test]
+    fn a_scan_into_new_space_does_not_trigger_the_wide_search() {
+        // Mapped up to x ≈ 1 m: 26 % of the beams find the map at the true pose, all of
+        // those the map can judge; 51 % at the alias.
+        let (truth, kept) = corridor_draw(
+            -0.3,
+            StartChoice::Posterior,
+            Pose2::IDENTITY,
+            corridor_recovery(true),
+        );
+        assert!(!kept.match_recovered && !kept.match_failed);
+        // Within the climber's reach of the truth (the map's edge pulls it a few cm).
+        assert!(
+            kept.pose.distance(&truth) < 0.1
+                && normalize_angle(kept.pose.theta - truth.theta).abs() < 0.02,
+            "{:?} against the truth {truth:?}",
+            kept.pose
+        );
+        let (_, lost) = corridor_draw(
+            -0.3,
+            StartChoice::Posterior,
+            Pose2::IDENTITY,
+            corridor_recovery(false),
+        );
+        assert!(lost.match_recovered);
+        assert!(lost.pose.distance(&truth) > 0.5, "{:?}", lost.pose);
+    }
+
+    /// When the best particle's coarse correction points at the alias (it fits more beams),
+    /// the posterior rule keeps the match the motion prior supports, the true pose; the
+    /// coarse-score rule climbs from the alias and stays there.
+    #[test]
+    fn the_start_is_chosen_by_likelihood_times_motion_prior() {
+        // Mapped up to x ≈ −1 m: the alias's likelihood is 25 nats larger (51 against 34
+        // beams on the map), its motion prior far smaller (1 m off a 0.8 m step whose
+        // translation deviation is 0.11 m).
+        let alias = Pose2::new(-1.0, 0.0, 0.0);
+        let (truth, kept) = corridor_draw(-2.3, StartChoice::Posterior, alias, None);
+        assert!(
+            kept.pose.distance(&truth) < 0.1
+                && normalize_angle(kept.pose.theta - truth.theta).abs() < 0.02,
+            "{:?} against the truth {truth:?}",
+            kept.pose
+        );
+        let (_, lost) = corridor_draw(-2.3, StartChoice::CoarseScore, alias, None);
+        assert!(lost.pose.distance(&truth) > 0.5, "{:?}", lost.pose);
     }
 
     #[test]
