@@ -50,6 +50,8 @@ pub(crate) struct Recovery {
     /// Count the fraction among the beams whose end point the map can judge
     /// ([`crate::RecoveryConfig::observed_only`]).
     pub observed_only: bool,
+    /// The wide search's match replaces the local one only with at least this many inliers.
+    pub accept_inliers: usize,
     /// ± window and steps (x/y in metres, θ in radians).
     pub range_xy: f64,
     pub step_xy: f64,
@@ -208,8 +210,13 @@ pub(crate) fn improved<R: Rng + ?Sized>(
             Err(_) => grid_search(field, ctx.scan, &predicted, &ctx.capture, &window),
         };
         let m2 = hill_climb(field, ctx.scan, &found, &ctx.capture, &ctx.lk, &ctx.hc);
-        // Taken when it is no longer poor itself (and better than the local match).
-        if m2.score.inliers > m.score.inliers && !poor(&rc, &m2) {
+        // Taken when it is better than the local match, no longer poor itself and fits
+        // most of the scan (`accept_inliers`): a pose far from the prediction needs more
+        // than not being poor.
+        if m2.score.inliers > m.score.inliers
+            && !poor(&rc, &m2)
+            && m2.score.inliers >= rc.accept_inliers
+        {
             m = m2;
             covariance = wide;
             recovered = true;
@@ -622,5 +629,120 @@ mod tests {
         assert!(s.iter().all(|v| v.abs() < 1e-12));
         assert!(o.contains(&[-0.01, 0.01, 0.005]));
         assert_eq!(sample_offsets(1, 0.01, 0.005), vec![[0.0, 0.0, 0.0]]);
+    }
+
+    /// A corridor (walls at y = ±1 m) with a rib 0.4 m deep on each wall every
+    /// `RIB_PERIOD` metres, scanned with 361 beams over 360° up to 3 m: a repetitive
+    /// structure in which a scan shifted by whole periods fits the walls again.
+    const RIB_PERIOD: f64 = 0.7;
+
+    fn corridor_scan(pose: &Pose2) -> slam_grid::LaserScan {
+        let mut walls = vec![([-20.0, 1.0], [20.0, 1.0]), ([-20.0, -1.0], [20.0, -1.0])];
+        for i in -30..=30 {
+            let x = RIB_PERIOD * i as f64;
+            walls.push(([x, 1.0], [x, 0.6]));
+            walls.push(([x, -1.0], [x, -0.6]));
+        }
+        let (n, reach) = (361, 3.0);
+        let inc = 2.0 * std::f64::consts::PI / n as f64;
+        let ranges = (0..n)
+            .map(|k| {
+                let a = pose.theta - std::f64::consts::PI + k as f64 * inc;
+                let (dx, dy) = (a.cos(), a.sin());
+                let mut t = f64::INFINITY;
+                for (p, q) in &walls {
+                    // Ray (pose + t·d) against the segment p + s·(q − p), s in [0, 1].
+                    let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
+                    let den = dx * ey - dy * ex;
+                    if den.abs() < 1e-12 {
+                        continue;
+                    }
+                    let (wx, wy) = (p[0] - pose.x, p[1] - pose.y);
+                    let tt = (wx * ey - wy * ex) / den;
+                    let ss = (wx * dy - wy * dx) / den;
+                    if tt > 0.0 && (0.0..=1.0).contains(&ss) {
+                        t = t.min(tt);
+                    }
+                }
+                if t < reach {
+                    t
+                } else {
+                    reach
+                }
+            })
+            .collect();
+        slam_grid::LaserScan {
+            angle_min: -std::f64::consts::PI,
+            angle_increment: inc,
+            ranges,
+            max_range: reach,
+            sensor_pose: Pose2::IDENTITY,
+        }
+    }
+
+    /// Issue 21, fhw: where the robot faces space not yet mapped, its true pose fits few
+    /// beams (here 29 %: the match is poor and the wide search runs), while in a repetitive
+    /// structure a pose two rib periods (1.4 m) back fits more (56 %). The odometry is
+    /// exact. The wide search's match used to replace the local one whenever more beams
+    /// found the map there, and the particle jumped to the alias; with
+    /// `recovery.accept-fraction` (0.6 by default) it keeps its local match at the truth.
+    #[test]
+    fn a_wide_match_in_unmapped_space_needs_most_beams_on_the_map() {
+        let mut map = empty_map();
+        // The corridor mapped up to x ≈ 0 (scans from x = −6 … −3 reaching 3 m).
+        for i in 0..5 {
+            let p = Pose2::new(-6.0 + i as f64 * 0.75, 0.0, 0.0);
+            map.integrate_scan(&p, &corridor_scan(&p));
+        }
+        let truth = Pose2::new(0.0, 0.0, 0.0);
+        let previous = Pose2::new(-1.0, 0.0, 0.0);
+        let scan = PreparedScan::with_limits(&corridor_scan(&truth), 0.0, 2.999).unwrap();
+        let n = scan.points().len() as f64;
+        let offsets = sample_offsets(3, 0.01, 0.005);
+        let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
+        let draw = |accept_fraction: f64| {
+            let model = |radius: f64| EndpointModel {
+                k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
+                radius,
+                gain: 3.0,
+            };
+            let ctx = StepContext {
+                scan: &scan,
+                lk: model(0.15),
+                capture: model(0.2),
+                hc: HillClimbSteps {
+                    linear_step: 0.1,
+                    angular_step: 0.1,
+                    refinements: 6,
+                },
+                u: motion.control_from_poses(&previous, &truth),
+                motion,
+                min_var: Vector3::new(1e-4, 1e-4, 2.5e-5),
+                min_inliers: (0.25 * n).ceil() as usize,
+                offsets: &offsets,
+                correction: Pose2::IDENTITY,
+                recovery: Some(Recovery {
+                    trigger_inliers: (0.4 * n).ceil() as usize,
+                    accept_inliers: (accept_fraction * n).ceil() as usize,
+                    range_xy: 1.5,
+                    step_xy: 0.1,
+                    range_theta: 0.9,
+                    step_theta: 0.02,
+                }),
+            };
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+            improved(&previous, &field(&map), &ctx, &mut rng)
+        };
+        let kept = draw(crate::RecoveryConfig::default().accept_fraction);
+        assert!(!kept.match_recovered && !kept.match_failed);
+        assert!(
+            kept.pose.distance(&truth) < 0.05 && kept.pose.theta.abs() < 0.02,
+            "{:?}",
+            kept.pose
+        );
+        // Taking the wide match whenever more beams fit (the rule before) jumps to the alias.
+        let jumped = draw(0.0);
+        assert!(jumped.match_recovered);
+        assert!(jumped.pose.distance(&truth) > 1.0, "{:?}", jumped.pose);
     }
 }
