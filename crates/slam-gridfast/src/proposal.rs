@@ -555,12 +555,14 @@ mod tests {
     }
 
     /// The indoor preset's recovery (±1.5 m, ±0.9 rad), counted among all the beams or
-    /// among the observed ones.
+    /// among the observed ones; any wide match with more inliers is accepted
+    /// (`accept-fraction` 0), so that only the trigger is tested.
     fn corridor_recovery(observed_only: bool) -> Option<Recovery> {
         Some(Recovery {
             trigger_inliers: (0.4 * 361.0_f64).ceil() as usize,
             trigger_fraction: 0.4,
             observed_only,
+            accept_inliers: 0,
             range_xy: 1.5,
             step_xy: 0.1,
             range_theta: 0.9,
@@ -636,7 +638,7 @@ mod tests {
     /// structure in which a scan shifted by whole periods fits the walls again.
     const RIB_PERIOD: f64 = 0.7;
 
-    fn corridor_scan(pose: &Pose2) -> slam_grid::LaserScan {
+    fn ribbed_corridor_scan(pose: &Pose2) -> slam_grid::LaserScan {
         let mut walls = vec![([-20.0, 1.0], [20.0, 1.0]), ([-20.0, -1.0], [20.0, -1.0])];
         for i in -30..=30 {
             let x = RIB_PERIOD * i as f64;
@@ -692,11 +694,11 @@ mod tests {
         // The corridor mapped up to x ≈ 0 (scans from x = −6 … −3 reaching 3 m).
         for i in 0..5 {
             let p = Pose2::new(-6.0 + i as f64 * 0.75, 0.0, 0.0);
-            map.integrate_scan(&p, &corridor_scan(&p));
+            map.integrate_scan(&p, &ribbed_corridor_scan(&p));
         }
         let truth = Pose2::new(0.0, 0.0, 0.0);
         let previous = Pose2::new(-1.0, 0.0, 0.0);
-        let scan = PreparedScan::with_limits(&corridor_scan(&truth), 0.0, 2.999).unwrap();
+        let scan = PreparedScan::with_limits(&ribbed_corridor_scan(&truth), 0.0, 2.999).unwrap();
         let n = scan.points().len() as f64;
         let offsets = sample_offsets(3, 0.01, 0.005);
         let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
@@ -721,17 +723,22 @@ mod tests {
                 min_inliers: (0.25 * n).ceil() as usize,
                 offsets: &offsets,
                 correction: Pose2::IDENTITY,
+                // The trigger counted among all the beams (`observed-only` off), so that
+                // the wide search runs and only the acceptance rule is tested.
                 recovery: Some(Recovery {
                     trigger_inliers: (0.4 * n).ceil() as usize,
+                    trigger_fraction: 0.4,
+                    observed_only: false,
                     accept_inliers: (accept_fraction * n).ceil() as usize,
                     range_xy: 1.5,
                     step_xy: 0.1,
                     range_theta: 0.9,
                     step_theta: 0.02,
                 }),
+                start_choice: StartChoice::Posterior,
             };
             let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
-            improved(&previous, &field(&map), &ctx, &mut rng)
+            improved(&previous, &map, &field(&map), &ctx, &mut rng)
         };
         let kept = draw(crate::RecoveryConfig::default().accept_fraction);
         assert!(!kept.match_recovered && !kept.match_failed);
