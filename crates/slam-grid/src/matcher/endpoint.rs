@@ -136,7 +136,8 @@ pub fn score(
     for block in points.chunks(BLOCK) {
         let n = block.len();
         // 1. Fixed-point cell-centre coordinates (cell (i, j) has its centre at (i, j)).
-        let fixed = |x: f64| (x.max(-FIXED_LIMIT).min(FIXED_LIMIT) + MAGIC).to_bits() as i32;
+        // (NaN, from a NaN pose, stays NaN, whose low bits read as cell 0: no panic.)
+        let fixed = |x: f64| (x.clamp(-FIXED_LIMIT, FIXED_LIMIT) + MAGIC).to_bits() as i32;
         for ((p, u), v) in block.iter().zip(&mut qu).zip(&mut qv) {
             *u = fixed(c * p.x - s * p.y + tx);
             *v = fixed(s * p.x + c * p.y + ty);
