@@ -85,7 +85,7 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 ///    density the Gaussian N(x', R) of the linearised odometry model (R = V·M·Vᵀ, PR
 ///    table 5.6, plus a floor);
 ///    p(z | m, xⱼ) is evaluated on every 2nd end point and scaled to the whole scan
-///    ([`sample_points`]);
+///    (`sample_points`);
 /// 3. η = Σ τⱼ, μ = Σ xⱼτⱼ/η, Σ = Σ (xⱼ − μ)(xⱼ − μ)ᵀτⱼ/η (eqs. 14–16);
 /// 4. xₜ ~ N(μ, Σ) (sampled, as published), and ln wₜ = ln wₜ₋₁ + ln η (eq. 18).
 ///

@@ -97,10 +97,10 @@ const LANES: usize = 8;
 ///    square and the sum, in f32 over eight partial sums in a fixed order (the same bytes
 ///    on every run), then scaled to metres in f64.
 ///
-/// Against the continuous model ([`score_f64`]) this rounds each end point's position by
-/// at most 1/2048 cell per axis, which moves its distance by at most 17/2048 unit per axis
-/// (the stored field changes by at most 17 units between neighbouring cells), and sums in
-/// f32 (relative error ≈ 10⁻⁷ per addition).
+/// Against the continuous model (`score_f64`, the test's reference) this rounds each end
+/// point's position by at most 1/2048 cell per axis, which moves its distance by at most
+/// 17/2048 unit per axis (the stored field changes by at most 17 units between
+/// neighbouring cells), and sums in f32 (relative error ≈ 10⁻⁷ per addition).
 pub fn score(
     field: &DistanceField<'_>,
     points: &[Point2],
