@@ -237,5 +237,11 @@ fn coarse_search(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, matching, wide_search, coarse_search);
+criterion_group!(
+    benches,
+    matching,
+    wide_search,
+    coarse_search,
+    endpoint_score
+);
 criterion_main!(benches);

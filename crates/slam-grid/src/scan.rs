@@ -23,7 +23,9 @@ pub(crate) struct PreparedBeam {
 /// * `points`: the end points of hits in the **robot** frame (the sensor offset applied),
 ///   for scan matching; a point p under robot pose x is at R(θ)·p + t in the world;
 /// * `coarse`: every 4th of `points`, the cheap subset that coarse search phases score
-///   ([`PreparedScan::coarse_points`]).
+///   ([`PreparedScan::coarse_points`]);
+/// * `half`: every 2nd of `points`, for many evaluations close to one pose
+///   ([`PreparedScan::half_points`]).
 ///
 /// Build it once per scan and share it (e.g. across the particles of a filter): it is the
 /// one prepared-scan type of every matcher, scan-matching odometry's and grid FastSLAM's.
@@ -33,6 +35,7 @@ pub struct PreparedScan {
     pub(crate) beams: Vec<PreparedBeam>,
     pub(crate) points: Vec<Point2>,
     pub(crate) coarse: Vec<Point2>,
+    pub(crate) half: Vec<Point2>,
     pub(crate) max_point_range: f64,
 }
 
@@ -99,11 +102,13 @@ impl PreparedScan {
             }
         }
         let coarse = points.iter().step_by(COARSE_STRIDE).copied().collect();
+        let half = points.iter().step_by(2).copied().collect();
         Ok(Self {
             sensor_pose: scan.sensor_pose,
             beams,
             points,
             coarse,
+            half,
             max_point_range,
         })
     }
@@ -120,6 +125,19 @@ impl PreparedScan {
     pub fn coarse_points(&self) -> &[Point2] {
         if self.coarse.len() >= MIN_COARSE_POINTS {
             &self.coarse
+        } else {
+            &self.points
+        }
+    }
+
+    /// Every 2nd of [`PreparedScan::points`] (the first, third, …), or all of them when that
+    /// subset would have fewer than 20 points: for evaluations that are many and close to
+    /// one pose (grid FastSLAM's proposal samples), where half the beams still tell them
+    /// apart.
+    #[inline]
+    pub fn half_points(&self) -> &[Point2] {
+        if self.half.len() >= MIN_COARSE_POINTS {
+            &self.half
         } else {
             &self.points
         }
@@ -180,8 +198,8 @@ mod tests {
     }
 
     /// Subsampling keeps every step-th of the in-limit hits (counted among those hits
-    /// only) and every beam; the coarse subset is every 4th kept point, or all of them
-    /// when it would be thinner than 20.
+    /// only) and every beam; the coarse subset is every 4th kept point and the half subset
+    /// every 2nd, or all of them when they would be thinner than 20.
     #[test]
     fn subsampling_keeps_every_step_th_hit_in_limits() {
         let scan = LaserScan {
@@ -208,5 +226,9 @@ mod tests {
         let thin = PreparedScan::with_limits_every(&scan, 0.9, 10.0, 20).unwrap();
         assert!(!thin.has_coarse_subset());
         assert_eq!(thin.coarse_points(), thin.points());
+        // The half subset: every 2nd kept point (100 of 200), all 10 when thinner than 20.
+        let half: Vec<Point2> = all.points().iter().step_by(2).copied().collect();
+        assert_eq!(all.half_points(), &half[..]);
+        assert_eq!(thin.half_points(), thin.points());
     }
 }

@@ -292,6 +292,13 @@ impl<'a> DistanceField<'a> {
         self.table.slot(tx, ty).and_then(|s| tiles[s].as_deref())
     }
 
+    /// The cells of the stored tile (tx, ty), row-major, `None` when all far
+    /// ([`DistanceField::max_units`]): for readers that cache a tile themselves.
+    #[inline]
+    pub(crate) fn tile_cells(&self, tx: i32, ty: i32) -> Option<&'a [u8; TILE_CELLS]> {
+        self.tile(tx, ty).map(|t| &t.dist)
+    }
+
     /// A reader that remembers the last tile it looked up ([`DistanceCursor`]).
     #[inline]
     pub fn cursor(&self) -> DistanceCursor<'a> {
