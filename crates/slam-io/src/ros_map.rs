@@ -66,15 +66,19 @@ pub fn write_ros_map(dir: &Path, stem: &str, m: &GridMap) -> Result<(), IoError>
         let mut line = Vec::with_capacity(m.width);
         for row in (0..m.height).rev() {
             line.clear();
-            line.extend(m.cells[row * m.width..(row + 1) * m.width].iter().map(|&v| {
-                if v >= OCCUPIED_PERCENT {
-                    0
-                } else if (0..=FREE_PERCENT).contains(&v) {
-                    254
-                } else {
-                    205
-                }
-            }));
+            line.extend(
+                m.cells[row * m.width..(row + 1) * m.width]
+                    .iter()
+                    .map(|&v| {
+                        if v >= OCCUPIED_PERCENT {
+                            0
+                        } else if (0..=FREE_PERCENT).contains(&v) {
+                            254
+                        } else {
+                            205
+                        }
+                    }),
+            );
             f.write_all(&line)?;
         }
         f.flush()
