@@ -946,7 +946,7 @@ impl ScanSlam for GridFastSlam {
     }
 
     /// The best particle's map with the last processed scan (which the particles' maps
-    /// take only at the next update, see [`flush`]).
+    /// take only at the start of the next update).
     fn map(&self) -> GridMap {
         let best = &self.particles[self.best];
         if let Some(pending) = &self.pending {
