@@ -557,11 +557,16 @@ fn run_scan(
         })
     };
     let opts = run_options(ctx, input);
-    let run =
+    let mut run =
         run_scans_observed(filter.as_mut(), dataset, &opts, &mut observer).map_err(run_error)?;
     progress.finish();
     warn(&run.warnings);
     let particles = filter.particles();
+    // The outputs need nothing more from the filter: its particles' maps and kept scans
+    // (and the per-record diagnostics) are freed before the pictures are drawn, so that the
+    // outputs reuse their memory instead of adding to the run's peak.
+    drop(filter);
+    run.updates = Vec::new();
 
     let dir = ctx.stage;
     let mut files = Vec::new();

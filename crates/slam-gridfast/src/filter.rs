@@ -146,15 +146,17 @@ pub struct GridFastSlam {
     pending: Option<Pending>,
 }
 
-/// A processed scan not yet integrated into the maps of some groups of particles: the
-/// best particle's group takes it at once, the others at the next update, while the coarse
-/// search runs on the best particle's map (see [`flush`]).
+/// The last processed scan, checked against every particle's map but not yet integrated:
+/// the maps take it at the start of the next update, the best particle's group first (its
+/// map is the coarse search's) and the others beside that search (see [`flush`]); the
+/// filter's map ([`ScanSlam::map`]) adds it to a copy of the best particle's map.
 struct Pending {
     /// The scan's index among the processed scans (for an error).
     k: usize,
     scan: PreparedScan,
     /// (first index, count) of each group of identical particles, integrated once and
-    /// copied.
+    /// copied; the groups cover the particles in order and the best particle leads its
+    /// group.
     groups: Vec<(usize, usize)>,
 }
 
@@ -626,6 +628,7 @@ impl GridFastSlam {
             &mut self.particles,
             self.best,
             self.pending.take(),
+            &self.d.empty,
             coarse_search,
         );
         if let Err(e) = flushed {
@@ -756,6 +759,7 @@ impl GridFastSlam {
         let mut old = std::mem::take(&mut self.particles);
         // Groups of identical particles: (leader, copies), in order.
         let mut groups: Vec<(Particle, usize)> = Vec::new();
+        let mut dead = Vec::new();
         if let Some(idx) = drawn {
             let mut new_best = None;
             let mut j = 0;
@@ -781,39 +785,29 @@ impl GridFastSlam {
                 groups.push((p, n));
                 j += n;
             }
-            // Dead particles release their tiles before the survivors write theirs.
-            drop(old);
+            dead = old;
             let g = new_best.unwrap_or(0);
             best = groups[..g].iter().map(|(_, n)| n).sum();
         } else {
             groups = old.into_iter().map(|p| (p, 1)).collect();
         }
         // Every group's integration is checked now, so that a refused scan (kilometres off
-        // the map) is reported at this scan; the best particle's group is integrated now
-        // (its map is the output and the next coarse search's), the others at the next
-        // update, overlapped with that search (the same maps in the end, for any number
-        // of threads).
-        let best_group = groups
-            .iter()
-            .scan(0, |start, (_, n)| {
-                *start += n;
-                Some(*start - n)
-            })
-            .position(|start| start == best)
-            .unwrap_or(0);
-        let integrated = groups
-            .par_iter()
-            .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared))
-            .and_then(|()| {
-                let (p, _) = &mut groups[best_group];
-                p.map.try_integrate_prepared(&p.pose, &prepared)
-            });
+        // the map) is reported at this scan; the maps take it at the next update, in
+        // parallel with the coarse search (the same maps in the end, for any number of
+        // threads: no step of the update runs alone for an integration). The dead
+        // particles' tiles are released meanwhile, before the survivors write theirs.
+        let (integrated, ()) = join(
+            || {
+                groups
+                    .par_iter()
+                    .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared))
+            },
+            move || drop(dead),
+        );
         let mut particles = Vec::with_capacity(m);
         let mut later = Vec::with_capacity(groups.len());
-        for (g, (p, n)) in groups.into_iter().enumerate() {
-            if g != best_group {
-                later.push((particles.len(), n));
-            }
+        for (p, n) in groups {
+            later.push((particles.len(), n));
             for _ in 1..n {
                 particles.push(p.clone());
             }
@@ -841,15 +835,18 @@ impl GridFastSlam {
     }
 }
 
-/// Runs `search` on the best particle and, meanwhile (two rayon tasks), integrates the
-/// pending scan into the maps of the pending groups of `particles`: each group's first
-/// particle integrates it, the others of the group take copies of that map (as they were
-/// copies of it before). The best particle is in no pending group. Returns the search's
-/// result and the integration's outcome (an error names the pending scan).
+/// Integrates the pending scan into every particle's map and runs `search` on the best
+/// particle's, in two rayon tasks: the best particle's group, then the search on its map;
+/// beside them the other groups. In each group the first particle integrates the scan and
+/// the others take copies of its map (they were copies of it before; their old maps are
+/// let go first, so that the tiles written are not shared and need no copy). Returns the
+/// search's result (the identity when the best particle's map refused the scan) and the
+/// integration's outcome (an error names the pending scan).
 fn flush<F>(
     particles: &mut [Particle],
     best: usize,
     pending: Option<Pending>,
+    empty: &OccupancyGrid,
     search: F,
 ) -> (Pose2, Result<(), GridFastError>)
 where
@@ -858,41 +855,49 @@ where
     let Some(Pending { k, scan, groups }) = pending else {
         return (search(&particles[best]), Ok(()));
     };
-    // Split the particles into the pending groups' slices and the rest (holding `best`).
-    let mut slices: Vec<&mut [Particle]> = Vec::with_capacity(groups.len());
-    let mut best_particle = None;
+    // The groups' slices; the best particle leads its group.
+    let mut best_group: &mut [Particle] = &mut [];
+    let mut others: Vec<&mut [Particle]> = Vec::with_capacity(groups.len());
     let mut rest: &mut [Particle] = particles;
     let mut offset = 0;
     for &(start, n) in &groups {
-        let (head, tail) = std::mem::take(&mut rest).split_at_mut(start - offset);
+        let (_, tail) = std::mem::take(&mut rest).split_at_mut(start - offset);
         let (group, tail) = tail.split_at_mut(n);
-        if (offset..start).contains(&best) {
-            best_particle = Some(&head[best - offset]);
+        if start == best {
+            best_group = group;
+        } else {
+            others.push(group);
         }
-        slices.push(group);
         rest = tail;
         offset = start + n;
     }
-    let best_particle = match best_particle {
-        Some(p) => p,
-        None => &rest[best - offset],
+    let integrate = |group: &mut [Particle]| -> Result<(), slam_grid::GridError> {
+        let Some((first, copies)) = group.split_first_mut() else {
+            return Ok(());
+        };
+        for c in copies.iter_mut() {
+            c.map = empty.clone();
+        }
+        first.map.try_integrate_prepared(&first.pose, &scan)?;
+        for c in copies {
+            c.map = first.map.clone();
+        }
+        Ok(())
     };
-    let (pose, integrated) = join(
-        || search(best_particle),
-        || {
-            slices.par_iter_mut().try_for_each(|group| {
-                let Some((first, copies)) = group.split_first_mut() else {
-                    return Ok(());
-                };
-                first.map.try_integrate_prepared(&first.pose, &scan)?;
-                for c in copies {
-                    c.map = first.map.clone();
-                }
-                Ok(())
-            })
+    let ((pose, best_integrated), integrated) = join(
+        || match integrate(best_group) {
+            Ok(()) => match best_group.first() {
+                Some(p) => (search(p), Ok(())),
+                None => (Pose2::IDENTITY, Ok(())),
+            },
+            Err(e) => (Pose2::IDENTITY, Err(e)),
         },
+        || others.par_iter_mut().try_for_each(|g| integrate(g)),
     );
-    (pose, integrated.map_err(|e| numerical(k, e)))
+    (
+        pose,
+        best_integrated.and(integrated).map_err(|e| numerical(k, e)),
+    )
 }
 
 impl FromConfig for GridFastSlam {
@@ -940,8 +945,21 @@ impl ScanSlam for GridFastSlam {
             .collect()
     }
 
+    /// The best particle's map with the last processed scan (which the particles' maps
+    /// take only at the start of the next update).
     fn map(&self) -> GridMap {
-        self.particles[self.best].map.to_grid_map()
+        let best = &self.particles[self.best];
+        if let Some(pending) = &self.pending {
+            let mut map = best.map.clone();
+            // Checked when it was processed: it cannot fail here.
+            if map
+                .try_integrate_prepared(&best.pose, &pending.scan)
+                .is_ok()
+            {
+                return map.to_grid_map();
+            }
+        }
+        best.map.to_grid_map()
     }
 
     /// [`GridFastSlam::render_map`]: every processed scan integrated at the best
@@ -1338,6 +1356,69 @@ mod tests {
             last.distance(goal) > 0.3 || normalize_angle(last.theta - goal.theta).abs() > 0.3,
             "without the scan trigger the run should be lost: {last:?}"
         );
+    }
+
+    /// The particles' maps take a processed scan only at the next update (beside the
+    /// coarse search), so the filter's map adds it itself: after a second scan that sees a
+    /// wall the first did not, that wall is in the map. Odometry proposal, so that nothing
+    /// is matched (the scans share no wall); every beam but a wall's is a no return.
+    #[test]
+    fn the_map_holds_the_last_processed_scan() {
+        let mut config = GridFastConfig {
+            particles: 3,
+            linear_update: 0.5,
+            ..Default::default()
+        };
+        config.proposal.kind = Proposal::Odometry;
+        config.sensor.max_range = Some(10.0);
+        // Beams between `from` and `to` (rad, sensor frame) see a wall; `range` gives the
+        // distance along the beam at angle `a`.
+        let scan = |t: f64, odometry: Pose2, from: f64, to: f64, range: &dyn Fn(f64) -> f64| {
+            let inc = std::f64::consts::PI / 180.0;
+            let ranges = (0..181)
+                .map(|k| {
+                    let a = -std::f64::consts::FRAC_PI_2 + k as f64 * inc;
+                    if (from..=to).contains(&a) {
+                        range(a)
+                    } else {
+                        10.0
+                    }
+                })
+                .collect();
+            ScanRecord {
+                t,
+                odometry,
+                scan: Some(LaserScan {
+                    angle_min: -std::f64::consts::FRAC_PI_2,
+                    angle_increment: inc,
+                    ranges,
+                    max_range: 10.0,
+                    sensor_pose: Pose2::IDENTITY,
+                }),
+            }
+        };
+        let mut f = GridFastSlam::new(config, Pose2::IDENTITY, 1).unwrap();
+        // The wall x = 3 ahead, then, 0.6 m on, the wall y = 2 on the left (60° to 90°).
+        let ahead = scan(0.0, Pose2::IDENTITY, -0.5, 0.5, &|a: f64| 3.0 / a.cos());
+        f.step(&ahead).unwrap();
+        let left = scan(1.0, Pose2::new(0.6, 0.0, 0.0), 1.05, 1.58, &|a: f64| {
+            2.0 / a.sin()
+        });
+        assert!(f.step(&left).unwrap().processed_scan);
+        let map = f.map();
+        // An occupied cell within 4 cells of (x, y) along the axis `across` the wall.
+        let occupied_near = |x: f64, y: f64, across: (i64, i64)| {
+            let Some((i, j)) = map.cell_of(&slam_models::Point2::new(x, y)) else {
+                return false;
+            };
+            (-4..=4).any(|d| {
+                let (i, j) = (i as i64 + d * across.0, j as i64 + d * across.1);
+                (i >= 0 && j >= 0) && map.get(i as usize, j as usize).is_some_and(|v| v > 50)
+            })
+        };
+        assert!(occupied_near(2.9, 0.0, (1, 0)), "the first scan's wall");
+        assert!(occupied_near(1.1, 1.9, (0, 1)), "the last scan's wall");
+        assert_eq!(f.map().cells, map.cells, "asking again changes nothing");
     }
 
     #[test]

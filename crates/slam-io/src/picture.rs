@@ -464,13 +464,32 @@ impl Picture {
         let xticks = tick_values(view.min_x, view.max_x(), w as f64 / 90.0);
         let yticks = tick_values(view.min_y(), view.max_y, h as f64 / 70.0);
 
-        // The plot, drawn on its own canvas so that every layer is clipped to it.
-        let mut plot = RgbImage::from_pixel(w, h, WHITE);
+        // The whole picture's size: title band, plot, frame, ticks and their labels; wide
+        // enough for the title too (a tall, narrow map would cut it off).
+        let title_w = self
+            .title
+            .as_ref()
+            .map_or(0.0, |t| text_size(t, TITLE_PX).0.ceil()) as u32;
+        let iw = layout.left + w.max(title_w) + MARGIN_RIGHT;
+        let ih = layout.top + h + MARGIN_BOTTOM;
+
+        // The plot, drawn on its own canvas so that every layer is clipped to it, in a
+        // buffer with room for the whole picture, into which it is then spread in place:
+        // one picture-sized buffer where a plot, a copy of it and the picture took three
+        // (for Intel's map, 9 MB at the end of `slam run`).
+        let mut buf = Vec::with_capacity(iw as usize * ih as usize * 3);
+        for _ in 0..w as usize * h as usize {
+            buf.extend_from_slice(&WHITE.0);
+        }
+        let mut plot = RgbImage::from_raw(w, h, buf)
+            .ok_or_else(|| IoError::Picture(format!("no {w} × {h} px plot")))?;
         match &self.map {
             Some(m) => draw_map(&mut plot, &view, m),
             None => draw_grid(&mut plot, &view, &xticks, &yticks),
         }
-        let background = plot.clone();
+        // The legend's candidate corners as they are before the layers (all the legend
+        // needs of that state).
+        let legend = self.legend_box(w, h).map(|b| b.with_background(&plot));
         for path in &self.particle_paths {
             polyline(&mut plot, &view, path, GREY.into(), 1.0);
         }
@@ -503,18 +522,10 @@ impl Picture {
             let (u, v) = view.px(&p.pose.translation());
             disc(&mut plot, u, v, 1.5, TEAL.into());
         }
-        self.draw_legend(&mut plot, &background);
-
-        // The whole picture: title band, plot, frame, ticks and their labels.
-        // Wide enough for the title too (a tall, narrow map would cut it off).
-        let title_w = self
-            .title
-            .as_ref()
-            .map_or(0.0, |t| text_size(t, TITLE_PX).0.ceil()) as u32;
-        let iw = layout.left + w.max(title_w) + MARGIN_RIGHT;
-        let ih = layout.top + h + MARGIN_BOTTOM;
-        let mut img = RgbImage::from_pixel(iw, ih, WHITE);
-        image::imageops::replace(&mut img, &plot, layout.left as i64, layout.top as i64);
+        if let Some(legend) = legend {
+            legend.draw(&mut plot);
+        }
+        let mut img = place_on_white(plot, iw, ih, layout.left, layout.top);
         let (l, t) = (layout.left as f64, layout.top as f64);
         let (r, b) = (l + w as f64, t + h as f64);
         for (a, c) in [((l - 1.0, t - 1.0), (r, t - 1.0)), ((l - 1.0, b), (r, b))] {
@@ -603,51 +614,93 @@ impl Picture {
         out
     }
 
-    /// Draws the legend in the corner of the plot that covers the fewest drawn pixels
-    /// (compared with `background`, the plot before the layers); returns the corner
-    /// (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right), or `None` with no legend.
-    fn draw_legend(&self, plot: &mut RgbImage, background: &RgbImage) -> Option<usize> {
+    /// Where the legend could go in a `pw` × `ph` plot: its entries, size and the four
+    /// corners (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right); `None` with no
+    /// legend or a plot too small to hold it.
+    fn legend_box(&self, pw: u32, ph: u32) -> Option<LegendBox> {
         let entries = self.legend();
         if entries.is_empty() {
             return None;
         }
-        let (pad, swatch_w, row) = (7.0, 26.0, 19.0);
         let text_w = entries
             .iter()
             .map(|(_, t)| text_size(t, LEGEND_PX).0)
             .fold(0.0, f64::max);
-        let bw = (pad + swatch_w + 6.0 + text_w + pad).ceil();
-        let bh = (2.0 * pad + row * entries.len() as f64).ceil();
-        let (pw, ph) = (plot.width() as f64, plot.height() as f64);
+        let bw = (LEGEND_PAD + LEGEND_SWATCH_W + 6.0 + text_w + LEGEND_PAD).ceil();
+        let bh = (2.0 * LEGEND_PAD + LEGEND_ROW * entries.len() as f64).ceil();
+        let (pw, ph) = (pw as f64, ph as f64);
         if bw + 16.0 > pw || bh + 16.0 > ph {
             return None;
         }
-        let corners = [
-            (8.0, 8.0),
-            (pw - bw - 8.0, 8.0),
-            (8.0, ph - bh - 8.0),
-            (pw - bw - 8.0, ph - bh - 8.0),
-        ];
-        // Drawn pixels under each corner: layer pixels, and occupied map cells.
-        let covered = |&(x0, y0): &(f64, f64)| -> usize {
-            let mut n = 0;
-            for y in y0 as u32..(y0 + bh) as u32 {
-                for x in x0 as u32..(x0 + bw) as u32 {
+        Some(LegendBox {
+            entries,
+            bw,
+            bh,
+            corners: [
+                (8.0, 8.0),
+                (pw - bw - 8.0, 8.0),
+                (8.0, ph - bh - 8.0),
+                (pw - bw - 8.0, ph - bh - 8.0),
+            ],
+            background: Vec::new(),
+        })
+    }
+}
+
+/// The legend box's inner margin, swatch width and row height, pixels.
+const LEGEND_PAD: f64 = 7.0;
+const LEGEND_SWATCH_W: f64 = 26.0;
+const LEGEND_ROW: f64 = 19.0;
+
+/// A picture's legend: its entries, its size in pixels, the plot's four corners it may go
+/// to and, once taken ([`LegendBox::with_background`]), the plot under each corner before
+/// the layers were drawn.
+struct LegendBox {
+    entries: Vec<(Swatch, String)>,
+    bw: f64,
+    bh: f64,
+    corners: [(f64, f64); 4],
+    /// The plot's pixels under each corner's box before the layers, row by row.
+    background: Vec<Vec<Px>>,
+}
+
+impl LegendBox {
+    /// The pixels of a corner's box, row by row from its top-left.
+    fn pixels(&self, corner: usize) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let (x0, y0) = self.corners[corner];
+        (y0 as u32..(y0 + self.bh) as u32)
+            .flat_map(move |y| (x0 as u32..(x0 + self.bw) as u32).map(move |x| (x, y)))
+    }
+
+    /// Keeps `plot`'s pixels under the four corners (the background the legend compares
+    /// the drawn plot with): four legend-sized patches rather than a copy of the plot.
+    fn with_background(mut self, plot: &RgbImage) -> Self {
+        self.background = (0..4)
+            .map(|c| self.pixels(c).map(|(x, y)| *plot.get_pixel(x, y)).collect())
+            .collect();
+        self
+    }
+
+    /// Draws the legend in the corner of the plot that covers the fewest drawn pixels
+    /// (pixels that differ from the background taken before the layers, and occupied map
+    /// cells); returns the corner (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right).
+    fn draw(&self, plot: &mut RgbImage) -> usize {
+        let (pad, swatch_w, row) = (LEGEND_PAD, LEGEND_SWATCH_W, LEGEND_ROW);
+        let (bw, bh) = (self.bw, self.bh);
+        let covered = |c: usize| -> usize {
+            self.pixels(c)
+                .zip(&self.background[c])
+                .filter(|&((x, y), b)| {
                     let p = plot.get_pixel(x, y);
-                    if p != background.get_pixel(x, y) || p.0[0] < 100 {
-                        n += 1;
-                    }
-                }
-            }
-            n
+                    p != b || p.0[0] < 100
+                })
+                .count()
         };
         // Prefer the top-right corner on ties (the usual place of a legend).
         let order = [1usize, 0, 3, 2];
-        let corner = order
-            .into_iter()
-            .min_by_key(|&c| covered(&corners[c]))
-            .unwrap_or(1);
-        let (x0, y0) = corners[corner];
+        let corner = order.into_iter().min_by_key(|&c| covered(c)).unwrap_or(1);
+        let entries = &self.entries;
+        let (x0, y0) = self.corners[corner];
         for y in y0 as u32..(y0 + bh) as u32 {
             for x in x0 as u32..(x0 + bw) as u32 {
                 let p = plot.get_pixel_mut(x, y);
@@ -700,8 +753,38 @@ impl Picture {
             let (_, th) = text_size(text, LEGEND_PX);
             draw_text(plot, sx1 + 6.0, cy - th / 2.0, text, LEGEND_PX, LABEL);
         }
-        Some(corner)
+        corner
     }
+}
+
+/// `plot` placed with its top-left corner at pixel (`left`, `top`) of a white `iw` × `ih`
+/// picture (`iw` ≥ `left` + the plot's width, `ih` ≥ `top` + its height), in the plot's own
+/// buffer: it grows to the picture's size (without moving when [`Picture::render`] made
+/// it large enough) and every row moves to its place, the last one first so that no row
+/// is overwritten before it has moved.
+fn place_on_white(plot: RgbImage, iw: u32, ih: u32, left: u32, top: u32) -> RgbImage {
+    let (w, h) = (plot.width() as usize, plot.height() as usize);
+    let (iw, ih, left, top) = (iw as usize, ih as usize, left as usize, top as usize);
+    debug_assert!(left + w <= iw && top + h <= ih);
+    let mut buf = plot.into_raw();
+    buf.resize(iw * ih * 3, 255);
+    let (row, wide_row) = (w * 3, iw * 3);
+    for y in (0..h).rev() {
+        let to = (top + y) * wide_row + left * 3;
+        buf.copy_within(y * row..(y + 1) * row, to);
+    }
+    // Every byte outside the plot's new place is white; those of the rows moved away from
+    // are the old rows' (the place's own bytes were all written above).
+    for y in 0..ih {
+        let line = &mut buf[y * wide_row..(y + 1) * wide_row];
+        if (top..top + h).contains(&y) {
+            line[..left * 3].fill(255);
+            line[(left + w) * 3..].fill(255);
+        } else {
+            line.fill(255);
+        }
+    }
+    RgbImage::from_raw(iw as u32, ih as u32, buf).expect("the buffer holds iw × ih pixels")
 }
 
 /// The scale bar, under the plot's right end (so that it never hides data): a black bar of
@@ -1440,12 +1523,12 @@ mod tests {
             w: 400,
             h: 400,
         };
-        let background = plot.clone();
+        let legend = pic.legend_box(400, 400).unwrap().with_background(&plot);
         for (_, p) in &cloud {
             let (u, v) = view.px(p);
             cross(&mut plot, u, v, 5.0, BLACK.into());
         }
-        assert_ne!(pic.draw_legend(&mut plot, &background), Some(1));
+        assert_ne!(legend.draw(&mut plot), 1);
     }
 
     #[test]

@@ -55,28 +55,39 @@ pub fn write_ros_map(dir: &Path, stem: &str, m: &GridMap) -> Result<(), IoError>
         ));
     }
     std::fs::create_dir_all(dir).map_err(|e| IoError::io(dir, e))?;
-    let mut bytes = format!(
-        "P5\n# slam-rs occupancy map, {} m/cell\n{} {}\n255\n",
-        m.resolution, m.width, m.height
-    )
-    .into_bytes();
-    bytes.reserve(m.cells.len());
-    for row in (0..m.height).rev() {
-        for &v in &m.cells[row * m.width..(row + 1) * m.width] {
-            bytes.push(if v >= OCCUPIED_PERCENT {
-                0
-            } else if (0..=FREE_PERCENT).contains(&v) {
-                254
-            } else {
-                205
-            });
+    // Written row by row (a map-sized byte buffer would add to the peak of a run's end).
+    let write_pgm = || -> std::io::Result<()> {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&pgm)?);
+        write!(
+            f,
+            "P5\n# slam-rs occupancy map, {} m/cell\n{} {}\n255\n",
+            m.resolution, m.width, m.height
+        )?;
+        let mut line = Vec::with_capacity(m.width);
+        for row in (0..m.height).rev() {
+            line.clear();
+            line.extend(
+                m.cells[row * m.width..(row + 1) * m.width]
+                    .iter()
+                    .map(|&v| {
+                        if v >= OCCUPIED_PERCENT {
+                            0
+                        } else if (0..=FREE_PERCENT).contains(&v) {
+                            254
+                        } else {
+                            205
+                        }
+                    }),
+            );
+            f.write_all(&line)?;
         }
-    }
+        f.flush()
+    };
+    write_pgm().map_err(|e| IoError::io(&pgm, e))?;
     let write = |p: &Path, b: &[u8]| -> Result<(), IoError> {
         let mut f = std::fs::File::create(p).map_err(|e| IoError::io(p, e))?;
         f.write_all(b).map_err(|e| IoError::io(p, e))
     };
-    write(&pgm, &bytes)?;
     let y = format!(
         "image: {stem}.pgm\nresolution: {}\norigin: [{}, {}, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
         m.resolution, m.origin.x, m.origin.y
