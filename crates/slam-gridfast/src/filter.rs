@@ -517,9 +517,11 @@ impl GridFastSlam {
     /// particle's map at the pose the odometry predicts for it (that particle's corrected
     /// pose ⊕ the odometry since the last update): fewer than
     /// [`GridFastConfig::scan_update_fraction`] of its used beams end within the
-    /// likelihood radius of an occupied cell. The best particle's map holds the last
-    /// processed scan (its group integrates it at once), so a robot standing still does not
-    /// trigger it again and again.
+    /// likelihood radius of an occupied cell. The best particle's map holds every processed
+    /// scan but the last (the maps take it at the start of the next update, beside the
+    /// coarse search): in space only the last processed scan has seen, a scan may count as
+    /// misfit and trigger an update early, which then integrates that scan, so a robot
+    /// standing still triggers it at most once.
     fn scan_misfits(&self, scan: &LaserScan, odometry: &Pose2) -> Result<bool, GridFastError> {
         let (Some(&r_prev), true) = (self.scan_records.last(), self.p.scan_update_fraction > 0.0)
         else {
