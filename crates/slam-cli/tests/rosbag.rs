@@ -41,22 +41,13 @@ fn tum(path: &Path) -> Trajectory {
     m
 }
 
-/// `slam run --filter gridfast --particles 10` on `dataset` (with `extra` options) into a
-/// new scratch folder; the trajectory and what the run printed. Ten particles keep the
-/// test at a few seconds a run; every input gets the same filter and seed.
-fn gridfast(name: &str, dataset: &str, extra: &[&str]) -> (Trajectory, String) {
+/// `slam run --filter scanmatch` on `dataset` (with `extra` options) into a new scratch
+/// folder; the trajectory and what the run printed (see [`SAME_XY`] for why not gridfast).
+fn scanmatch(name: &str, dataset: &str, extra: &[&str]) -> (Trajectory, String) {
     let out = scratch(name);
     let o = out.join("out");
     let args = [
-        &[
-            "run",
-            "--filter",
-            "gridfast",
-            "--particles",
-            "10",
-            "--dataset",
-            dataset,
-        ][..],
+        &["run", "--filter", "scanmatch", "--dataset", dataset][..],
         extra,
         &["--quiet", "--out", o.to_str().unwrap()],
     ]
@@ -110,13 +101,27 @@ fn carmen_head(name: &str, mount: Option<(f64, f64, f64)>) -> Option<(String, Ve
     Some((path.to_str().unwrap().to_string(), times))
 }
 
-/// Same seed, same scans (to float32), same odometry: the same estimate at every scan.
+/// How far the bag runs may be from the CARMEN run at a scan (m, and rad). The runs use
+/// scan-matching odometry, which has no random draws: the same scans (to float32) and
+/// odometry give the same estimate to far below this, although not to the bit (the
+/// odometry goes through a quaternion or a /tf chain and back). Grid FastSLAM is not used
+/// here: since its scorer rounds end points to 1/1024 of a cell, a 10⁻¹⁶ difference in the
+/// input can change a particle's draw, and the runs drift apart by centimetres within 200
+/// scans (seen: 8 cm with 10 particles, 1.7 cm with one), which says nothing about the
+/// reader.
+const SAME_XY: f64 = 1e-5;
+const SAME_THETA: f64 = 1e-5;
+
+/// Same scans, same odometry: the same estimate at every scan, within [`SAME_XY`] and
+/// [`SAME_THETA`].
 fn assert_same_at_scans(runs: &[(&str, Trajectory)], carmen: &Trajectory, scan_times: &[i64]) {
     for (name, traj) in runs {
         for &t in scan_times {
             let (p, q) = (traj[&t], carmen[&t]);
             assert!(
-                (p.0 - q.0).abs() < 1e-5 && (p.1 - q.1).abs() < 1e-5 && (p.2 - q.2).abs() < 1e-5,
+                (p.0 - q.0).abs() < SAME_XY
+                    && (p.1 - q.1).abs() < SAME_XY
+                    && (p.2 - q.2).abs() < SAME_THETA,
                 "{name} at {t} µs: bag {p:?}, CARMEN {q:?}"
             );
         }
@@ -124,7 +129,7 @@ fn assert_same_at_scans(runs: &[(&str, Trajectory)], carmen: &Trajectory, scan_t
 }
 
 #[test]
-fn gridfast_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
+fn scanmatch_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
     let runs: Vec<_> = [
         ("intel-odom.mcap", "ROS 2 bag", "(MCAP)"),
         ("intel-odom-db3", "ROS 2 bag", "(sqlite3)"),
@@ -132,7 +137,7 @@ fn gridfast_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
     ]
     .into_iter()
     .map(|(name, ros, storage)| {
-        let (traj, text) = gridfast(name, &fixture(name), &["--laser-pose", "0,0,0"]);
+        let (traj, text) = scanmatch(name, &fixture(name), &["--laser-pose", "0,0,0"]);
         assert!(
             text.contains(ros)
                 && text.contains(storage)
@@ -148,7 +153,7 @@ fn gridfast_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
     let Some((log, scan_times)) = carmen_head("carmen", None) else {
         return;
     };
-    let (carmen, _) = gridfast("carmen-run", &log, &[]);
+    let (carmen, _) = scanmatch("carmen-run", &log, &[]);
     assert_same_at_scans(&runs, &carmen, &scan_times);
 }
 
@@ -157,7 +162,7 @@ fn gridfast_on_every_odometry_bag_follows_the_carmen_run_at_every_scan() {
 /// carry the same offset: the mounting and the `/tf` odometry reach the filter as the
 /// CARMEN reader's laser offset and ODOM poses do.
 #[test]
-fn gridfast_on_every_tf_bag_follows_the_carmen_run_with_the_same_laser_offset() {
+fn scanmatch_on_every_tf_bag_follows_the_carmen_run_with_the_same_laser_offset() {
     let runs: Vec<_> = [
         ("intel-tf", "(MCAP)"),
         ("intel-tf.db3", "(sqlite3)"),
@@ -165,7 +170,7 @@ fn gridfast_on_every_tf_bag_follows_the_carmen_run_with_the_same_laser_offset() 
     ]
     .into_iter()
     .map(|(name, storage)| {
-        let (traj, text) = gridfast(name, &fixture(name), &[]);
+        let (traj, text) = scanmatch(name, &fixture(name), &[]);
         assert!(
             text.contains(storage)
                 && text.contains(&format!("scans /scan ({SCANS} scans, 180 beams"))
@@ -179,16 +184,17 @@ fn gridfast_on_every_tf_bag_follows_the_carmen_run_with_the_same_laser_offset() 
     let Some((log, scan_times)) = carmen_head("carmen-mounted", Some(MOUNT)) else {
         return;
     };
-    let (carmen, _) = gridfast("carmen-mounted-run", &log, &[]);
+    let (carmen, _) = scanmatch("carmen-mounted-run", &log, &[]);
     assert_same_at_scans(&runs, &carmen, &scan_times);
-    // The offset matters: the centred CARMEN run is another trajectory.
+    // The offset matters: the centred CARMEN run is another trajectory (by more than 1 cm
+    // at some scan).
     let Some((centred, _)) = carmen_head("carmen-centred", None) else {
         return;
     };
-    let (other, _) = gridfast("carmen-centred-run", &centred, &[]);
+    let (other, _) = scanmatch("carmen-centred-run", &centred, &[]);
     let moved = scan_times.iter().any(|t| {
         let (p, q) = (other[t], carmen[t]);
-        (p.0 - q.0).abs() > 1e-3 || (p.1 - q.1).abs() > 1e-3
+        (p.0 - q.0).abs() > 0.01 || (p.1 - q.1).abs() > 0.01
     });
     assert!(moved, "the laser offset changed nothing");
 }
