@@ -107,8 +107,6 @@ pub fn score(
     pose: &Pose2,
     model: &EndpointModel,
 ) -> EndpointScore {
-    const MASK: i32 = TILE_SIZE as i32 - 1;
-    const LAST: usize = TILE_CELLS - 1;
     let frame = field.frame();
     let inv = 1.0 / frame.resolution;
     let unit = field.metres_per_unit();
@@ -123,12 +121,9 @@ pub fn score(
     // with f32 blends).
     let r = (model.radius / unit) as f32;
     let r_in = (model.radius * 0.999 / unit) as f32;
-    let far = [field.max_units(); 4];
     let mut sums = [0.0f32; LANES];
     let mut inliers = [0u32; LANES];
-    // The tile of the previous end point and its cells (`None`: all far).
-    let mut key = (i32::MIN, i32::MIN);
-    let mut cells = field.tile_cells(key.0, key.1);
+    let mut reader = CornerReader::new(field);
     let mut qu = [0i32; BLOCK];
     let mut qv = [0i32; BLOCK];
     let mut d = [[0u8; BLOCK]; 4];
@@ -145,30 +140,7 @@ pub fn score(
         // 2. The four corners' distances.
         for (k, (&u, &v)) in qu[..n].iter().zip(&qv[..n]).enumerate() {
             let (iu, iv) = (u >> FRAC_BITS, v >> FRAC_BITS);
-            let corners = if (iu & MASK) != MASK && (iv & MASK) != MASK {
-                // All four corners in one tile.
-                let t = (iu >> TILE_BITS, iv >> TILE_BITS);
-                if t != key {
-                    key = t;
-                    cells = field.tile_cells(t.0, t.1);
-                }
-                match cells {
-                    Some(cells) => {
-                        let i = ((iv & MASK) as usize) * TILE_SIZE + (iu & MASK) as usize;
-                        // i + TILE_SIZE + 1 ≤ LAST here: the masks only drop the bounds
-                        // checks.
-                        [
-                            cells[i & LAST],
-                            cells[(i + 1) & LAST],
-                            cells[(i + TILE_SIZE) & LAST],
-                            cells[(i + TILE_SIZE + 1) & LAST],
-                        ]
-                    }
-                    None => far,
-                }
-            } else {
-                field.dist4(CellIndex::new(iu, iv))
-            };
+            let corners = reader.read(iu, iv);
             for (column, value) in d.iter_mut().zip(corners) {
                 column[k] = value;
             }
@@ -215,8 +187,6 @@ fn score_f64(
     pose: &Pose2,
     model: &EndpointModel,
 ) -> EndpointScore {
-    const MASK: i32 = TILE_SIZE as i32 - 1;
-    const LAST: usize = TILE_CELLS - 1;
     let frame = field.frame();
     let inv = 1.0 / frame.resolution;
     let unit = field.metres_per_unit();
@@ -226,42 +196,17 @@ fn score_f64(
         (pose.y - frame.origin.y) * inv - 0.5,
     );
     let (s, c) = (s * inv, c * inv);
-    let far = [field.max_units(); 4];
     let mut sum = 0.0;
     let mut inliers = 0;
     let r_in = model.radius * 0.999;
-    // The tile of the previous end point and its cells (`None`: all far).
-    let mut key = (i32::MIN, i32::MIN);
-    let mut cells = field.tile_cells(key.0, key.1);
+    let mut reader = CornerReader::new(field);
     for p in points {
         // Cell-centre coordinates: cell (i, j) has its centre at (i, j).
         let u = c * p.x - s * p.y + tx;
         let v = s * p.x + c * p.y + ty;
         let (iu, iv) = (fast_floor(u), fast_floor(v));
         let (au, av) = (u - iu as f64, v - iv as f64);
-        let d = if (iu & MASK) != MASK && (iv & MASK) != MASK {
-            // All four corners in one tile.
-            let t = (iu >> TILE_BITS, iv >> TILE_BITS);
-            if t != key {
-                key = t;
-                cells = field.tile_cells(t.0, t.1);
-            }
-            match cells {
-                Some(cells) => {
-                    let i = ((iv & MASK) as usize) * TILE_SIZE + (iu & MASK) as usize;
-                    // i + TILE_SIZE + 1 ≤ LAST here: the masks only drop the bounds checks.
-                    [
-                        cells[i & LAST],
-                        cells[(i + 1) & LAST],
-                        cells[(i + TILE_SIZE) & LAST],
-                        cells[(i + TILE_SIZE + 1) & LAST],
-                    ]
-                }
-                None => far,
-            }
-        } else {
-            field.dist4(CellIndex::new(iu, iv))
-        };
+        let d = reader.read(iu, iv);
         let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
         let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
         let dm = ((d0 + av * (d1 - d0)) * unit).min(model.radius);
@@ -273,6 +218,57 @@ fn score_f64(
     EndpointScore {
         log_likelihood: -model.k * sum,
         inliers,
+    }
+}
+
+/// Reads the four distances around a cell for the scorers, keeping the tile of the previous
+/// end point (consecutive beams mostly end in the same tile).
+struct CornerReader<'f, 'a> {
+    field: &'f DistanceField<'a>,
+    /// The tile of the previous end point and its cells (`None`: all far).
+    key: (i32, i32),
+    cells: Option<&'a [u8; TILE_CELLS]>,
+    far: [u8; 4],
+}
+
+impl<'f, 'a> CornerReader<'f, 'a> {
+    fn new(field: &'f DistanceField<'a>) -> Self {
+        let key = (i32::MIN, i32::MIN);
+        CornerReader {
+            field,
+            key,
+            cells: field.tile_cells(key.0, key.1),
+            far: [field.max_units(); 4],
+        }
+    }
+
+    /// The distances at cells (iu, iv), (iu + 1, iv), (iu, iv + 1), (iu + 1, iv + 1).
+    #[inline(always)]
+    fn read(&mut self, iu: i32, iv: i32) -> [u8; 4] {
+        const MASK: i32 = TILE_SIZE as i32 - 1;
+        const LAST: usize = TILE_CELLS - 1;
+        if (iu & MASK) == MASK || (iv & MASK) == MASK {
+            return self.field.dist4(CellIndex::new(iu, iv));
+        }
+        // All four corners in one tile.
+        let t = (iu >> TILE_BITS, iv >> TILE_BITS);
+        if t != self.key {
+            self.key = t;
+            self.cells = self.field.tile_cells(t.0, t.1);
+        }
+        match self.cells {
+            Some(cells) => {
+                let i = ((iv & MASK) as usize) * TILE_SIZE + (iu & MASK) as usize;
+                // i + TILE_SIZE + 1 ≤ LAST here: the masks only drop the bounds checks.
+                [
+                    cells[i & LAST],
+                    cells[(i + 1) & LAST],
+                    cells[(i + TILE_SIZE) & LAST],
+                    cells[(i + TILE_SIZE + 1) & LAST],
+                ]
+            }
+            None => self.far,
+        }
     }
 }
 
