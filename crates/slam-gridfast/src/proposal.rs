@@ -126,6 +126,11 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 ///
 /// When the match still has too few inliers (empty or unrelated map) the particle falls
 /// back to [`motion_and_likelihood`] and the failure is reported.
+///
+/// Everything but the final draw depends only on the particle's pose and map, so
+/// [`improved_fit`] computes it once for a group of identical particles (the copies of
+/// one parent since a resampling) and [`Fitted::draw`] draws for each.
+#[cfg(test)]
 pub(crate) fn improved<R: Rng + ?Sized>(
     pose: &Pose2,
     map: &slam_grid::OccupancyGrid,
@@ -133,6 +138,82 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     ctx: &StepContext<'_>,
     rng: &mut R,
 ) -> Drawn {
+    improved_fit(pose, map, field, ctx).draw(pose, field, ctx, rng)
+}
+
+/// The improved proposal's Gaussian N(μ, Σ) around the match, or its failure, for a
+/// particle at `pose` with `map` ([`improved`], steps 1–3): deterministic, the same for
+/// every particle with the same pose and map.
+pub(crate) enum Fitted {
+    /// xₜ = x̂ ⊕ (μ + L·z), z ~ N(0, I) (L the Cholesky factor of Σ, `None` when Σ is not
+    /// positive definite: xₜ = x̂ ⊕ μ, no draw); ln η the weight increment.
+    Gaussian {
+        mode: Pose2,
+        mean: Vector3,
+        factor: Option<Matrix3>,
+        log_eta: f64,
+        recovered: bool,
+    },
+    /// Too few inliers (or a singular motion covariance): the particle samples the motion
+    /// model ([`motion_and_likelihood`]).
+    Failed,
+}
+
+impl Fitted {
+    /// One particle's draw from the fit (its own random stream `rng`).
+    pub(crate) fn draw<R: Rng + ?Sized>(
+        &self,
+        pose: &Pose2,
+        field: &DistanceField<'_>,
+        ctx: &StepContext<'_>,
+        rng: &mut R,
+    ) -> Drawn {
+        match self {
+            Fitted::Gaussian {
+                mode,
+                mean,
+                factor,
+                log_eta,
+                recovered,
+            } => {
+                let offset = match factor {
+                    Some(l) => {
+                        let z = Vector3::new(
+                            rng.sample(rand_distr::StandardNormal),
+                            rng.sample(rand_distr::StandardNormal),
+                            rng.sample(rand_distr::StandardNormal),
+                        );
+                        mean + l * z
+                    }
+                    None => *mean,
+                };
+                Drawn {
+                    pose: Pose2::new(
+                        mode.x + offset[0],
+                        mode.y + offset[1],
+                        mode.theta + offset[2],
+                    ),
+                    log_weight: *log_eta,
+                    match_failed: false,
+                    match_recovered: *recovered,
+                }
+            }
+            Fitted::Failed => {
+                let mut d = motion_and_likelihood(pose, field, ctx, &ctx.motion, &ctx.u, rng);
+                d.match_failed = true;
+                d
+            }
+        }
+    }
+}
+
+/// Steps 1–3 of [`improved`] for a particle at `pose` with `map`.
+pub(crate) fn improved_fit(
+    pose: &Pose2,
+    map: &slam_grid::OccupancyGrid,
+    field: &DistanceField<'_>,
+    ctx: &StepContext<'_>,
+) -> Fitted {
     let predicted = ctx.motion.predict(pose, &ctx.u);
     let shifted = predicted.compose(&ctx.correction);
     let mut covariance =
@@ -226,9 +307,7 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     }
     let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
     let (Some(chol), true) = (chol, m.score.inliers >= ctx.min_inliers) else {
-        let mut d = motion_and_likelihood(pose, field, ctx, &ctx.motion, &ctx.u, rng);
-        d.match_failed = true;
-        return d;
+        return Fitted::Failed;
     };
     let log_det = 2.0 * (0..3).map(|i| chol.l_dirty()[(i, i)].ln()).sum::<f64>();
     // ln τⱼ with the tempered likelihood (for η) and with the untempered one (for μ, Σ).
@@ -269,26 +348,12 @@ pub(crate) fn improved<R: Rng + ?Sized>(
     }
     // A tiny floor keeps Σ positive definite when one sample carries all the mass.
     sigma += Matrix3::from_diagonal(&Vector3::new(1e-8, 1e-8, 1e-9));
-    let offset = match Cholesky::new((sigma + sigma.transpose()) * 0.5) {
-        Some(c) => {
-            let z = Vector3::new(
-                rng.sample(rand_distr::StandardNormal),
-                rng.sample(rand_distr::StandardNormal),
-                rng.sample(rand_distr::StandardNormal),
-            );
-            mean + c.l() * z
-        }
-        None => mean,
-    };
-    Drawn {
-        pose: Pose2::new(
-            m.pose.x + offset[0],
-            m.pose.y + offset[1],
-            m.pose.theta + offset[2],
-        ),
-        log_weight: top + eta.ln(),
-        match_failed: false,
-        match_recovered: recovered,
+    Fitted::Gaussian {
+        mode: m.pose,
+        mean,
+        factor: Cholesky::new((sigma + sigma.transpose()) * 0.5).map(|c| c.l()),
+        log_eta: top + eta.ln(),
+        recovered,
     }
 }
 
