@@ -154,12 +154,26 @@ pub fn score(
         }
         let scale = 1.0 / one as f32;
         let frac = |q: i32| (q & (ONE - 1)) as f32 * scale;
+        // Groups of LANES as fixed-size arrays, so that the lanes need no bounds checks and
+        // the loop vectorises (the same operations per lane, in the same order).
+        let group = |column: &[u8], g: usize| -> [u8; LANES] {
+            std::array::from_fn(|l| column[(g + l) & (BLOCK - 1)])
+        };
         for g in (0..padded).step_by(LANES) {
+            let (qu8, qv8): ([i32; LANES], [i32; LANES]) = (
+                std::array::from_fn(|l| qu[(g + l) & (BLOCK - 1)]),
+                std::array::from_fn(|l| qv[(g + l) & (BLOCK - 1)]),
+            );
+            let (c0, c1, c2, c3) = (
+                group(&d[0], g),
+                group(&d[1], g),
+                group(&d[2], g),
+                group(&d[3], g),
+            );
             for l in 0..LANES {
-                let k = g + l;
-                let (au, av) = (frac(qu[k]), frac(qv[k]));
-                let (d00, d10) = (d[0][k] as f32, d[1][k] as f32);
-                let (d01, d11) = (d[2][k] as f32, d[3][k] as f32);
+                let (au, av) = (frac(qu8[l]), frac(qv8[l]));
+                let (d00, d10) = (c0[l] as f32, c1[l] as f32);
+                let (d01, d11) = (c2[l] as f32, c3[l] as f32);
                 let d0 = d00 + au * (d10 - d00);
                 let d1 = d01 + au * (d11 - d01);
                 let dm = (d0 + av * (d1 - d0)).min(r);
