@@ -145,8 +145,9 @@ pub struct GridFastSlam {
     /// The last processed scan where some particles' maps do not hold it yet.
     pending: Option<Pending>,
     /// (first index, count) of each group of identical particles (same pose, map and
-    /// weight), covering the particles in order: all of them at the start, the copies of
-    /// one parent after a resampling, one each otherwise.
+    /// weight once the pending scan is integrated: before, only the first holds the map),
+    /// covering the particles in order: all of them at the start, the copies of one parent
+    /// after a resampling, one each otherwise.
     identical: Vec<(usize, usize)>,
 }
 
@@ -160,7 +161,8 @@ struct Pending {
     scan: PreparedScan,
     /// (first index, count) of each group of identical particles, integrated once and
     /// copied; the groups cover the particles in order and the best particle leads its
-    /// group.
+    /// group. Only a group's first particle holds the map; the others' are empty until
+    /// the integration copies it.
     groups: Vec<(usize, usize)>,
 }
 
@@ -835,10 +837,19 @@ impl GridFastSlam {
         let mut later = Vec::with_capacity(groups.len());
         for (p, n) in groups {
             later.push((particles.len(), n));
-            for _ in 1..n {
-                particles.push(p.clone());
-            }
+            // The copies take the leader's map when it has integrated this scan (`flush`);
+            // until then they hold an empty one, since a copy made now would be dropped
+            // there unread (and copying the tile tables runs alone).
+            let copy = Particle {
+                pose: p.pose,
+                log_w: p.log_w,
+                map: self.d.empty.clone(),
+                node: p.node.clone(),
+            };
             particles.push(p);
+            for _ in 1..n {
+                particles.push(copy.clone());
+            }
         }
         // The particles are put back before a failure is reported (a scan kilometres off
         // the map is refused by the grid), so that the filter stays usable.
