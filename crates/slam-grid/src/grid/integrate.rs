@@ -2,8 +2,9 @@
 //! [`super::raytrace`]) and the inverse sensor model's log-odds added to the cells it
 //! crosses and ends in (PR table 9.1/9.2), tile by tile under copy-on-write.
 
-use super::tiles::{split, Tile, TileLayout, HIT_CAP, TILE_CELLS, TILE_SIZE};
-use super::{trace_segment, OccupancyGrid};
+use super::raytrace::Ray;
+use super::tiles::{split, Tile, TileLayout, HIT_CAP, TILE_BITS, TILE_CELLS, TILE_SIZE};
+use super::OccupancyGrid;
 use crate::cell::CellIndex;
 use crate::error::GridError;
 use crate::scan::PreparedScan;
@@ -12,6 +13,9 @@ use std::sync::Arc;
 
 /// Continuous cell coordinates (u, v) (see [`crate::cell`]).
 type CellPoint = (f64, f64);
+
+/// A cell's column (row) inside its tile is `x & TILE_MASK` (`y & TILE_MASK`).
+const TILE_MASK: i32 = TILE_SIZE as i32 - 1;
 
 impl OccupancyGrid {
     /// Integrates one scan taken at `robot_pose` (world frame) with the inverse sensor model
@@ -160,10 +164,9 @@ impl OccupancyGrid {
         hi: CellIndex,
     ) {
         let m = self.model;
-        // Free cells first, gathered as (slot, local) so consecutive cells of a tile are
-        // written under one copy-on-write check. The slots are this scan's own, row-major
-        // over the tiles it touches (one tile of border): sorting by them sorts by
-        // (ty, tx), and their number is bounded by the map extent checked above.
+        // The scan's own tile slots, row-major over the tiles it touches (one tile of
+        // border): sorting hits by them sorts by (ty, tx), and their number is bounded by
+        // the map extent checked above.
         let (t0, _) = split(lo);
         let (t1, _) = split(hi);
         let layout = TileLayout {
@@ -172,28 +175,19 @@ impl OccupancyGrid {
             tw: t1.0 - t0.0 + 3,
             th: t1.1 - t0.1 + 3,
         };
-        let mut free: Vec<(u32, u16)> = Vec::with_capacity(segs.len() * 64);
         let mut hits: Vec<(u32, u16, i8, i8)> = Vec::with_capacity(segs.len());
-        let push = |v: &mut Vec<(u32, u16)>, cell: CellIndex| {
-            let ((tx, ty), local) = split(cell);
-            if let Some(slot) = layout.slot(tx, ty) {
-                v.push((slot as u32, local as u16));
+        for &(_, end, hit) in segs {
+            if !hit {
+                continue;
             }
-        };
-        for &(free_end, end, hit) in segs {
-            let last = trace_segment(start, free_end, |cell| push(&mut free, cell));
-            if hit {
-                let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
-                let ((tx, ty), local) = split(end_cell);
-                if let Some(slot) = layout.slot(tx, ty) {
-                    // End point relative to its cell centre, in 1/256 cell.
-                    let q = |f: f64| (f * 256.0).round().clamp(-128.0, 127.0) as i8;
-                    let ox = q(end.0 - end_cell.x as f64 - 0.5);
-                    let oy = q(end.1 - end_cell.y as f64 - 0.5);
-                    hits.push((slot as u32, local as u16, ox, oy));
-                }
-            } else {
-                push(&mut free, last);
+            let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
+            let ((tx, ty), local) = split(end_cell);
+            if let Some(slot) = layout.slot(tx, ty) {
+                // End point relative to its cell centre, in 1/256 cell.
+                let q = |f: f64| (f * 256.0).round().clamp(-128.0, 127.0) as i8;
+                let ox = q(end.0 - end_cell.x as f64 - 0.5);
+                let oy = q(end.1 - end_cell.y as f64 - 0.5);
+                hits.push((slot as u32, local as u16, ox, oy));
             }
         }
         let mut changed: Vec<usize> = Vec::new();
@@ -206,14 +200,19 @@ impl OccupancyGrid {
         } else {
             Vec::new()
         };
-        self.apply(
-            &layout,
-            &free,
-            m.l_free,
-            &protected,
-            &mut changed,
-            &mut flips,
-        );
+        // Free cells first, beam by beam in scan order, each beam walked cell by cell
+        // (its end cell too when it is not a hit).
+        for &(free_end, _, hit) in segs {
+            let walk = TileWalk::new(start, free_end, !hit);
+            self.apply_free(
+                &layout,
+                walk,
+                m.l_free,
+                &protected,
+                &mut changed,
+                &mut flips,
+            );
+        }
         self.apply_hits(
             &layout,
             &hits,
@@ -244,20 +243,24 @@ impl OccupancyGrid {
         )
     }
 
-    /// Adds `delta` to the listed cells (clamped), except to the cells of `protected`
-    /// (sorted by slot), copying shared tiles on first write and recording the slots where
-    /// some cell changed obstacle status, and (with an incremental distance field) those
-    /// cells in `flips` as (slot, local index). `updates` and `protected` name tiles by
-    /// their slot in `scan` (the scan's tiles); `changed` and `flips` get the grid's slots.
-    fn apply(
+    /// Adds `delta` (clamped) to the cells `walk` visits, in its order, except to the cells
+    /// of `protected` (the scan's hits, by scan slot) and to cells at the lower clamp when
+    /// `delta` ≤ 0. A tile is made private (created or copied) only when one of its cells
+    /// really changes, as a per-cell list applied in the same order would; the grid slots
+    /// whose tiles had a cell change obstacle status go to `changed`, and (with an
+    /// incremental distance field) those cells to `flips` as (slot, local index).
+    fn apply_free(
         &mut self,
         scan: &TileLayout,
-        updates: &[(u32, u16)],
+        mut walk: TileWalk,
         delta: f32,
         protected: &[(u32, TileMask)],
         changed: &mut Vec<usize>,
         flips: &mut Vec<(u32, u16)>,
     ) {
+        if walk.left == 0 {
+            return;
+        }
         let track = self.distance.is_some();
         let (lmin, lmax, thr) = (
             self.model.l_min,
@@ -265,46 +268,81 @@ impl OccupancyGrid {
             self.params.occupied_threshold,
         );
         let use_floor = delta <= 0.0;
-        // Updates come in runs of one tile (a beam's cells in a tile): handle each at once.
-        for run in updates.chunk_by(|a, b| a.0 == b.0) {
-            let (tx, ty) = scan.tile_of_slot(run[0].0 as usize);
-            let stored = self.table.slot(tx, ty).and_then(|s| self.tiles[s].as_ref());
-            let mask = protected_mask(protected, run[0].0);
-            let skip = |l: u16| mask.is_some_and(|m| (m[l as usize >> 6] >> (l & 63)) & 1 == 1);
+        // One pass per visit of the walk to a tile: the tile's stored data and hit mask are
+        // looked up once, then its cells are stepped through by their local index.
+        loop {
+            walk.enter_tile();
+            let (tx, ty) = walk.tile();
+            // Every cell of a beam lies in the scan's tiles (its bounding box is covered).
+            debug_assert!(scan.contains(tx, ty));
+            let mask = if protected.is_empty() {
+                None
+            } else {
+                scan.slot(tx, ty)
+                    .and_then(|s| protected_mask(protected, s as u32))
+            };
+            let skip = |l: usize| mask.is_some_and(|m| (m[l >> 6] >> (l & 63)) & 1 == 1);
             // A cell at the lower clamp cannot change under a negative step (its floor bit
             // is read instead of its value).
-            let floored = |t: &Tile, l: u16| use_floor && t.at_floor(l as usize);
-            // Skip the copy entirely when no value in the run would change (saturated cells).
-            let needs_write = match stored {
-                None => run.iter().any(|&(_, l)| !skip(l)),
-                Some(t) => run.iter().any(|&(_, l)| {
-                    !skip(l) && !floored(t, l) && {
-                        let v = t.cells[l as usize];
-                        (v + delta).clamp(lmin, lmax) != v
+            let floored = |t: &Tile, l: usize| use_floor && t.at_floor(l);
+            let stored = self
+                .table
+                .slot(tx, ty)
+                .and_then(|s| self.tiles[s].as_deref());
+            // Read only until the first cell whose value changes (saturated cells leave a
+            // shared tile shared).
+            let mut next = Next::InTile;
+            let write = match stored {
+                None => loop {
+                    if !skip(walk.local()) {
+                        break true;
                     }
-                }),
+                    next = walk.advance();
+                    if next != Next::InTile {
+                        break false;
+                    }
+                },
+                Some(t) => loop {
+                    let l = walk.local();
+                    if !skip(l) && !floored(t, l) && {
+                        let v = t.cells[l];
+                        (v + delta).clamp(lmin, lmax) != v
+                    } {
+                        break true;
+                    }
+                    next = walk.advance();
+                    if next != Next::InTile {
+                        break false;
+                    }
+                },
             };
-            if !needs_write {
-                continue;
-            }
-            let slot = self.slot_for_write(tx, ty);
-            let tile = self.tile_for_write(slot);
-            let mut status_changed = false;
-            for &(_, l) in run {
-                if skip(l) || floored(tile, l) {
-                    continue;
+            if write {
+                let slot = self.slot_for_write(tx, ty);
+                let tile = self.tile_for_write(slot);
+                let mut status_changed = false;
+                loop {
+                    let l = walk.local();
+                    if !skip(l) && !floored(tile, l) {
+                        let v = tile.cells[l];
+                        let nv = (v + delta).clamp(lmin, lmax);
+                        let flip = (v > thr) != (nv > thr);
+                        status_changed |= flip;
+                        tile.set(l, nv, lmin);
+                        if flip && track {
+                            flips.push((slot as u32, l as u16));
+                        }
+                    }
+                    next = walk.advance();
+                    if next != Next::InTile {
+                        break;
+                    }
                 }
-                let v = tile.cells[l as usize];
-                let nv = (v + delta).clamp(lmin, lmax);
-                let flip = (v > thr) != (nv > thr);
-                status_changed |= flip;
-                tile.set(l as usize, nv, lmin);
-                if flip && track {
-                    flips.push((slot as u32, l));
+                if status_changed && changed.last() != Some(&slot) {
+                    changed.push(slot);
                 }
             }
-            if status_changed && changed.last() != Some(&slot) {
-                changed.push(slot);
+            if next == Next::Done {
+                return;
             }
         }
     }
@@ -414,6 +452,83 @@ struct Footprint {
     hi: CellIndex,
 }
 
+/// A beam's walk over the grid ([`Ray`]) that also keeps the current cell's index inside
+/// its tile: an x step moves it by ±1 and a y step by ±[`TILE_SIZE`], so the walk knows
+/// without a look-up when it leaves a tile.
+struct TileWalk {
+    ray: Ray,
+    /// Current cell's column and row inside its tile (leaving 0 ..< TILE_SIZE: a new tile).
+    lx: i32,
+    ly: i32,
+    /// Cells still to visit, the current one included.
+    left: u32,
+}
+
+/// Where a [`TileWalk`] stands after a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Next {
+    /// In the same tile as before.
+    InTile,
+    /// In another tile ([`TileWalk::enter_tile`] before reading it).
+    NewTile,
+    /// Past its last cell.
+    Done,
+}
+
+impl TileWalk {
+    /// The cells a [`Ray`] from `start` to `end` visits before its end cell, and the end
+    /// cell too when `with_end`.
+    #[inline]
+    fn new(start: CellPoint, end: CellPoint, with_end: bool) -> Self {
+        let ray = Ray::new(start, end);
+        Self {
+            ray,
+            lx: 0,
+            ly: 0,
+            left: ray.steps_left() + with_end as u32,
+        }
+    }
+
+    /// Takes up the current cell's position inside its (new) tile.
+    #[inline(always)]
+    fn enter_tile(&mut self) {
+        self.lx = self.ray.x & TILE_MASK;
+        self.ly = self.ray.y & TILE_MASK;
+    }
+
+    /// The current tile's coordinates.
+    #[inline(always)]
+    fn tile(&self) -> (i32, i32) {
+        (self.ray.x >> TILE_BITS, self.ray.y >> TILE_BITS)
+    }
+
+    /// The current cell's index inside its tile.
+    #[inline(always)]
+    fn local(&self) -> usize {
+        ((self.ly as usize) << TILE_BITS) | self.lx as usize
+    }
+
+    /// Moves on to the next cell.
+    #[inline(always)]
+    fn advance(&mut self) -> Next {
+        self.left -= 1;
+        if self.left == 0 {
+            return Next::Done;
+        }
+        if self.ray.step() {
+            self.lx += self.ray.step_x;
+        } else {
+            self.ly += self.ray.step_y;
+        }
+        // A negative coordinate reads as a huge unsigned one.
+        if ((self.lx | self.ly) as u32) < TILE_SIZE as u32 {
+            Next::InTile
+        } else {
+            Next::NewTile
+        }
+    }
+}
+
 /// One bit per cell of a tile (bit `l & 63` of word `l >> 6` for cell `l`).
 type TileMask = [u64; TILE_CELLS / 64];
 
@@ -438,4 +553,187 @@ fn protected_mask(protected: &[(u32, TileMask)], slot: u32) -> Option<&TileMask>
         .binary_search_by_key(&slot, |p| p.0)
         .ok()
         .map(|i| &protected[i].1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::trace_segment;
+    use crate::InverseSensorModel;
+    use rand::{Rng, SeedableRng};
+    use rand_pcg::Pcg64Mcg;
+    use std::collections::{HashMap, HashSet};
+
+    /// A full-circle scan of `n` beams with random ranges: short ones, hits within reach,
+    /// hits beyond `max_range` and no returns (the scan's own limit, 8 m).
+    fn random_scan(rng: &mut Pcg64Mcg, n: usize) -> LaserScan {
+        let ranges = (0..n)
+            .map(|_| match rng.random_range(0..10) {
+                0 => rng.random_range(0.0..0.1),
+                1 => 8.0,
+                2 => rng.random_range(4.0..8.0),
+                _ => rng.random_range(0.1..4.0),
+            })
+            .collect();
+        LaserScan {
+            angle_min: -std::f64::consts::PI,
+            angle_increment: 2.0 * std::f64::consts::PI / n as f64,
+            ranges,
+            max_range: 8.0,
+            sensor_pose: Pose2::new(0.1, -0.05, 0.2),
+        }
+    }
+
+    fn random_pose(rng: &mut Pcg64Mcg) -> Pose2 {
+        Pose2::new(
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-3.0..3.0),
+            rng.random_range(-3.2..3.2),
+        )
+    }
+
+    /// The straightforward integration: every traced cell in a list, in beam order, each
+    /// updated by reading and writing its value through the grid's public log-odds; then
+    /// the hits. Returns the new log-odds of every cell the scan touches.
+    fn reference(g: &OccupancyGrid, pose: &Pose2, scan: &LaserScan) -> HashMap<CellIndex, f32> {
+        let m = *g.sensor_model();
+        let f = g
+            .footprint(pose, &PreparedScan::new(scan).unwrap())
+            .unwrap();
+        let mut free = Vec::new();
+        let mut hits = Vec::new();
+        for &(free_end, end, hit) in &f.segs {
+            let last = trace_segment(f.start, free_end, |c| free.push(c));
+            if hit {
+                hits.push(CellIndex::new(end.0.floor() as i32, end.1.floor() as i32));
+            } else {
+                free.push(last);
+            }
+        }
+        let protected: HashSet<CellIndex> = if m.protect_scan_hits {
+            hits.iter().copied().collect()
+        } else {
+            HashSet::new()
+        };
+        let mut values: HashMap<CellIndex, f32> = HashMap::new();
+        for c in free {
+            if protected.contains(&c) {
+                continue;
+            }
+            let v = *values.entry(c).or_insert_with(|| g.log_odds(c));
+            values.insert(c, (v + m.l_free).clamp(m.l_min, m.l_max));
+        }
+        let mut marked = HashSet::new();
+        for c in hits {
+            if m.protect_scan_hits && !marked.insert(c) {
+                continue;
+            }
+            let v = *values.entry(c).or_insert_with(|| g.log_odds(c));
+            values.insert(c, (v + m.l_occ).clamp(m.l_min, m.l_max));
+        }
+        values
+    }
+
+    /// Every stored tile's floor bits say exactly which cells are at `l_min`.
+    fn check_floor_bits(g: &OccupancyGrid) {
+        let l_min = g.sensor_model().l_min;
+        for tile in g.tiles.iter().flatten() {
+            for (l, &v) in tile.cells.iter().enumerate() {
+                assert_eq!(tile.at_floor(l), v == l_min, "cell {l}: {v}");
+            }
+        }
+    }
+
+    /// Truncated distance from each cell of the window to the nearest obstacle, by brute
+    /// force, against the incrementally repaired field.
+    fn check_distance(g: &OccupancyGrid, lo: CellIndex, hi: CellIndex) {
+        let f = g.distance_field().unwrap();
+        let rad = f.radius_cells() as i32;
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let mut best = f.max_units();
+                for dy in -rad..=rad {
+                    for dx in -rad..=rad {
+                        if g.is_obstacle(CellIndex::new(x + dx, y + dy)) {
+                            let d = ((dx * dx + dy * dy) as f64).sqrt().min(rad as f64);
+                            let units =
+                                (d * super::super::distance::DISTANCE_UNITS_PER_CELL).round() as u8;
+                            best = best.min(units);
+                        }
+                    }
+                }
+                assert_eq!(f.dist(CellIndex::new(x, y)), best, "cell ({x}, {y})");
+            }
+        }
+    }
+
+    /// On random maps and scans, for every combination of the options that change which
+    /// cells a scan writes, the tile walk leaves exactly the log-odds of the per-cell
+    /// reference, consistent floor bits and a correct distance field, and a clone that
+    /// shared the tiles keeps its values.
+    #[test]
+    fn tile_walk_equals_the_per_cell_reference_on_random_scans() {
+        let mut rng = Pcg64Mcg::seed_from_u64(21);
+        for case in 0..16 {
+            let model = InverseSensorModel {
+                l_free: -0.7,
+                l_min: -2.0,
+                max_range: 5.0,
+                no_return_range: if case & 4 == 0 { 3.0 } else { 0.0 },
+                hit_margin: if case & 8 == 0 { 0.05 } else { 0.0 },
+                protect_scan_hits: case & 1 == 1,
+                far_hits_clear: case & 2 == 2,
+                ..Default::default()
+            };
+            let mut g = OccupancyGrid::try_new(0.05, model).unwrap();
+            let with_distance = case % 3 != 0;
+            if with_distance {
+                g = g.with_incremental_distance(3).unwrap();
+            }
+            for _ in 0..12 {
+                let (pose, scan) = (random_pose(&mut rng), random_scan(&mut rng, 120));
+                g.try_integrate_scan(&pose, &scan).unwrap();
+            }
+            for _ in 0..4 {
+                let (pose, scan) = (random_pose(&mut rng), random_scan(&mut rng, 120));
+                let expected = reference(&g, &pose, &scan);
+                let (lo, hi) = g.known_bounds().unwrap();
+                let (lo, hi) = (
+                    CellIndex::new(lo.x - 200, lo.y - 200),
+                    CellIndex::new(hi.x + 200, hi.y + 200),
+                );
+                let mut before = Vec::new();
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        before.push(g.log_odds(CellIndex::new(x, y)));
+                    }
+                }
+                let mut h = g.clone();
+                h.try_integrate_scan(&pose, &scan).unwrap();
+                let mut i = 0;
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        let c = CellIndex::new(x, y);
+                        let want = expected.get(&c).copied().unwrap_or(before[i]);
+                        assert_eq!(h.log_odds(c), want, "case {case}, cell {c:?}");
+                        assert_eq!(g.log_odds(c), before[i], "the clone's source changed");
+                        i += 1;
+                    }
+                }
+                assert!(expected.values().any(|&v| v == model.l_min));
+                check_floor_bits(&h);
+                if with_distance {
+                    // Beams reach 5 m (100 cells) from the sensor.
+                    let c = h.world_to_cell(&pose.translation());
+                    let r = 110;
+                    check_distance(
+                        &h,
+                        CellIndex::new(c.x - r, c.y - r),
+                        CellIndex::new(c.x + r, c.y + r),
+                    );
+                }
+                g = h;
+            }
+        }
+    }
 }

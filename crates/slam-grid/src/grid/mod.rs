@@ -16,6 +16,7 @@ pub(crate) mod tiles;
 use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use distance::{DistanceField, IncrementalDistance, MAX_DISTANCE_RADIUS};
+#[cfg(test)]
 pub(crate) use raytrace::trace_segment;
 use sensor_model::InverseSensorModel;
 use slam_models::{GridMap, Point2};

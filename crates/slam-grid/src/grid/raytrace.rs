@@ -9,54 +9,111 @@ use crate::cell::CellIndex;
 /// distance between the start and end cells, so the walk always terminates and stays
 /// 4-connected; where the segment passes exactly through a cell corner, the x step is taken
 /// first.
+#[cfg(test)]
 pub(crate) fn trace_segment<F: FnMut(CellIndex)>(
     start: (f64, f64),
     end: (f64, f64),
     mut visit: F,
 ) -> CellIndex {
-    let mut x = start.0.floor() as i32;
-    let mut y = start.1.floor() as i32;
-    let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
-    let dx = end.0 - start.0;
-    let dy = end.1 - start.1;
-    let step_x = if dx > 0.0 { 1 } else { -1 };
-    let step_y = if dy > 0.0 { 1 } else { -1 };
-    // Parameter t ∈ [0, 1] along the segment at which the next x / y cell boundary is met.
-    let (mut t_max_x, t_delta_x) = if dx != 0.0 {
-        let next = if dx > 0.0 {
-            (x as f64 + 1.0 - start.0) / dx
+    let mut ray = Ray::new(start, end);
+    while ray.steps_left() > 0 {
+        visit(CellIndex::new(ray.x, ray.y));
+        ray.step();
+    }
+    CellIndex::new(ray.x, ray.y)
+}
+
+/// The state of an Amanatides–Woo walk from `start` towards the cell of `end`: the current
+/// cell (`x`, `y`) and the steps still to take. It is [`trace_segment`]'s walk, step by
+/// step, for callers that follow the cells incrementally (the scan integration steps its
+/// tile-local index along with it), so both visit the same cells in the same order.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ray {
+    /// Current cell.
+    pub(crate) x: i32,
+    pub(crate) y: i32,
+    /// Direction of an x / y step (±1).
+    pub(crate) step_x: i32,
+    pub(crate) step_y: i32,
+    // Parameter t ∈ [0, 1] along the segment at which the next x / y cell boundary is met,
+    // and its increment per cell.
+    t_max_x: f64,
+    t_max_y: f64,
+    t_delta_x: f64,
+    t_delta_y: f64,
+    // Steps left along x / y before the end cell is reached.
+    n_x: u32,
+    n_y: u32,
+}
+
+impl Ray {
+    /// A walk standing in the cell of `start`, with the Manhattan distance to the cell of
+    /// `end` still to go.
+    #[inline]
+    pub(crate) fn new(start: (f64, f64), end: (f64, f64)) -> Self {
+        let x = start.0.floor() as i32;
+        let y = start.1.floor() as i32;
+        let end_cell = CellIndex::new(end.0.floor() as i32, end.1.floor() as i32);
+        let dx = end.0 - start.0;
+        let dy = end.1 - start.1;
+        let step_x = if dx > 0.0 { 1 } else { -1 };
+        let step_y = if dy > 0.0 { 1 } else { -1 };
+        let (t_max_x, t_delta_x) = if dx != 0.0 {
+            let next = if dx > 0.0 {
+                (x as f64 + 1.0 - start.0) / dx
+            } else {
+                (start.0 - x as f64) / -dx
+            };
+            (next, 1.0 / dx.abs())
         } else {
-            (start.0 - x as f64) / -dx
+            (f64::INFINITY, f64::INFINITY)
         };
-        (next, 1.0 / dx.abs())
-    } else {
-        (f64::INFINITY, f64::INFINITY)
-    };
-    let (mut t_max_y, t_delta_y) = if dy != 0.0 {
-        let next = if dy > 0.0 {
-            (y as f64 + 1.0 - start.1) / dy
+        let (t_max_y, t_delta_y) = if dy != 0.0 {
+            let next = if dy > 0.0 {
+                (y as f64 + 1.0 - start.1) / dy
+            } else {
+                (start.1 - y as f64) / -dy
+            };
+            (next, 1.0 / dy.abs())
         } else {
-            (start.1 - y as f64) / -dy
+            (f64::INFINITY, f64::INFINITY)
         };
-        (next, 1.0 / dy.abs())
-    } else {
-        (f64::INFINITY, f64::INFINITY)
-    };
-    let mut n_x = (end_cell.x - x).unsigned_abs();
-    let mut n_y = (end_cell.y - y).unsigned_abs();
-    while n_x + n_y > 0 {
-        visit(CellIndex::new(x, y));
-        if (t_max_x <= t_max_y && n_x > 0) || n_y == 0 {
-            x += step_x;
-            t_max_x += t_delta_x;
-            n_x -= 1;
-        } else {
-            y += step_y;
-            t_max_y += t_delta_y;
-            n_y -= 1;
+        Self {
+            x,
+            y,
+            step_x,
+            step_y,
+            t_max_x,
+            t_max_y,
+            t_delta_x,
+            t_delta_y,
+            n_x: (end_cell.x - x).unsigned_abs(),
+            n_y: (end_cell.y - y).unsigned_abs(),
         }
     }
-    end_cell
+
+    /// Steps left before the walk stands in the end cell.
+    #[inline(always)]
+    pub(crate) fn steps_left(&self) -> u32 {
+        self.n_x + self.n_y
+    }
+
+    /// Moves to the next cell (only while [`Ray::steps_left`] > 0); true when the step was
+    /// along x (by `step_x`), false when along y (by `step_y`).
+    #[inline(always)]
+    pub(crate) fn step(&mut self) -> bool {
+        if (self.t_max_x <= self.t_max_y && self.n_x > 0) || self.n_y == 0 {
+            self.x += self.step_x;
+            self.t_max_x += self.t_delta_x;
+            self.n_x -= 1;
+            true
+        } else {
+            self.y += self.step_y;
+            self.t_max_y += self.t_delta_y;
+            self.n_y -= 1;
+            false
+        }
+    }
 }
 
 #[cfg(test)]
