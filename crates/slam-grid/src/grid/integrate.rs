@@ -281,7 +281,7 @@ impl OccupancyGrid {
                 scan.slot(tx, ty)
                     .and_then(|s| protected_mask(protected, s as u32))
             };
-            let skip = |l: usize| mask.is_some_and(|m| (m[l >> 6] >> (l & 63)) & 1 == 1);
+            let skip = |l: usize| mask.is_some_and(|m| is_set(m, l));
             // A cell at the lower clamp cannot change under a negative step (its floor bit
             // is read instead of its value).
             let floored = |t: &Tile, l: usize| use_floor && t.at_floor(l);
@@ -292,29 +292,12 @@ impl OccupancyGrid {
             // Read only until the first cell whose value changes (saturated cells leave a
             // shared tile shared).
             let mut next = Next::InTile;
-            let write = match stored {
-                None => loop {
-                    if !skip(walk.local()) {
-                        break true;
-                    }
-                    next = walk.advance();
-                    if next != Next::InTile {
-                        break false;
-                    }
-                },
-                Some(t) => loop {
-                    let l = walk.local();
-                    if !skip(l) && !floored(t, l) && {
-                        let v = t.cells[l];
-                        (v + delta).clamp(lmin, lmax) != v
-                    } {
-                        break true;
-                    }
-                    next = walk.advance();
-                    if next != Next::InTile {
-                        break false;
-                    }
-                },
+            let write = match walk.seek_change(stored, mask, delta, lmin, lmax) {
+                None => true,
+                Some(n) => {
+                    next = n;
+                    false
+                }
             };
             if write {
                 let slot = self.slot_for_write(tx, ty);
@@ -455,6 +438,7 @@ struct Footprint {
 /// A beam's walk over the grid ([`Ray`]) that also keeps the current cell's index inside
 /// its tile: an x step moves it by ±1 and a y step by ±[`TILE_SIZE`], so the walk knows
 /// without a look-up when it leaves a tile.
+#[derive(Clone, Copy)]
 struct TileWalk {
     ray: Ray,
     /// Current cell's column and row inside its tile (leaving 0 ..< TILE_SIZE: a new tile).
@@ -505,7 +489,53 @@ impl TileWalk {
     /// The current cell's index inside its tile.
     #[inline(always)]
     fn local(&self) -> usize {
-        ((self.ly as usize) << TILE_BITS) | self.lx as usize
+        // (The mask changes nothing, lx and ly being in 0 ..< TILE_SIZE; it spares the
+        // bounds checks of the reads.)
+        (((self.ly as usize) << TILE_BITS) | self.lx as usize) & (TILE_CELLS - 1)
+    }
+
+    /// Walks on through the current tile (`tile`, `None` when unknown) while the cells
+    /// would keep their value under `delta` (clamped to `lmin ..= lmax`) or are in `mask`:
+    /// `None` standing on the first cell that changes, else where the walk went. Kept out
+    /// of line, on a copy of the walk, so that its state stays in registers.
+    #[inline(never)]
+    fn seek_change(
+        &mut self,
+        tile: Option<&Tile>,
+        mask: Option<&TileMask>,
+        delta: f32,
+        lmin: f32,
+        lmax: f32,
+    ) -> Option<Next> {
+        let mut w = *self;
+        let use_floor = delta <= 0.0;
+        let skip = |l: usize| mask.is_some_and(|m| is_set(m, l));
+        let found = match tile {
+            None => loop {
+                if !skip(w.local()) {
+                    break None;
+                }
+                match w.advance() {
+                    Next::InTile => {}
+                    n => break Some(n),
+                }
+            },
+            Some(t) => loop {
+                let l = w.local();
+                if !skip(l) && !(use_floor && t.at_floor(l)) && {
+                    let v = t.cells[l];
+                    (v + delta).clamp(lmin, lmax) != v
+                } {
+                    break None;
+                }
+                match w.advance() {
+                    Next::InTile => {}
+                    n => break Some(n),
+                }
+            },
+        };
+        *self = w;
+        found
     }
 
     /// Moves on to the next cell.
@@ -531,6 +561,12 @@ impl TileWalk {
 
 /// One bit per cell of a tile (bit `l & 63` of word `l >> 6` for cell `l`).
 type TileMask = [u64; TILE_CELLS / 64];
+
+/// Whether cell `l`'s bit is set in `m`.
+#[inline(always)]
+fn is_set(m: &TileMask, l: usize) -> bool {
+    (m[l >> 6] >> (l & 63)) & 1 == 1
+}
 
 /// Per scan tile slot with hits, the mask of its hit cells, sorted by slot (`hits` sorted by
 /// slot): built once per scan rather than once per run of free cells.

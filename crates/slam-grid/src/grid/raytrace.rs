@@ -15,12 +15,22 @@ pub(crate) fn trace_segment<F: FnMut(CellIndex)>(
     end: (f64, f64),
     mut visit: F,
 ) -> CellIndex {
-    let mut ray = Ray::new(start, end);
-    while ray.steps_left() > 0 {
-        visit(CellIndex::new(ray.x, ray.y));
-        ray.step();
+    // The walk written out with its branches, as the reference [`Ray`]'s branch-free
+    // steps are tested against.
+    let mut r = Ray::new(start, end);
+    while r.n_x + r.n_y > 0 {
+        visit(CellIndex::new(r.x, r.y));
+        if (r.t_max_x <= r.t_max_y && r.n_x > 0) || r.n_y == 0 {
+            r.x += r.step_x;
+            r.t_max_x += r.t_delta_x;
+            r.n_x -= 1;
+        } else {
+            r.y += r.step_y;
+            r.t_max_y += r.t_delta_y;
+            r.n_y -= 1;
+        }
     }
-    CellIndex::new(ray.x, ray.y)
+    CellIndex::new(r.x, r.y)
 }
 
 /// The state of an Amanatides–Woo walk from `start` towards the cell of `end`: the current
@@ -99,7 +109,9 @@ impl Ray {
     }
 
     /// Moves to the next cell (only while [`Ray::steps_left`] > 0); true when the step was
-    /// along x (by `step_x`), false when along y (by `step_y`).
+    /// along x (by `step_x`), false when along y (by `step_y`). The x step is taken while
+    /// the next x boundary comes first (`t_max_x ≤ t_max_y`) and x steps remain, or when
+    /// no y step does.
     #[inline(always)]
     pub(crate) fn step(&mut self) -> bool {
         if (self.t_max_x <= self.t_max_y && self.n_x > 0) || self.n_y == 0 {
