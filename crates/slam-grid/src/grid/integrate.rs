@@ -192,13 +192,12 @@ impl OccupancyGrid {
         }
         let mut changed: Vec<usize> = Vec::new();
         let mut flips: Vec<(u32, u16)> = Vec::new();
-        let protected: Vec<(u32, TileMask)> = if m.protect_scan_hits {
-            // Sorted by cell so that a cell's repeated hits are adjacent; one mask per tile
-            // with hits, found by binary search for each run of free cells.
+        let mut protected = if m.protect_scan_hits {
+            // Sorted by cell so that a cell's repeated hits are adjacent.
             hits.sort_unstable_by_key(|h| (h.0, h.1));
-            protected_masks(&hits)
+            ProtectedMasks::new(&hits)
         } else {
-            Vec::new()
+            ProtectedMasks::new(&[])
         };
         // Free cells first, beam by beam in scan order, each beam walked cell by cell
         // (its end cell too when it is not a hit).
@@ -208,7 +207,7 @@ impl OccupancyGrid {
                 &layout,
                 walk,
                 m.l_free,
-                &protected,
+                &mut protected,
                 &mut changed,
                 &mut flips,
             );
@@ -254,7 +253,7 @@ impl OccupancyGrid {
         scan: &TileLayout,
         mut walk: TileWalk,
         delta: f32,
-        protected: &[(u32, TileMask)],
+        protected: &mut ProtectedMasks,
         changed: &mut Vec<usize>,
         flips: &mut Vec<(u32, u16)>,
     ) {
@@ -275,11 +274,9 @@ impl OccupancyGrid {
             let (tx, ty) = walk.tile();
             // Every cell of a beam lies in the scan's tiles (its bounding box is covered).
             debug_assert!(scan.contains(tx, ty));
-            let mask = if protected.is_empty() {
-                None
-            } else {
-                scan.slot(tx, ty)
-                    .and_then(|s| protected_mask(protected, s as u32))
+            let mask = match scan.slot(tx, ty) {
+                Some(s) if !protected.is_empty() => protected.get(s as u32),
+                _ => None,
             };
             let skip = |l: usize| mask.is_some_and(|m| is_set(m, l));
             // A cell at the lower clamp cannot change under a negative step (its floor bit
@@ -568,27 +565,62 @@ fn is_set(m: &TileMask, l: usize) -> bool {
     (m[l >> 6] >> (l & 63)) & 1 == 1
 }
 
-/// Per scan tile slot with hits, the mask of its hit cells, sorted by slot (`hits` sorted by
-/// slot): built once per scan rather than once per run of free cells.
-fn protected_masks(hits: &[(u32, u16, i8, i8)]) -> Vec<(u32, TileMask)> {
-    hits.chunk_by(|a, b| a.0 == b.0)
-        .map(|run| {
+/// The hit cells of one scan by tile (the cells its other beams must not clear), looked up
+/// on each visit of a beam to a tile: the tiles with hits by binary search over their scan
+/// slots, behind a small direct-mapped memo of recent look-ups (neighbouring beams visit
+/// the same tiles in turn).
+struct ProtectedMasks {
+    /// Scan slots of the tiles with hits, ascending.
+    slots: Vec<u32>,
+    /// Per entry of `slots`, the mask of its hit cells.
+    masks: Vec<TileMask>,
+    /// Per `slot % MEMO`, the last slot looked up there and its index in `slots`
+    /// (`u32::MAX`: none); an empty entry has slot `u32::MAX`.
+    memo: [(u32, u32); MEMO],
+}
+
+/// Entries of [`ProtectedMasks`]' memo.
+const MEMO: usize = 64;
+
+impl ProtectedMasks {
+    /// The masks of `hits` (sorted by scan slot).
+    fn new(hits: &[(u32, u16, i8, i8)]) -> Self {
+        let mut slots = Vec::new();
+        let mut masks = Vec::new();
+        for run in hits.chunk_by(|a, b| a.0 == b.0) {
             let mut m = [0u64; TILE_CELLS / 64];
             for &(_, l, _, _) in run {
                 m[l as usize >> 6] |= 1 << (l & 63);
             }
-            (run[0].0, m)
-        })
-        .collect()
-}
+            slots.push(run[0].0);
+            masks.push(m);
+        }
+        Self {
+            slots,
+            masks,
+            memo: [(u32::MAX, u32::MAX); MEMO],
+        }
+    }
 
-/// The mask of tile `slot` among `protected` (sorted by slot), or `None` when it has no hit.
-#[inline]
-fn protected_mask(protected: &[(u32, TileMask)], slot: u32) -> Option<&TileMask> {
-    protected
-        .binary_search_by_key(&slot, |p| p.0)
-        .ok()
-        .map(|i| &protected[i].1)
+    /// True when the scan has no protected cell.
+    #[inline]
+    fn is_empty(&self) -> bool {
+        self.slots.is_empty()
+    }
+
+    /// The mask of the tile in scan slot `slot`, or `None` when it has no hit.
+    #[inline]
+    fn get(&mut self, slot: u32) -> Option<&TileMask> {
+        let e = &mut self.memo[slot as usize % MEMO];
+        if e.0 != slot {
+            let i = self
+                .slots
+                .binary_search(&slot)
+                .map_or(u32::MAX, |i| i as u32);
+            *e = (slot, i);
+        }
+        self.masks.get(e.1 as usize)
+    }
 }
 
 #[cfg(test)]
