@@ -1,6 +1,11 @@
 //! Scan integration: each beam traced exactly from the sensor (Amanatides–Woo,
 //! [`super::raytrace`]) and the inverse sensor model's log-odds added to the cells it
 //! crosses and ends in (PR table 9.1/9.2), tile by tile under copy-on-write.
+//!
+//! Each beam's free cells are updated as the walk reaches them, the walk carrying the
+//! cell's index inside its tile, so that a tile's data and the scan's hit mask for it are
+//! looked up once per visit and the many cells already at the lower clamp cost a bit test.
+//! The updates are the ones a list of every traced cell, applied in beam order, would make.
 
 use super::raytrace::Ray;
 use super::tiles::{split, Tile, TileLayout, HIT_CAP, TILE_BITS, TILE_CELLS, TILE_SIZE};
@@ -519,10 +524,11 @@ impl TileWalk {
             },
             Some(t) => loop {
                 let l = w.local();
-                if !skip(l) && !(use_floor && t.at_floor(l)) && {
+                let keeps = skip(l) || (use_floor && t.at_floor(l)) || {
                     let v = t.cells[l];
-                    (v + delta).clamp(lmin, lmax) != v
-                } {
+                    (v + delta).clamp(lmin, lmax) == v
+                };
+                if !keeps {
                     break None;
                 }
                 match w.advance() {

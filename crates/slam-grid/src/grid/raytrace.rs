@@ -8,35 +8,28 @@ use crate::cell::CellIndex;
 /// `end`, which is returned. The number of steps is fixed in advance to the Manhattan
 /// distance between the start and end cells, so the walk always terminates and stays
 /// 4-connected; where the segment passes exactly through a cell corner, the x step is taken
-/// first.
+/// first. (The walk as a list of cells: what the tests check the geometry and the scan
+/// integration against; the integration follows a [`Ray`] itself.)
 #[cfg(test)]
 pub(crate) fn trace_segment<F: FnMut(CellIndex)>(
     start: (f64, f64),
     end: (f64, f64),
     mut visit: F,
 ) -> CellIndex {
-    // The walk written out with its branches, as the reference [`Ray`]'s branch-free
-    // steps are tested against.
     let mut r = Ray::new(start, end);
-    while r.n_x + r.n_y > 0 {
+    while r.steps_left() > 0 {
         visit(CellIndex::new(r.x, r.y));
-        if (r.t_max_x <= r.t_max_y && r.n_x > 0) || r.n_y == 0 {
-            r.x += r.step_x;
-            r.t_max_x += r.t_delta_x;
-            r.n_x -= 1;
-        } else {
-            r.y += r.step_y;
-            r.t_max_y += r.t_delta_y;
-            r.n_y -= 1;
-        }
+        r.step();
     }
     CellIndex::new(r.x, r.y)
 }
 
 /// The state of an Amanatides–Woo walk from `start` towards the cell of `end`: the current
-/// cell (`x`, `y`) and the steps still to take. It is [`trace_segment`]'s walk, step by
-/// step, for callers that follow the cells incrementally (the scan integration steps its
-/// tile-local index along with it), so both visit the same cells in the same order.
+/// cell (`x`, `y`) and the steps still to take, for callers that follow the cells one by
+/// one (the scan integration steps its tile-local index along with it). The number of
+/// steps is fixed in advance to the Manhattan distance between the start and end cells, so
+/// the walk always terminates and stays 4-connected; where the segment passes exactly
+/// through a cell corner, the x step is taken first.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Ray {
     /// Current cell.
