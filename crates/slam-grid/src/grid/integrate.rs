@@ -668,8 +668,14 @@ mod tests {
 
     /// The straightforward integration: every traced cell in a list, in beam order, each
     /// updated by reading and writing its value through the grid's public log-odds; then
-    /// the hits. Returns the new log-odds of every cell the scan touches.
-    fn reference(g: &OccupancyGrid, pose: &Pose2, scan: &LaserScan) -> HashMap<CellIndex, f32> {
+    /// the hits. Returns the new log-odds of every cell the scan touches, and the tiles
+    /// that must be made private: those where a free update changes a value, and those
+    /// whose hits change a value or a hit statistic (or that are not stored yet).
+    fn reference(
+        g: &OccupancyGrid,
+        pose: &Pose2,
+        scan: &LaserScan,
+    ) -> (HashMap<CellIndex, f32>, HashSet<(i32, i32)>) {
         let m = *g.sensor_model();
         let f = g
             .footprint(pose, &PreparedScan::new(scan).unwrap())
@@ -689,23 +695,41 @@ mod tests {
         } else {
             HashSet::new()
         };
+        let stored = |c: CellIndex| {
+            let ((tx, ty), l) = split(c);
+            g.table
+                .slot(tx, ty)
+                .and_then(|s| g.tiles[s].as_ref())
+                .map(|t| (t, l))
+        };
         let mut values: HashMap<CellIndex, f32> = HashMap::new();
+        let mut written = HashSet::new();
         for c in free {
             if protected.contains(&c) {
                 continue;
             }
             let v = *values.entry(c).or_insert_with(|| g.log_odds(c));
-            values.insert(c, (v + m.l_free).clamp(m.l_min, m.l_max));
+            let nv = (v + m.l_free).clamp(m.l_min, m.l_max);
+            if nv != v || stored(c).is_none() {
+                written.insert(split(c).0);
+            }
+            values.insert(c, nv);
         }
         let mut marked = HashSet::new();
         for c in hits {
+            let v = *values.entry(c).or_insert_with(|| g.log_odds(c));
+            let nv = (v + m.l_occ).clamp(m.l_min, m.l_max);
+            let counts =
+                stored(c).is_none_or(|(t, l)| t.hit.as_ref().is_some_and(|h| h.hits[l] < HIT_CAP));
+            if nv != v || counts {
+                written.insert(split(c).0);
+            }
             if m.protect_scan_hits && !marked.insert(c) {
                 continue;
             }
-            let v = *values.entry(c).or_insert_with(|| g.log_odds(c));
-            values.insert(c, (v + m.l_occ).clamp(m.l_min, m.l_max));
+            values.insert(c, nv);
         }
-        values
+        (values, written)
     }
 
     /// Every stored tile's floor bits say exactly which cells are at `l_min`.
@@ -743,8 +767,9 @@ mod tests {
 
     /// On random maps and scans, for every combination of the options that change which
     /// cells a scan writes, the tile walk leaves exactly the log-odds of the per-cell
-    /// reference, consistent floor bits and a correct distance field, and a clone that
-    /// shared the tiles keeps its values.
+    /// reference, consistent floor bits and a correct distance field, creates and copies
+    /// exactly the tiles where something changes, and a clone that shared the tiles keeps
+    /// its values.
     #[test]
     fn tile_walk_equals_the_per_cell_reference_on_random_scans() {
         let mut rng = Pcg64Mcg::seed_from_u64(21);
@@ -770,7 +795,16 @@ mod tests {
             }
             for _ in 0..4 {
                 let (pose, scan) = (random_pose(&mut rng), random_scan(&mut rng, 120));
-                let expected = reference(&g, &pose, &scan);
+                let (expected, written) = reference(&g, &pose, &scan);
+                // Every stored tile of `h` is shared with `g`: a write copies it.
+                let was_stored = |&(tx, ty): &(i32, i32)| {
+                    g.table
+                        .slot(tx, ty)
+                        .and_then(|s| g.tiles[s].as_ref())
+                        .is_some()
+                };
+                let copies = written.iter().filter(|t| was_stored(t)).count() as u64;
+                let creations = written.len() as u64 - copies;
                 let (lo, hi) = g.known_bounds().unwrap();
                 let (lo, hi) = (
                     CellIndex::new(lo.x - 200, lo.y - 200),
@@ -783,7 +817,10 @@ mod tests {
                     }
                 }
                 let mut h = g.clone();
+                h.reset_copy_stats();
                 h.try_integrate_scan(&pose, &scan).unwrap();
+                let st = h.copy_stats();
+                assert_eq!((st.tiles_created, st.tiles_copied), (creations, copies));
                 let mut i = 0;
                 for y in lo.y..=hi.y {
                     for x in lo.x..=hi.x {
