@@ -110,7 +110,7 @@ impl IncrementalDistance {
     pub(crate) fn rebuild(&mut self, table: &TileTable, obstacles: &[CellIndex]) {
         self.tiles.iter_mut().for_each(|t| *t = None);
         for &c in obstacles {
-            self.stamp(table, c, None);
+            self.stamp(table, c);
         }
     }
 
@@ -134,7 +134,7 @@ impl IncrementalDistance {
         // Cells that became obstacles: dist ← min(dist, kernel) around them.
         for &c in flips.iter() {
             if is_obstacle(c) {
-                self.stamp(table, c, None);
+                self.stamp(table, c);
             }
         }
     }
@@ -151,20 +151,13 @@ impl IncrementalDistance {
         Arc::make_mut(t)
     }
 
-    /// dist ← min(dist, kernel) around obstacle cell `c`, optionally only inside the
-    /// inclusive window `clip` = (min, max). Shared tiles are copied only where a value
-    /// actually decreases.
-    fn stamp(&mut self, table: &TileTable, c: CellIndex, clip: Option<(CellIndex, CellIndex)>) {
+    /// dist ← min(dist, kernel) around obstacle cell `c`. Shared tiles are copied only
+    /// where a value actually decreases.
+    fn stamp(&mut self, table: &TileTable, c: CellIndex) {
         let kernel = Arc::clone(&self.kernel);
         let (rad, max) = (kernel.radius, kernel.max);
         let w = (2 * rad + 1) as usize;
-        let (mut x0, mut y0, mut x1, mut y1) = (c.x - rad, c.y - rad, c.x + rad, c.y + rad);
-        if let Some((lo, hi)) = clip {
-            x0 = x0.max(lo.x);
-            y0 = y0.max(lo.y);
-            x1 = x1.min(hi.x);
-            y1 = y1.min(hi.y);
-        }
+        let (x0, y0, x1, y1) = (c.x - rad, c.y - rad, c.x + rad, c.y + rad);
         for y in y0..=y1 {
             let row = &kernel.values[(y - c.y + rad) as usize * w..][..w];
             let k_at = |x: i32| row[(x - c.x + rad) as usize];
@@ -216,31 +209,45 @@ impl IncrementalDistance {
     }
 
     /// Recomputes the window of `radius` around `c` exactly from the obstacles within
-    /// 2·`radius` of `c`.
+    /// 2·`radius` of `c`: the window's values are found in a local buffer first and only
+    /// the cells whose value changes are written, so a shared tile is copied only when it
+    /// really changes.
     fn recompute_window(
         &mut self,
         table: &TileTable,
         c: CellIndex,
         is_obstacle: &impl Fn(CellIndex) -> bool,
     ) {
-        let rad = self.kernel.radius;
-        let max = self.kernel.max;
-        for y in c.y - rad..=c.y + rad {
-            self.rewrite_row(table, y, c.x - rad, c.x + rad, |_, cur| {
-                (cur != max).then_some(max)
-            });
-        }
-        let clip = (
-            CellIndex::new(c.x - rad, c.y - rad),
-            CellIndex::new(c.x + rad, c.y + rad),
-        );
-        for y in c.y - 2 * rad..=c.y + 2 * rad {
-            for x in c.x - 2 * rad..=c.x + 2 * rad {
-                let o = CellIndex::new(x, y);
-                if is_obstacle(o) {
-                    self.stamp(table, o, Some(clip));
+        let kernel = Arc::clone(&self.kernel);
+        let (rad, max) = (kernel.radius, kernel.max);
+        let w = (2 * rad + 1) as usize;
+        const W_MAX: usize = 2 * MAX_DISTANCE_RADIUS as usize + 1;
+        let mut buf = [max; W_MAX * W_MAX];
+        for oy in c.y - 2 * rad..=c.y + 2 * rad {
+            for ox in c.x - 2 * rad..=c.x + 2 * rad {
+                if !is_obstacle(CellIndex::new(ox, oy)) {
+                    continue;
+                }
+                // The window's cells within the kernel of obstacle (ox, oy).
+                let (x0, x1) = ((c.x - rad).max(ox - rad), (c.x + rad).min(ox + rad));
+                for y in (c.y - rad).max(oy - rad)..=(c.y + rad).min(oy + rad) {
+                    let n = (x1 - x0 + 1) as usize;
+                    let k_row = &kernel.values[(y - oy + rad) as usize * w..];
+                    let b_row = &mut buf[(y - c.y + rad) as usize * w..];
+                    let ks = &k_row[(x0 - ox + rad) as usize..][..n];
+                    let bs = &mut b_row[(x0 - c.x + rad) as usize..][..n];
+                    for (b, &k) in bs.iter_mut().zip(ks) {
+                        *b = (*b).min(k);
+                    }
                 }
             }
+        }
+        for y in c.y - rad..=c.y + rad {
+            let b_row = &buf[(y - c.y + rad) as usize * w..][..w];
+            self.rewrite_row(table, y, c.x - rad, c.x + rad, |x, cur| {
+                let v = b_row[(x - c.x + rad) as usize];
+                (v != cur).then_some(v)
+            });
         }
     }
 }
