@@ -115,12 +115,14 @@ impl IncrementalDistance {
     }
 
     /// Restores the invariant after the cells in `flips` changed obstacle status
-    /// (`is_obstacle` gives the status now). `flips` is sorted and deduplicated in place.
+    /// (`is_obstacle` gives the status now; `obstacle_row(y, x0, out)` the status of the
+    /// cells (x0 + i, y) into `out[i]`). `flips` is sorted and deduplicated in place.
     pub(crate) fn repair(
         &mut self,
         table: &TileTable,
         flips: &mut Vec<CellIndex>,
         is_obstacle: impl Fn(CellIndex) -> bool,
+        obstacle_row: impl Fn(i32, i32, &mut [bool]),
     ) {
         flips.sort_unstable();
         flips.dedup();
@@ -128,7 +130,7 @@ impl IncrementalDistance {
         // (this also re-stamps every obstacle near them, new ones included).
         for &c in flips.iter() {
             if !is_obstacle(c) {
-                self.recompute_window(table, c, &is_obstacle);
+                self.recompute_window(table, c, &obstacle_row);
             }
         }
         // Cells that became obstacles: dist ← min(dist, kernel) around them.
@@ -216,18 +218,18 @@ impl IncrementalDistance {
         &mut self,
         table: &TileTable,
         c: CellIndex,
-        is_obstacle: &impl Fn(CellIndex) -> bool,
+        obstacle_row: &impl Fn(i32, i32, &mut [bool]),
     ) {
         let kernel = Arc::clone(&self.kernel);
         let (rad, max) = (kernel.radius, kernel.max);
         let w = (2 * rad + 1) as usize;
         const W_MAX: usize = 2 * MAX_DISTANCE_RADIUS as usize + 1;
         let mut buf = [max; W_MAX * W_MAX];
+        let mut row = [false; 4 * MAX_DISTANCE_RADIUS as usize + 1];
+        let row = &mut row[..(4 * rad + 1) as usize];
         for oy in c.y - 2 * rad..=c.y + 2 * rad {
-            for ox in c.x - 2 * rad..=c.x + 2 * rad {
-                if !is_obstacle(CellIndex::new(ox, oy)) {
-                    continue;
-                }
+            obstacle_row(oy, c.x - 2 * rad, row);
+            for (ox, _) in (c.x - 2 * rad..).zip(row.iter()).filter(|(_, &o)| o) {
                 // The window's cells within the kernel of obstacle (ox, oy).
                 let (x0, x1) = ((c.x - rad).max(ox - rad), (c.x + rad).min(ox + rad));
                 for y in (c.y - rad).max(oy - rad)..=(c.y + rad).min(oy + rad) {

@@ -231,7 +231,12 @@ impl OccupancyGrid {
                 .iter()
                 .map(|&(slot, local)| self.cell_of_slot(slot as usize, local as usize))
                 .collect();
-            d.repair(&self.table, &mut cells, |c| self.is_obstacle(c));
+            d.repair(
+                &self.table,
+                &mut cells,
+                |c| self.is_obstacle(c),
+                |y, x0, out| self.obstacle_row(y, x0, out),
+            );
             self.distance = Some(d);
         }
     }
@@ -769,7 +774,7 @@ mod tests {
     /// cells a scan writes, the tile walk leaves exactly the log-odds of the per-cell
     /// reference, consistent floor bits and a correct distance field, creates and copies
     /// exactly the tiles where something changes, and a clone that shared the tiles keeps
-    /// its values.
+    /// its values; the grid's obstacle rows agree with its per-cell obstacle test.
     #[test]
     fn tile_walk_equals_the_per_cell_reference_on_random_scans() {
         let mut rng = Pcg64Mcg::seed_from_u64(21);
@@ -833,6 +838,17 @@ mod tests {
                 }
                 assert!(expected.values().any(|&v| v == model.l_min));
                 check_floor_bits(&h);
+                // The row reader the distance repair uses agrees with `is_obstacle`, across
+                // tile edges and into tiles never written.
+                let c = h.world_to_cell(&pose.translation());
+                let mut row = [false; 301];
+                for y in c.y - 150..=c.y + 150 {
+                    h.obstacle_row(y, c.x - 150, &mut row);
+                    for (i, &o) in row.iter().enumerate() {
+                        let cell = CellIndex::new(c.x - 150 + i as i32, y);
+                        assert_eq!(o, h.is_obstacle(cell), "{cell:?}");
+                    }
+                }
                 if with_distance {
                     // Beams reach 5 m (100 cells) from the sensor.
                     let c = h.world_to_cell(&pose.translation());

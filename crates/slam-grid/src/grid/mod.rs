@@ -287,6 +287,36 @@ impl OccupancyGrid {
         self.log_odds(c) > self.params.occupied_threshold
     }
 
+    /// Whether each cell (x0 + i, y) is an obstacle ([`OccupancyGrid::is_obstacle`]), into
+    /// `out[i]`: one tile look-up per tile the row crosses instead of one per cell.
+    pub(crate) fn obstacle_row(&self, y: i32, x0: i32, out: &mut [bool]) {
+        let thr = self.params.occupied_threshold;
+        let mask = TILE_SIZE as i32 - 1;
+        let ty = y >> tiles::TILE_BITS;
+        let row = (y & mask) as usize * TILE_SIZE;
+        let mut i = 0;
+        while i < out.len() {
+            let x = x0 + i as i32;
+            let n = (TILE_SIZE - (x & mask) as usize).min(out.len() - i);
+            let seg = &mut out[i..i + n];
+            match self
+                .table
+                .slot(x >> tiles::TILE_BITS, ty)
+                .and_then(|s| self.tiles[s].as_deref())
+            {
+                Some(t) => {
+                    let l = row + (x & mask) as usize;
+                    for (o, &v) in seg.iter_mut().zip(&t.cells[l..l + n]) {
+                        *o = v > thr;
+                    }
+                }
+                // Never written: log-odds 0, as `log_odds` reads it.
+                None => seg.fill(0.0 > thr),
+            }
+            i += n;
+        }
+    }
+
     /// Copy-on-write counters.
     pub fn copy_stats(&self) -> CopyStats {
         self.stats
