@@ -585,6 +585,61 @@ mod tests {
         }
     }
 
+    /// One particle's draw with the indoor preset's matching (σ 0.05 m, r 0.15 m, capture
+    /// 0.2 m, gain 3, steps 0.1 m / 0.1 rad halved 6 times, 3³ samples over ±1 cm / ±0.3°)
+    /// and Intel's motion model, moving from `previous` to where the odometry says, `to`.
+    #[allow(clippy::too_many_arguments)]
+    fn indoor_draw(
+        map: &slam_grid::OccupancyGrid,
+        scan: &PreparedScan,
+        previous: Pose2,
+        to: Pose2,
+        min_inliers: usize,
+        correction: Pose2,
+        recovery: Option<Recovery>,
+        start_choice: StartChoice,
+    ) -> Drawn {
+        let offsets = sample_offsets(3, 0.01, 0.005);
+        let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
+        let lk = EndpointModel::new(0.05, 0.15, 3.0);
+        let ctx = StepContext {
+            scan,
+            lk,
+            capture: EndpointModel { radius: 0.2, ..lk },
+            hc: HillClimbSteps {
+                linear_step: 0.1,
+                angular_step: 0.1,
+                refinements: 6,
+            },
+            u: motion.control_from_poses(&previous, &to),
+            motion,
+            min_var: Vector3::new(1e-4, 1e-4, 2.5e-5),
+            min_inliers,
+            offsets: &offsets,
+            correction,
+            recovery,
+            start_choice,
+        };
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        improved(&previous, map, &field(map), &ctx, &mut rng)
+    }
+
+    /// The indoor preset's recovery (trigger 40 %, ±1.5 m, ±0.9 rad) for a scan of `n`
+    /// beams, counted among all the beams or among the observed ones, taking a wide match
+    /// with at least `accept_inliers`.
+    fn indoor_recovery(n: f64, observed_only: bool, accept_inliers: usize) -> Option<Recovery> {
+        Some(Recovery {
+            trigger_inliers: (0.4 * n).ceil() as usize,
+            trigger_fraction: 0.4,
+            observed_only,
+            accept_inliers,
+            range_xy: 1.5,
+            step_xy: 0.1,
+            range_theta: 0.9,
+            step_theta: 0.02,
+        })
+    }
+
     /// The csail failure in miniature (docs/gridfast.md): the map holds the corridor only up
     /// to about `last` + 1.3 m (24 scans with a 1.6 m range from x ≤ `last`), the robot
     /// moved from x = 1.1 to 1.9 m with exact odometry, and its 361-beam scan looks mostly
@@ -607,48 +662,25 @@ mod tests {
         let truth = Pose2::new(1.9, 0.1, 0.05);
         let previous = Pose2::new(1.1, 0.05, 0.0);
         let scan = PreparedScan::with_limits(&corridor_scan(&truth, 30.0), 0.0, 29.9).unwrap();
-        let offsets = sample_offsets(3, 0.01, 0.005);
-        let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
-        let lk = EndpointModel::new(0.05, 0.15, 3.0);
-        let ctx = StepContext {
-            scan: &scan,
-            lk,
-            capture: EndpointModel { radius: 0.2, ..lk },
-            hc: HillClimbSteps {
-                linear_step: 0.1,
-                angular_step: 0.1,
-                refinements: 6,
-            },
-            u: motion.control_from_poses(&previous, &truth),
-            motion,
-            min_var: Vector3::new(1e-4, 1e-4, 2.5e-5),
-            min_inliers: scan.points().len() / 20,
-            offsets: &offsets,
+        let min_inliers = scan.points().len() / 20;
+        let drawn = indoor_draw(
+            &map,
+            &scan,
+            previous,
+            truth,
+            min_inliers,
             correction,
             recovery,
             start_choice,
-        };
-        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
-        (
-            truth,
-            improved(&previous, &map, &field(&map), &ctx, &mut rng),
-        )
+        );
+        (truth, drawn)
     }
 
     /// The indoor preset's recovery (±1.5 m, ±0.9 rad), counted among all the beams or
     /// among the observed ones; any wide match with more inliers is accepted
     /// (`accept-fraction` 0), so that only the trigger is tested.
     fn corridor_recovery(observed_only: bool) -> Option<Recovery> {
-        Some(Recovery {
-            trigger_inliers: (0.4 * 361.0_f64).ceil() as usize,
-            trigger_fraction: 0.4,
-            observed_only,
-            accept_inliers: 0,
-            range_xy: 1.5,
-            step_xy: 0.1,
-            range_theta: 0.9,
-            step_theta: 0.02,
-        })
+        indoor_recovery(361.0, observed_only, 0)
     }
 
     /// A scan looking into space not yet mapped is no poor match when the beams the map can
@@ -781,45 +813,19 @@ mod tests {
         let previous = Pose2::new(-1.0, 0.0, 0.0);
         let scan = PreparedScan::with_limits(&ribbed_corridor_scan(&truth), 0.0, 2.999).unwrap();
         let n = scan.points().len() as f64;
-        let offsets = sample_offsets(3, 0.01, 0.005);
-        let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
+        // The trigger counted among all the beams (`observed-only` off), so that the wide
+        // search runs and only the acceptance rule is tested.
         let draw = |accept_fraction: f64| {
-            let model = |radius: f64| EndpointModel {
-                k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
-                radius,
-                gain: 3.0,
-            };
-            let ctx = StepContext {
-                scan: &scan,
-                lk: model(0.15),
-                capture: model(0.2),
-                hc: HillClimbSteps {
-                    linear_step: 0.1,
-                    angular_step: 0.1,
-                    refinements: 6,
-                },
-                u: motion.control_from_poses(&previous, &truth),
-                motion,
-                min_var: Vector3::new(1e-4, 1e-4, 2.5e-5),
-                min_inliers: (0.25 * n).ceil() as usize,
-                offsets: &offsets,
-                correction: Pose2::IDENTITY,
-                // The trigger counted among all the beams (`observed-only` off), so that
-                // the wide search runs and only the acceptance rule is tested.
-                recovery: Some(Recovery {
-                    trigger_inliers: (0.4 * n).ceil() as usize,
-                    trigger_fraction: 0.4,
-                    observed_only: false,
-                    accept_inliers: (accept_fraction * n).ceil() as usize,
-                    range_xy: 1.5,
-                    step_xy: 0.1,
-                    range_theta: 0.9,
-                    step_theta: 0.02,
-                }),
-                start_choice: StartChoice::Posterior,
-            };
-            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
-            improved(&previous, &map, &field(&map), &ctx, &mut rng)
+            indoor_draw(
+                &map,
+                &scan,
+                previous,
+                truth,
+                (0.25 * n).ceil() as usize,
+                Pose2::IDENTITY,
+                indoor_recovery(n, false, (accept_fraction * n).ceil() as usize),
+                StartChoice::Posterior,
+            )
         };
         let kept = draw(crate::RecoveryConfig::default().accept_fraction);
         assert!(!kept.match_recovered && !kept.match_failed);
