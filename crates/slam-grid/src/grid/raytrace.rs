@@ -49,6 +49,23 @@ pub(crate) struct Ray {
     n_y: u32,
 }
 
+/// Along one axis of a segment starting at `start` in cell `cell` with extent `d`: the
+/// parameter t ∈ [0, 1] at which it meets the next cell boundary, and t's increment per
+/// cell (∞ for both when the segment does not move along the axis).
+#[inline]
+fn first_crossing(start: f64, cell: i32, d: f64) -> (f64, f64) {
+    if d != 0.0 {
+        let next = if d > 0.0 {
+            (cell as f64 + 1.0 - start) / d
+        } else {
+            (start - cell as f64) / -d
+        };
+        (next, 1.0 / d.abs())
+    } else {
+        (f64::INFINITY, f64::INFINITY)
+    }
+}
+
 impl Ray {
     /// A walk standing in the cell of `start`, with the Manhattan distance to the cell of
     /// `end` still to go.
@@ -61,26 +78,8 @@ impl Ray {
         let dy = end.1 - start.1;
         let step_x = if dx > 0.0 { 1 } else { -1 };
         let step_y = if dy > 0.0 { 1 } else { -1 };
-        let (t_max_x, t_delta_x) = if dx != 0.0 {
-            let next = if dx > 0.0 {
-                (x as f64 + 1.0 - start.0) / dx
-            } else {
-                (start.0 - x as f64) / -dx
-            };
-            (next, 1.0 / dx.abs())
-        } else {
-            (f64::INFINITY, f64::INFINITY)
-        };
-        let (t_max_y, t_delta_y) = if dy != 0.0 {
-            let next = if dy > 0.0 {
-                (y as f64 + 1.0 - start.1) / dy
-            } else {
-                (start.1 - y as f64) / -dy
-            };
-            (next, 1.0 / dy.abs())
-        } else {
-            (f64::INFINITY, f64::INFINITY)
-        };
+        let (t_max_x, t_delta_x) = first_crossing(start.0, x, dx);
+        let (t_max_y, t_delta_y) = first_crossing(start.1, y, dy);
         Self {
             x,
             y,
