@@ -534,46 +534,35 @@ mod tests {
         assert!(d1.log_weight < d3.log_weight);
     }
 
-    /// A corridor from x = −20 to 20 m whose walls are saw-toothed with a period of one
-    /// metre (y = ±1 at whole metres, ±1.3 half-way): shifted by one metre along x it looks
-    /// the same, and every wall beam says where along the period the robot is. The range
-    /// to the first wall from (x, y) in direction a, radians.
-    fn corridor_cast(x: f64, y: f64, a: f64) -> f64 {
-        let mut segments = vec![((-20.0, -1.0), (-20.0, 1.0)), ((20.0, -1.0), (20.0, 1.0))];
-        for k in -20..20 {
-            let x0 = k as f64;
-            for s in [-1.0, 1.0] {
-                segments.push(((x0, s * 1.0), (x0 + 0.5, s * 1.3)));
-                segments.push(((x0 + 0.5, s * 1.3), (x0 + 1.0, s * 1.0)));
-            }
-        }
-        let d = (a.cos(), a.sin());
-        let mut best = f64::INFINITY;
-        for ((px, py), (qx, qy)) in segments {
-            let e = (qx - px, qy - py);
-            let den = d.0 * e.1 - d.1 * e.0;
-            if den.abs() < 1e-12 {
-                continue;
-            }
-            let w = (px - x, py - y);
-            let t = (w.0 * e.1 - w.1 * e.0) / den;
-            let u = (w.0 * d.1 - w.1 * d.0) / den;
-            if t > 0.0 && (0.0..=1.0).contains(&u) {
-                best = best.min(t);
-            }
-        }
-        best
-    }
+    /// A wall segment, from one end point (x, y) to the other, metres.
+    type Segment = ((f64, f64), (f64, f64));
 
-    /// A 361-beam, 360° scan of the corridor from `pose`; readings from `max_range` on are
-    /// no returns.
-    fn corridor_scan(pose: &Pose2, max_range: f64) -> slam_models::LaserScan {
+    /// A 361-beam, 360° scan from `pose` of the walls `segments`: each reading the range to
+    /// the nearest wall along the beam, readings from `max_range` on (and beams that meet
+    /// no wall) no returns at `max_range`.
+    fn scan_of(segments: &[Segment], pose: &Pose2, max_range: f64) -> slam_models::LaserScan {
         let n = 361;
         let inc = std::f64::consts::TAU / n as f64;
         let ranges = (0..n)
             .map(|k| {
                 let a = pose.theta - std::f64::consts::PI + k as f64 * inc;
-                corridor_cast(pose.x, pose.y, a).min(max_range)
+                let d = (a.cos(), a.sin());
+                let mut best = f64::INFINITY;
+                for &((px, py), (qx, qy)) in segments {
+                    // The ray pose + t·d against the segment p + u·(q − p), u in [0, 1].
+                    let e = (qx - px, qy - py);
+                    let den = d.0 * e.1 - d.1 * e.0;
+                    if den.abs() < 1e-12 {
+                        continue;
+                    }
+                    let w = (px - pose.x, py - pose.y);
+                    let t = (w.0 * e.1 - w.1 * e.0) / den;
+                    let u = (w.0 * d.1 - w.1 * d.0) / den;
+                    if t > 0.0 && (0.0..=1.0).contains(&u) {
+                        best = best.min(t);
+                    }
+                }
+                best.min(max_range)
             })
             .collect();
         slam_models::LaserScan {
@@ -583,6 +572,21 @@ mod tests {
             max_range,
             sensor_pose: Pose2::IDENTITY,
         }
+    }
+
+    /// A corridor from x = −20 to 20 m whose walls are saw-toothed with a period of one
+    /// metre (y = ±1 at whole metres, ±1.3 half-way): shifted by one metre along x it looks
+    /// the same, and every wall beam says where along the period the robot is.
+    fn corridor_scan(pose: &Pose2, max_range: f64) -> slam_models::LaserScan {
+        let mut segments = vec![((-20.0, -1.0), (-20.0, 1.0)), ((20.0, -1.0), (20.0, 1.0))];
+        for k in -20..20 {
+            let x0 = k as f64;
+            for s in [-1.0, 1.0] {
+                segments.push(((x0, s * 1.0), (x0 + 0.5, s * 1.3)));
+                segments.push(((x0 + 0.5, s * 1.3), (x0 + 1.0, s * 1.0)));
+            }
+        }
+        scan_of(&segments, pose, max_range)
     }
 
     /// One particle's draw with the indoor preset's matching (σ 0.05 m, r 0.15 m, capture
@@ -752,47 +756,13 @@ mod tests {
     const RIB_PERIOD: f64 = 0.7;
 
     fn ribbed_corridor_scan(pose: &Pose2) -> slam_grid::LaserScan {
-        let mut walls = vec![([-20.0, 1.0], [20.0, 1.0]), ([-20.0, -1.0], [20.0, -1.0])];
+        let mut walls = vec![((-20.0, 1.0), (20.0, 1.0)), ((-20.0, -1.0), (20.0, -1.0))];
         for i in -30..=30 {
             let x = RIB_PERIOD * i as f64;
-            walls.push(([x, 1.0], [x, 0.6]));
-            walls.push(([x, -1.0], [x, -0.6]));
+            walls.push(((x, 1.0), (x, 0.6)));
+            walls.push(((x, -1.0), (x, -0.6)));
         }
-        let (n, reach) = (361, 3.0);
-        let inc = 2.0 * std::f64::consts::PI / n as f64;
-        let ranges = (0..n)
-            .map(|k| {
-                let a = pose.theta - std::f64::consts::PI + k as f64 * inc;
-                let (dx, dy) = (a.cos(), a.sin());
-                let mut t = f64::INFINITY;
-                for (p, q) in &walls {
-                    // Ray (pose + t·d) against the segment p + s·(q − p), s in [0, 1].
-                    let (ex, ey) = (q[0] - p[0], q[1] - p[1]);
-                    let den = dx * ey - dy * ex;
-                    if den.abs() < 1e-12 {
-                        continue;
-                    }
-                    let (wx, wy) = (p[0] - pose.x, p[1] - pose.y);
-                    let tt = (wx * ey - wy * ex) / den;
-                    let ss = (wx * dy - wy * dx) / den;
-                    if tt > 0.0 && (0.0..=1.0).contains(&ss) {
-                        t = t.min(tt);
-                    }
-                }
-                if t < reach {
-                    t
-                } else {
-                    reach
-                }
-            })
-            .collect();
-        slam_grid::LaserScan {
-            angle_min: -std::f64::consts::PI,
-            angle_increment: inc,
-            ranges,
-            max_range: reach,
-            sensor_pose: Pose2::IDENTITY,
-        }
+        scan_of(&walls, pose, 3.0)
     }
 
     /// Issue 21, fhw: where the robot faces space not yet mapped, its true pose fits few
