@@ -136,9 +136,9 @@ fn matching(c: &mut Criterion) {
     g.finish();
 }
 
-fn wide_search(c: &mut Criterion) {
-    use slam_grid::matcher::endpoint::{self, EndpointModel, SearchWindow};
-    use slam_models::{Matrix3, Vector3};
+/// The room mapped from four places with four 720-beam turns each, on 5 cm cells with the
+/// incremental distance field (4-cell reach) that the endpoint model reads.
+fn room_with_field() -> OccupancyGrid {
     let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
         .with_incremental_distance(4)
         .expect("radius");
@@ -148,9 +148,22 @@ fn wide_search(c: &mut Criterion) {
             grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
         }
     }
-    let field = grid.distance_field().expect("incremental field");
+    grid
+}
+
+/// The pose the endpoint benches match and its 180-beam, 180° scan.
+fn scan_in_room() -> (Pose2, PreparedScan) {
     let truth = Pose2::new(5.2, 2.9, 0.4);
     let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    (truth, scan)
+}
+
+fn wide_search(c: &mut Criterion) {
+    use slam_grid::matcher::endpoint::{self, EndpointModel, SearchWindow};
+    use slam_models::{Matrix3, Vector3};
+    let grid = room_with_field();
+    let field = grid.distance_field().expect("incremental field");
+    let (truth, scan) = scan_in_room();
     // A 1.2 m / 17° odometry error; the gridfast defaults (indoor preset, gain 3).
     let initial = Pose2::new(4.3, 3.7, 0.1);
     let capture = EndpointModel::new(0.05, 0.2, 3.0);
@@ -196,18 +209,9 @@ fn wide_search(c: &mut Criterion) {
 fn coarse_search(c: &mut Criterion) {
     use slam_grid::matcher::endpoint::{self, EndpointModel, SearchWindow};
     use slam_models::{Matrix3, Vector3};
-    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
-        .with_incremental_distance(4)
-        .expect("radius");
-    for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
-        for k in 0..4 {
-            let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
-            grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
-        }
-    }
+    let grid = room_with_field();
     let field = grid.distance_field().expect("incremental field");
-    let truth = Pose2::new(5.2, 2.9, 0.4);
-    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    let (truth, scan) = scan_in_room();
     // A 0.14 m / 0.2 rad odometry error; the indoor preset's capture model (gain 3).
     let initial = Pose2::new(5.3, 2.8, 0.2);
     let capture = EndpointModel::new(0.05, 0.2, 3.0);
@@ -238,68 +242,15 @@ fn coarse_search(c: &mut Criterion) {
     g.finish();
 }
 
-/// The endpoint scorer as it was before the scorer work of issue 21 (one running f64 sum,
-/// the cursor's `dist4` per beam), kept here to time the current one against it in the
-/// same run.
-fn score_before(
-    field: &slam_grid::DistanceField<'_>,
-    points: &[slam_models::Point2],
-    pose: &Pose2,
-    model: &slam_grid::matcher::endpoint::EndpointModel,
-) -> (f64, usize) {
-    let frame = field.frame();
-    let inv = 1.0 / frame.resolution;
-    let unit = field.metres_per_unit();
-    let (s, c) = pose.theta.sin_cos();
-    let (tx, ty) = (
-        (pose.x - frame.origin.x) * inv - 0.5,
-        (pose.y - frame.origin.y) * inv - 0.5,
-    );
-    let (s, c) = (s * inv, c * inv);
-    let mut sum = 0.0;
-    let mut inliers = 0;
-    let r_in = model.radius * 0.999;
-    let mut field = field.cursor();
-    for p in points {
-        let u = c * p.x - s * p.y + tx;
-        let v = s * p.x + c * p.y + ty;
-        // ⌊·⌋ without a libm call, as the scorer does.
-        let floor = |x: f64| {
-            let i = x as i32;
-            i - ((i as f64) > x) as i32
-        };
-        let (iu, iv) = (floor(u), floor(v));
-        let (au, av) = (u - iu as f64, v - iv as f64);
-        let d = field.dist4(CellIndex::new(iu, iv));
-        let d0 = d[0] as f64 + au * (d[1] as f64 - d[0] as f64);
-        let d1 = d[2] as f64 + au * (d[3] as f64 - d[2] as f64);
-        let dm = ((d0 + av * (d1 - d0)) * unit).min(model.radius);
-        if dm < r_in {
-            inliers += 1;
-        }
-        sum += dm * dm;
-    }
-    (-model.k * sum, inliers)
-}
-
 /// The endpoint scorer alone (grid FastSLAM's inner loop): a 180-beam scan (every point,
 /// and the coarse subset) scored at 64 poses within a few centimetres of the truth on the
 /// incremental field of the room (5 cm cells, 4-cell reach), the current scorer against
-/// the one before (`score_before`) in the same run.
+/// the f64 reference it replaced (`endpoint::score_reference`) in the same run.
 fn endpoint_score(c: &mut Criterion) {
     use slam_grid::matcher::endpoint::{self, EndpointModel};
-    let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default())
-        .with_incremental_distance(4)
-        .expect("radius");
-    for &(x, y) in &[(1.5, 3.0), (5.0, 3.0), (8.5, 2.0), (5.5, 5.0)] {
-        for k in 0..4 {
-            let p = Pose2::new(x, y, k as f64 * std::f64::consts::FRAC_PI_2);
-            grid.integrate_scan(&p, &scan_at(&p, 720, std::f64::consts::TAU));
-        }
-    }
+    let grid = room_with_field();
     let field = grid.distance_field().expect("incremental field");
-    let truth = Pose2::new(5.2, 2.9, 0.4);
-    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    let (truth, scan) = scan_in_room();
     let model = EndpointModel::new(0.05, 0.15, 3.0);
     let poses: Vec<Pose2> = (0..64)
         .map(|i| {
@@ -320,11 +271,14 @@ fn endpoint_score(c: &mut Criterion) {
                 .sum::<f64>()
         })
     });
-    g.bench_function("score_before_180_beams_64_poses", |b| {
+    g.bench_function("score_reference_180_beams_64_poses", |b| {
         b.iter(|| {
             poses
                 .iter()
-                .map(|p| score_before(&field, scan.points(), black_box(p), &model).0)
+                .map(|p| {
+                    endpoint::score_reference(&field, scan.points(), black_box(p), &model)
+                        .log_likelihood
+                })
                 .sum::<f64>()
         })
     });
@@ -336,11 +290,14 @@ fn endpoint_score(c: &mut Criterion) {
                 .sum::<f64>()
         })
     });
-    g.bench_function("coarse_score_before_64_poses", |b| {
+    g.bench_function("coarse_score_reference_64_poses", |b| {
         b.iter(|| {
             poses
                 .iter()
-                .map(|p| score_before(&field, scan.coarse_points(), black_box(p), &model).0)
+                .map(|p| {
+                    endpoint::score_reference(&field, scan.coarse_points(), black_box(p), &model)
+                        .log_likelihood
+                })
                 .sum::<f64>()
         })
     });

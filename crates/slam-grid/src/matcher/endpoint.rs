@@ -97,7 +97,7 @@ const LANES: usize = 8;
 ///    square and the sum, in f32 over eight partial sums in a fixed order (the same bytes
 ///    on every run), then scaled to metres in f64.
 ///
-/// Against the continuous model (`score_f64`, the test's reference) this rounds each end
+/// Against the continuous model ([`score_reference`], the test's reference) this rounds each end
 /// point's position by at most 1/2048 cell per axis, which moves its distance by at most
 /// 17/2048 unit per axis (the stored field changes by at most 17 units between
 /// neighbouring cells), and sums in f32 (relative error ≈ 10⁻⁷ per addition).
@@ -192,10 +192,10 @@ pub fn score(
     }
 }
 
-/// The endpoint score in f64 throughout, one running sum in the order of the end points:
-/// the reference [`score`] is tested against (the scorer before issue 21's speed work).
-#[cfg(test)]
-fn score_f64(
+/// The same score as [`score`] in f64 throughout, the end point's continuous position and
+/// one running sum in the order of the end points: the reference [`score`] is tested and
+/// benchmarked against (the scorer before issue 21's speed work; it does not vectorise).
+pub fn score_reference(
     field: &DistanceField<'_>,
     points: &[Point2],
     pose: &Pose2,
@@ -1045,7 +1045,7 @@ mod tests {
                 borderline += usize::from((dm - model.radius * 0.999).abs() <= bound);
                 sum += dm * dm;
             }
-            let exact = score_f64(&field, &points, &pose, &model);
+            let exact = score_reference(&field, &points, &pose, &model);
             let plain = -model.k * sum;
             assert_eq!(exact.log_likelihood.to_bits(), plain.to_bits(), "{pose:?}");
             assert_eq!(exact.inliers, inliers, "{pose:?}");
