@@ -147,7 +147,9 @@ pub struct GridFastSlam {
     /// (first index, count) of each group of identical particles (same pose, map and
     /// weight once the pending scan is integrated: before, only the first holds the map),
     /// covering the particles in order: all of them at the start, the copies of one parent
-    /// after a resampling, one each otherwise.
+    /// after a resampling, one each otherwise. The pending scan is integrated once per
+    /// group and copied, and the improved proposal computed once per group; the best
+    /// particle leads its group.
     identical: Vec<(usize, usize)>,
     /// Off only in a test: every particle computes its own proposal.
     share_fits: bool,
@@ -161,11 +163,6 @@ struct Pending {
     /// The scan's index among the processed scans (for an error).
     k: usize,
     scan: PreparedScan,
-    /// (first index, count) of each group of identical particles, integrated once and
-    /// copied; the groups cover the particles in order and the best particle leads its
-    /// group. Only a group's first particle holds the map; the others' are empty until
-    /// the integration copies it.
-    groups: Vec<(usize, usize)>,
 }
 
 /// What the filter derives from its effective configuration.
@@ -640,7 +637,7 @@ impl GridFastSlam {
             &mut self.particles,
             self.best,
             self.pending.take(),
-            &self.d.empty,
+            &self.identical,
             coarse_search,
         );
         if let Err(e) = flushed {
@@ -861,12 +858,8 @@ impl GridFastSlam {
         // the map is refused by the grid), so that the filter stays usable.
         self.particles = particles;
         integrated.map_err(|e| numerical(k, e))?;
-        self.identical.clone_from(&later);
-        self.pending = Some(Pending {
-            k,
-            scan: prepared,
-            groups: later,
-        });
+        self.identical = later;
+        self.pending = Some(Pending { k, scan: prepared });
         self.best = best;
         self.n_eff = n_eff;
         Ok(ScanUpdateInfo {
@@ -882,22 +875,22 @@ impl GridFastSlam {
 
 /// Integrates the pending scan into every particle's map and runs `search` on the best
 /// particle's, in two rayon tasks: the best particle's group, then the search on its map;
-/// beside them the other groups. In each group the first particle integrates the scan and
-/// the others take copies of its map (they were copies of it before; their old maps are
-/// let go first, so that the tiles written are not shared and need no copy). Returns the
+/// beside them the other groups (`groups`, the filter's groups of identical particles). In
+/// each group the first particle integrates the scan and the others, which hold the empty
+/// map meanwhile, take copies of its map. Returns the
 /// search's result (the identity when the best particle's map refused the scan) and the
 /// integration's outcome (an error names the pending scan).
 fn flush<F>(
     particles: &mut [Particle],
     best: usize,
     pending: Option<Pending>,
-    empty: &OccupancyGrid,
+    groups: &[(usize, usize)],
     search: F,
 ) -> (Pose2, Result<(), GridFastError>)
 where
     F: FnOnce(&Particle) -> Pose2 + Send,
 {
-    let Some(Pending { k, scan, groups }) = pending else {
+    let Some(Pending { k, scan }) = pending else {
         return (search(&particles[best]), Ok(()));
     };
     // The groups' slices; the best particle leads its group.
@@ -905,7 +898,7 @@ where
     let mut others: Vec<&mut [Particle]> = Vec::with_capacity(groups.len());
     let mut rest: &mut [Particle] = particles;
     let mut offset = 0;
-    for &(start, n) in &groups {
+    for &(start, n) in groups {
         let (_, tail) = std::mem::take(&mut rest).split_at_mut(start - offset);
         let (group, tail) = tail.split_at_mut(n);
         if start == best {
@@ -920,9 +913,6 @@ where
         let Some((first, copies)) = group.split_first_mut() else {
             return Ok(());
         };
-        for c in copies.iter_mut() {
-            c.map = empty.clone();
-        }
         first.map.try_integrate_prepared(&first.pose, &scan)?;
         for c in copies {
             c.map = first.map.clone();
