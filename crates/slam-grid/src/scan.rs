@@ -123,11 +123,7 @@ impl PreparedScan {
     /// subset would have fewer than 20 points: coarse search phases score these.
     #[inline]
     pub fn coarse_points(&self) -> &[Point2] {
-        if self.coarse.len() >= MIN_COARSE_POINTS {
-            &self.coarse
-        } else {
-            &self.points
-        }
+        self.subset_or_all(&self.coarse)
     }
 
     /// Every 2nd of [`PreparedScan::points`] (the first, third, …), or all of them when that
@@ -136,8 +132,14 @@ impl PreparedScan {
     /// apart.
     #[inline]
     pub fn half_points(&self) -> &[Point2] {
-        if self.half.len() >= MIN_COARSE_POINTS {
-            &self.half
+        self.subset_or_all(&self.half)
+    }
+
+    /// `subset` when it has at least [`MIN_COARSE_POINTS`], else every point.
+    #[inline]
+    fn subset_or_all<'a>(&'a self, subset: &'a [Point2]) -> &'a [Point2] {
+        if subset.len() >= MIN_COARSE_POINTS {
+            subset
         } else {
             &self.points
         }
