@@ -6,7 +6,7 @@ use crate::matcher::field;
 #[allow(unused_imports)]
 use crate::par::*;
 use crate::proposal::{
-    improved_fit, motion_and_likelihood, sample_offsets, Drawn, Fitted, Recovery, StepContext,
+    improved_fit, motion_and_likelihood, sample_offsets, Drawn, Recovery, StepContext,
 };
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
@@ -603,50 +603,9 @@ impl GridFastSlam {
         let min_inliers = ((cfg.match_min_inlier_fraction * prepared.points().len() as f64).ceil()
             as usize)
             .max(1);
-        // Coarse-to-fine: one exhaustive coarse search for the best particle gives every
-        // particle a second starting point for its hill climbing.
+        let proposal = cfg.proposal;
         let search = cfg.search_range_xy > 0.0 || cfg.search_range_theta > 0.0;
-        let coarse_search = |best: &Particle| {
-            if !(search && cfg.proposal == Proposal::Improved) {
-                return Pose2::IDENTITY;
-            }
-            let predicted = cfg.motion.predict(&best.pose, &u);
-            let r = cfg.motion.noise_covariance(&best.pose, &u)
-                + slam_models::Matrix3::from_diagonal(&Vector3::new(
-                    cfg.motion_min_std[0].powi(2),
-                    cfg.motion_min_std[0].powi(2),
-                    cfg.motion_min_std[1].powi(2),
-                ));
-            let window = SearchWindow {
-                range_xy: cfg.search_range_xy,
-                step_xy: cfg.search_step_xy,
-                range_theta: cfg.search_range_theta,
-                step_theta: cfg.search_step_theta,
-                information: r.try_inverse().unwrap_or_else(slam_models::Matrix3::zeros),
-            };
-            predicted.between(&grid_search(
-                &field(&best.map),
-                &prepared,
-                &predicted,
-                &self.d.capture,
-                &window,
-            ))
-        };
-        // The other particles' maps take the previous scan meanwhile.
-        let (correction, flushed) = flush(
-            &mut self.particles,
-            self.best,
-            self.pending.take(),
-            &self.identical,
-            coarse_search,
-        );
-        if let Err(e) = flushed {
-            // The maps no longer all hold the same scans: refuse further records.
-            self.failed = Some(e.to_string());
-            return Err(e);
-        }
-        let cfg = &self.p;
-        let ctx = StepContext {
+        let base = StepContext {
             scan: &prepared,
             lk: self.d.lk,
             capture: self.d.capture,
@@ -660,7 +619,7 @@ impl GridFastSlam {
             ),
             min_inliers,
             offsets: &self.d.offsets,
-            correction,
+            correction: Pose2::IDENTITY,
             start_choice: cfg.start_choice,
             recovery: (cfg.recovery_trigger_fraction > 0.0).then(|| Recovery {
                 trigger_inliers: (cfg.recovery_trigger_fraction * prepared.points().len() as f64)
@@ -675,80 +634,118 @@ impl GridFastSlam {
                 step_theta: cfg.recovery_step_theta,
             }),
         };
-        // Scan-matched odometry: one match against the best particle's map corrects the
-        // increment for every particle (Hähnel et al. 2003).
-        let mut shared_failures = 0;
-        let (smo_u, smo_motion) = if cfg.proposal == Proposal::ScanMatchedOdometry {
-            let best = &self.particles[self.best];
-            let start = cfg.motion.predict(&best.pose, &u);
-            let matched = hill_climb(
-                &field(&best.map),
-                &prepared,
-                &start,
-                &self.d.capture,
-                &self.d.lk,
-                &self.d.hc,
-            );
-            let s2 = cfg.corrected_odometry_noise_scale.powi(2);
-            let a = cfg.motion.alpha;
-            let scaled = OdometryModel {
-                alpha: [a[0] * s2, a[1] * s2, a[2] * s2, a[3] * s2],
-                ..cfg.motion
+        // What the best particle's map gives every particle: for the improved proposal the
+        // correction of one exhaustive coarse search (coarse-to-fine: every particle gets a
+        // second starting point for its hill climbing); for scan-matched odometry the
+        // increment corrected by one match (Hähnel et al. 2003).
+        let best_work = |best: &Particle| -> Shared {
+            let mut shared = Shared {
+                correction: Pose2::IDENTITY,
+                u,
+                motion: cfg.motion,
+                failures: 0,
             };
-            if matched.score.inliers >= min_inliers {
-                (
-                    cfg.motion.control_from_poses(&best.pose, &matched.pose),
-                    scaled,
-                )
-            } else {
-                shared_failures = m;
-                (u, cfg.motion)
-            }
-        } else {
-            (u, cfg.motion)
-        };
-        let (seed, proposal) = (self.seed, cfg.proposal);
-        // The improved proposal's match, samples and fit once per group of identical
-        // particles (same pose, same map: the copies of one parent since a resampling,
-        // about a quarter of the particles on Intel); each particle draws from its own stream.
-        if !self.share_fits {
-            self.identical = (0..m).map(|i| (i, 1)).collect();
-        }
-        let fits: Vec<Fitted> = if proposal == Proposal::Improved {
-            self.identical
-                .par_iter()
-                .map(|&(start, _)| {
-                    let p = &self.particles[start];
-                    improved_fit(&p.pose, &p.map, &field(&p.map), &ctx)
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let fit_of: Vec<usize> = self
-            .identical
-            .iter()
-            .enumerate()
-            .flat_map(|(g, &(_, n))| std::iter::repeat_n(g, n))
-            .collect();
-        let drawn: Vec<Drawn> = self
-            .particles
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let mut rng = stream(seed, k, i as u64);
-                let f = field(&p.map);
-                match proposal {
-                    Proposal::Improved => fits[fit_of[i]].draw(&p.pose, &f, &ctx, &mut rng),
-                    Proposal::Odometry => {
-                        motion_and_likelihood(&p.pose, &f, &ctx, &ctx.motion, &ctx.u, &mut rng)
-                    }
-                    Proposal::ScanMatchedOdometry => {
-                        motion_and_likelihood(&p.pose, &f, &ctx, &smo_motion, &smo_u, &mut rng)
+            match proposal {
+                Proposal::Improved if search => {
+                    let predicted = cfg.motion.predict(&best.pose, &u);
+                    let r = cfg.motion.noise_covariance(&best.pose, &u)
+                        + slam_models::Matrix3::from_diagonal(&base.min_var);
+                    let window = SearchWindow {
+                        range_xy: cfg.search_range_xy,
+                        step_xy: cfg.search_step_xy,
+                        range_theta: cfg.search_range_theta,
+                        step_theta: cfg.search_step_theta,
+                        information: r.try_inverse().unwrap_or_else(slam_models::Matrix3::zeros),
+                    };
+                    shared.correction = predicted.between(&grid_search(
+                        &field(&best.map),
+                        &prepared,
+                        &predicted,
+                        &self.d.capture,
+                        &window,
+                    ));
+                }
+                Proposal::ScanMatchedOdometry => {
+                    let start = cfg.motion.predict(&best.pose, &u);
+                    let matched = hill_climb(
+                        &field(&best.map),
+                        &prepared,
+                        &start,
+                        &self.d.capture,
+                        &self.d.lk,
+                        &self.d.hc,
+                    );
+                    if matched.score.inliers >= min_inliers {
+                        let s2 = cfg.corrected_odometry_noise_scale.powi(2);
+                        let a = cfg.motion.alpha;
+                        shared.u = cfg.motion.control_from_poses(&best.pose, &matched.pose);
+                        shared.motion = OdometryModel {
+                            alpha: [a[0] * s2, a[1] * s2, a[2] * s2, a[3] * s2],
+                            ..cfg.motion
+                        };
+                    } else {
+                        shared.failures = m;
                     }
                 }
-            })
-            .collect();
+                _ => {}
+            }
+            shared
+        };
+        // One group of identical particles' draws, each particle from its own stream. The
+        // improved proposal's match, samples and fit once per group (same pose, same map:
+        // the copies of one parent since a resampling, about a quarter of the particles on
+        // Intel).
+        let (seed, share_fits) = (self.seed, self.share_fits);
+        let finish = |group: &[Particle], start: usize, shared: &Shared| -> Vec<Drawn> {
+            let ctx = StepContext {
+                correction: shared.correction,
+                ..base
+            };
+            let fit = |p: &Particle| improved_fit(&p.pose, &p.map, &field(&p.map), &ctx);
+            let shared_fit = (proposal == Proposal::Improved && share_fits)
+                .then(|| group.first().map(fit))
+                .flatten();
+            group
+                .iter()
+                .enumerate()
+                .map(|(j, p)| {
+                    let mut rng = stream(seed, k, (start + j) as u64);
+                    let f = field(&p.map);
+                    match (proposal, &shared_fit) {
+                        (Proposal::Improved, Some(fitted)) => {
+                            fitted.draw(&p.pose, &f, &ctx, &mut rng)
+                        }
+                        (Proposal::Improved, None) => fit(p).draw(&p.pose, &f, &ctx, &mut rng),
+                        _ => motion_and_likelihood(
+                            &p.pose,
+                            &f,
+                            &ctx,
+                            &shared.motion,
+                            &shared.u,
+                            &mut rng,
+                        ),
+                    }
+                })
+                .collect()
+        };
+        // The other particles' maps take the previous scan meanwhile.
+        let stepped = step_groups(
+            &mut self.particles,
+            self.best,
+            self.pending.take(),
+            &self.identical,
+            best_work,
+            finish,
+        );
+        let (shared, drawn) = match stepped {
+            Ok(done) => done,
+            Err(e) => {
+                // The maps no longer all hold the same scans: refuse further records.
+                self.failed = Some(e.to_string());
+                return Err(e);
+            }
+        };
+        let shared_failures = shared.failures;
         let mut failures = shared_failures;
         let mut recoveries = 0;
         let mut log_w: Vec<f64> = Vec::with_capacity(m);
@@ -834,7 +831,7 @@ impl GridFastSlam {
                     .par_iter()
                     .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared))
             },
-            move || drop(dead),
+            move || par_drop(dead),
         );
         let mut particles = Vec::with_capacity(m);
         let mut later = Vec::with_capacity(groups.len());
@@ -873,66 +870,225 @@ impl GridFastSlam {
     }
 }
 
-/// Integrates the pending scan into every particle's map and runs `search` on the best
-/// particle's, in two rayon tasks: the best particle's group, then the search on its map;
-/// beside them the other groups (`groups`, the filter's groups of identical particles). In
-/// each group the first particle integrates the scan and the others, which hold the empty
-/// map meanwhile, take copies of its map. Returns the
-/// search's result (the identity when the best particle's map refused the scan) and the
-/// integration's outcome (an error names the pending scan).
-fn flush<F>(
+/// What one processed scan's match on the best particle's map gives every particle.
+struct Shared {
+    /// The improved proposal's correction x̂_best ⊖ x'_best from the coarse search
+    /// (identity when the search is off or the proposal is another).
+    correction: Pose2,
+    /// The increment and motion model the particles sample (scan-matched odometry
+    /// corrects them; the others keep the odometry's).
+    u: slam_models::OdometryControl,
+    motion: OdometryModel,
+    /// Particles whose match failed in the shared match (all of them or none).
+    failures: usize,
+}
+
+/// One update's work per group of identical particles (`groups`, the filter's
+/// [`GridFastSlam::identical`]): the group's first particle integrates the pending scan and
+/// the copies, which hold the empty map meanwhile, take copies of its map; then `finish`
+/// draws the group's particles from `best_work`'s result, which needs the best particle's
+/// map with the pending scan. The best particle's group runs first and its `best_work`
+/// beside the other groups' integrations, and each other group is drawn as soon as both
+/// its map and that result are ready: no step waits for all the maps (the groups' results
+/// depend only on their inputs, so they are the same for any number of threads).
+///
+/// Returns `best_work`'s result and the draws in particle order, or the integration's
+/// error (the best group's first, then the first group's in order), naming the pending
+/// scan.
+fn step_groups<B, F>(
     particles: &mut [Particle],
     best: usize,
     pending: Option<Pending>,
     groups: &[(usize, usize)],
-    search: F,
-) -> (Pose2, Result<(), GridFastError>)
+    best_work: B,
+    finish: F,
+) -> Result<(Shared, Vec<Drawn>), GridFastError>
 where
-    F: FnOnce(&Particle) -> Pose2 + Send,
+    B: FnOnce(&Particle) -> Shared + Send,
+    F: Fn(&[Particle], usize, &Shared) -> Vec<Drawn> + Sync,
 {
-    let Some(Pending { k, scan }) = pending else {
-        return (search(&particles[best]), Ok(()));
+    let k = pending.as_ref().map_or(0, |p| p.k);
+    let scan = pending.map(|p| p.scan);
+    let integrate = |group: &mut [Particle]| -> Result<(), slam_grid::GridError> {
+        let (Some(scan), Some((first, copies))) = (&scan, group.split_first_mut()) else {
+            return Ok(());
+        };
+        first.map.try_integrate_prepared(&first.pose, scan)?;
+        for c in copies {
+            c.map = first.map.clone();
+        }
+        Ok(())
     };
-    // The groups' slices; the best particle leads its group.
-    let mut best_group: &mut [Particle] = &mut [];
-    let mut others: Vec<&mut [Particle]> = Vec::with_capacity(groups.len());
+    // The groups' slices in order, and which one the best particle leads.
+    let mut slices: Vec<(usize, &mut [Particle])> = Vec::with_capacity(groups.len());
+    let mut best_group = None;
     let mut rest: &mut [Particle] = particles;
     let mut offset = 0;
     for &(start, n) in groups {
         let (_, tail) = std::mem::take(&mut rest).split_at_mut(start - offset);
         let (group, tail) = tail.split_at_mut(n);
         if start == best {
-            best_group = group;
-        } else {
-            others.push(group);
+            best_group = Some(slices.len());
         }
+        slices.push((start, group));
         rest = tail;
         offset = start + n;
     }
-    let integrate = |group: &mut [Particle]| -> Result<(), slam_grid::GridError> {
-        let Some((first, copies)) = group.split_first_mut() else {
-            return Ok(());
-        };
-        first.map.try_integrate_prepared(&first.pose, &scan)?;
-        for c in copies {
-            c.map = first.map.clone();
-        }
-        Ok(())
+    let internal = |reason: &str| GridFastError::Numerical {
+        scan: k,
+        reason: reason.to_string(),
     };
-    let ((pose, best_integrated), integrated) = join(
-        || match integrate(best_group) {
-            Ok(()) => match best_group.first() {
-                Some(p) => (search(p), Ok(())),
-                None => (Pose2::IDENTITY, Ok(())),
-            },
-            Err(e) => (Pose2::IDENTITY, Err(e)),
-        },
-        || others.par_iter_mut().try_for_each(|g| integrate(g)),
-    );
+    let bg = best_group.ok_or_else(|| internal("the best particle leads no group"))?;
+    let n = slices.len();
+    let (shared, out, mut errors) = run_groups(slices, bg, &integrate, best_work, &finish);
+    if let Some(e) = errors[bg].take() {
+        return Err(numerical(k, e));
+    }
+    if let Some(e) = errors.into_iter().flatten().next() {
+        return Err(numerical(k, e));
+    }
+    let shared = shared.ok_or_else(|| internal("no match on the best particle's map"))?;
+    let mut drawn = Vec::with_capacity(particles_len(groups));
+    for g in out.into_iter().take(n) {
+        drawn.extend(g.ok_or_else(|| internal("a group was not drawn"))?);
+    }
+    Ok((shared, drawn))
+}
+
+/// The number of particles `groups` covers.
+fn particles_len(groups: &[(usize, usize)]) -> usize {
+    groups.iter().map(|&(_, n)| n).sum()
+}
+
+/// Per group: its draws, or its integration's error.
+type GroupResults = (
+    Option<Shared>,
+    Vec<Option<Vec<Drawn>>>,
+    Vec<Option<slam_grid::GridError>>,
+);
+
+/// [`step_groups`] on rayon's pool: the other groups' tasks are spawned, then the best
+/// group's integration and `best_work` run here; a group whose map is ready before that
+/// result waits in a list, which the best group's task then spawns.
+#[cfg(feature = "parallel")]
+fn run_groups<B, F, I>(
+    slices: Vec<(usize, &mut [Particle])>,
+    bg: usize,
+    integrate: &I,
+    best_work: B,
+    finish: &F,
+) -> GroupResults
+where
+    B: FnOnce(&Particle) -> Shared + Send,
+    F: Fn(&[Particle], usize, &Shared) -> Vec<Drawn> + Sync,
+    I: Fn(&mut [Particle]) -> Result<(), slam_grid::GridError> + Sync,
+{
+    use std::sync::{Mutex, OnceLock};
+    let n = slices.len();
+    let out: Vec<OnceLock<Vec<Drawn>>> = (0..n).map(|_| OnceLock::new()).collect();
+    let errors: Vec<OnceLock<slam_grid::GridError>> = (0..n).map(|_| OnceLock::new()).collect();
+    let shared: OnceLock<Shared> = OnceLock::new();
+    // Whether `shared` is set, and the groups whose maps were ready before it.
+    type Waiting<'a> = (bool, Vec<(usize, usize, &'a [Particle])>);
+    let waiting: Mutex<Waiting<'_>> = Mutex::new((false, Vec::new()));
+    let lock = || waiting.lock().unwrap_or_else(|e| e.into_inner());
+    let draw = |g: usize, start: usize, group: &[Particle], s: &Shared| {
+        let _ = out[g].set(finish(group, start, s));
+    };
+    rayon::scope(|scope| {
+        let mut best_slice = None;
+        for (g, (start, group)) in slices.into_iter().enumerate() {
+            if g == bg {
+                best_slice = Some((start, group));
+                continue;
+            }
+            let (draw, errors, shared, lock) = (&draw, &errors, &shared, &lock);
+            scope.spawn(move |_| {
+                if let Err(e) = integrate(group) {
+                    let _ = errors[g].set(e);
+                    return;
+                }
+                let group: &[Particle] = group;
+                let ready = {
+                    let mut w = lock();
+                    if !w.0 {
+                        w.1.push((g, start, group));
+                    }
+                    w.0
+                };
+                if let (true, Some(s)) = (ready, shared.get()) {
+                    draw(g, start, group, s);
+                }
+            });
+        }
+        let Some((start, group)) = best_slice else {
+            return;
+        };
+        if let Err(e) = integrate(group) {
+            let _ = errors[bg].set(e);
+            return;
+        }
+        let group: &[Particle] = group;
+        let Some(first) = group.first() else {
+            return;
+        };
+        let s = shared.get_or_init(|| best_work(first));
+        let woken = {
+            let mut w = lock();
+            w.0 = true;
+            std::mem::take(&mut w.1)
+        };
+        for (g, start, group) in woken {
+            let draw = &draw;
+            scope.spawn(move |_| draw(g, start, group, s));
+        }
+        draw(bg, start, group, s);
+    });
     (
-        pose,
-        best_integrated.and(integrated).map_err(|e| numerical(k, e)),
+        shared.into_inner(),
+        out.into_iter().map(OnceLock::into_inner).collect(),
+        errors.into_iter().map(OnceLock::into_inner).collect(),
     )
+}
+
+/// [`step_groups`] without rayon: the best group, then the others in order.
+#[cfg(not(feature = "parallel"))]
+fn run_groups<B, F, I>(
+    slices: Vec<(usize, &mut [Particle])>,
+    bg: usize,
+    integrate: &I,
+    best_work: B,
+    finish: &F,
+) -> GroupResults
+where
+    B: FnOnce(&Particle) -> Shared + Send,
+    F: Fn(&[Particle], usize, &Shared) -> Vec<Drawn> + Sync,
+    I: Fn(&mut [Particle]) -> Result<(), slam_grid::GridError> + Sync,
+{
+    let n = slices.len();
+    let mut out: Vec<Option<Vec<Drawn>>> = (0..n).map(|_| None).collect();
+    let mut errors: Vec<Option<slam_grid::GridError>> = (0..n).map(|_| None).collect();
+    let mut slices: Vec<Option<(usize, &mut [Particle])>> = slices.into_iter().map(Some).collect();
+    let Some((start, group)) = slices[bg].take() else {
+        return (None, out, errors);
+    };
+    if let Err(e) = integrate(group) {
+        errors[bg] = Some(e);
+        return (None, out, errors);
+    }
+    let Some(first) = group.first() else {
+        return (None, out, errors);
+    };
+    let shared = best_work(first);
+    out[bg] = Some(finish(group, start, &shared));
+    for (g, slot) in slices.into_iter().enumerate() {
+        let Some((start, group)) = slot else { continue };
+        match integrate(group) {
+            Ok(()) => out[g] = Some(finish(group, start, &shared)),
+            Err(e) => errors[g] = Some(e),
+        }
+    }
+    (Some(shared), out, errors)
 }
 
 impl FromConfig for GridFastSlam {
