@@ -153,11 +153,15 @@ pub struct GridFastSlam {
     identical: Vec<(usize, usize)>,
     /// Off only in a test: every particle computes its own proposal.
     share_fits: bool,
+    /// The particles the last resampling left out: their maps are released during the
+    /// next update, beside the integrations ([`step_groups`]), rather than alone at the
+    /// end of this one.
+    dead: Vec<Particle>,
 }
 
 /// The last processed scan, checked against every particle's map but not yet integrated:
 /// the maps take it at the start of the next update, the best particle's group first (its
-/// map is the coarse search's) and the others beside that search (see [`flush`]); the
+/// map is the coarse search's) and the others beside that search (see [`step_groups`]); the
 /// filter's map ([`ScanSlam::map`]) adds it to a copy of the best particle's map.
 struct Pending {
     /// The scan's index among the processed scans (for an error).
@@ -288,6 +292,7 @@ impl GridFastSlam {
             pending: None,
             identical: vec![(0, m)],
             share_fits: true,
+            dead: Vec::new(),
             guard: OdometryJumpGuard::new(config_jump).map_err(|_| {
                 ConfigError::new(
                     "grid FastSLAM",
@@ -734,6 +739,7 @@ impl GridFastSlam {
             self.best,
             self.pending.take(),
             &self.identical,
+            std::mem::take(&mut self.dead),
             best_work,
             finish,
         );
@@ -823,21 +829,16 @@ impl GridFastSlam {
         // Every group's integration is checked now, so that a refused scan (kilometres off
         // the map) is reported at this scan; the maps take it at the next update, in
         // parallel with the coarse search (the same maps in the end, for any number of
-        // threads: no step of the update runs alone for an integration). The dead
-        // particles' tiles are released meanwhile, before the survivors write theirs.
-        let (integrated, ()) = join(
-            || {
-                groups
-                    .par_iter()
-                    .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared))
-            },
-            move || par_drop(dead),
-        );
+        // threads: no step of the update runs alone for an integration).
+        let integrated = groups
+            .par_iter()
+            .try_for_each(|(p, _)| p.map.check_integrable(&p.pose, &prepared));
+        self.dead = dead;
         let mut particles = Vec::with_capacity(m);
         let mut later = Vec::with_capacity(groups.len());
         for (p, n) in groups {
             later.push((particles.len(), n));
-            // The copies take the leader's map when it has integrated this scan (`flush`);
+            // The copies take the leader's map when it has integrated this scan (`step_groups`);
             // until then they hold an empty one, since a copy made now would be dropped
             // there unread (and copying the tile tables runs alone).
             let copy = Particle {
@@ -900,6 +901,7 @@ fn step_groups<B, F>(
     best: usize,
     pending: Option<Pending>,
     groups: &[(usize, usize)],
+    dead: Vec<Particle>,
     best_work: B,
     finish: F,
 ) -> Result<(Shared, Vec<Drawn>), GridFastError>
@@ -940,7 +942,7 @@ where
     };
     let bg = best_group.ok_or_else(|| internal("the best particle leads no group"))?;
     let n = slices.len();
-    let (shared, out, mut errors) = run_groups(slices, bg, &integrate, best_work, &finish);
+    let (shared, out, mut errors) = run_groups(slices, bg, dead, &integrate, best_work, &finish);
     if let Some(e) = errors[bg].take() {
         return Err(numerical(k, e));
     }
@@ -974,6 +976,7 @@ type GroupResults = (
 fn run_groups<B, F, I>(
     slices: Vec<(usize, &mut [Particle])>,
     bg: usize,
+    dead: Vec<Particle>,
     integrate: &I,
     best_work: B,
     finish: &F,
@@ -1021,6 +1024,9 @@ where
                 }
             });
         }
+        // Taken first from this thread's queue (last in, first out), once the best group's
+        // work below is done: the dead maps go before the other groups write new tiles.
+        scope.spawn(move |_| drop(dead));
         let Some((start, group)) = best_slice else {
             return;
         };
@@ -1056,6 +1062,7 @@ where
 fn run_groups<B, F, I>(
     slices: Vec<(usize, &mut [Particle])>,
     bg: usize,
+    dead: Vec<Particle>,
     integrate: &I,
     best_work: B,
     finish: &F,
@@ -1068,6 +1075,7 @@ where
     let n = slices.len();
     let mut out: Vec<Option<Vec<Drawn>>> = (0..n).map(|_| None).collect();
     let mut errors: Vec<Option<slam_grid::GridError>> = (0..n).map(|_| None).collect();
+    drop(dead);
     let mut slices: Vec<Option<(usize, &mut [Particle])>> = slices.into_iter().map(Some).collect();
     let Some((start, group)) = slices[bg].take() else {
         return (None, out, errors);

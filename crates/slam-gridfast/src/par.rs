@@ -1,31 +1,11 @@
-//! `par_iter` / `par_iter_mut`, `join` and `par_drop` with or without the `parallel` feature.
+//! `par_iter` / `par_iter_mut` with or without the `parallel` feature.
 //!
 //! With `parallel` (the default) these are rayon's; without it, the same method names on
 //! slices return std's sequential iterators, so the per-particle code is written once and
 //! every particle draws from its own stream either way (same seed, same bytes).
 
 #[cfg(feature = "parallel")]
-pub(crate) use rayon::{join, prelude::*};
-
-/// Drops the items of `v` on rayon's pool (a dead particle's map frees its own tiles:
-/// independent work of a few microseconds each).
-#[cfg(feature = "parallel")]
-pub(crate) fn par_drop<T: Send>(v: Vec<T>) {
-    v.into_par_iter().for_each(drop);
-}
-
-/// [`par_drop`] without the `parallel` feature: `drop(v)`.
-#[cfg(not(feature = "parallel"))]
-pub(crate) fn par_drop<T>(v: Vec<T>) {
-    drop(v);
-}
-
-/// rayon's `join` without the `parallel` feature: `a`, then `b`.
-#[cfg(not(feature = "parallel"))]
-pub(crate) fn join<RA, RB>(a: impl FnOnce() -> RA, b: impl FnOnce() -> RB) -> (RA, RB) {
-    let ra = a();
-    (ra, b())
-}
+pub(crate) use rayon::prelude::*;
 
 /// Sequential stand-ins for rayon's `par_iter` and `par_iter_mut` (a crate may use only one).
 #[cfg(not(feature = "parallel"))]
