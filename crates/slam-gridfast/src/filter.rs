@@ -969,10 +969,10 @@ type GroupResults = (
     Vec<Option<slam_grid::GridError>>,
 );
 
-/// [`step_groups`] on rayon's pool: the other groups' tasks are spawned, then the best
-/// group's integration and `best_work` run here; a group whose map is ready before that
-/// result waits in a list, which the best group's task then spawns.
-#[cfg(feature = "parallel")]
+/// [`step_groups`]'s tasks. On rayon's pool the other groups' tasks are spawned, then the
+/// best group's integration and `best_work` run here; a group whose map is ready before
+/// that result waits in a list, which the best group's task then spawns. Without rayon:
+/// the best group, then the others in order.
 fn run_groups<B, F, I>(
     slices: Vec<(usize, &mut [Particle])>,
     bg: usize,
@@ -986,117 +986,108 @@ where
     F: Fn(&[Particle], usize, &Shared) -> Vec<Drawn> + Sync,
     I: Fn(&mut [Particle]) -> Result<(), slam_grid::GridError> + Sync,
 {
-    use std::sync::{Mutex, OnceLock};
-    let n = slices.len();
-    let out: Vec<OnceLock<Vec<Drawn>>> = (0..n).map(|_| OnceLock::new()).collect();
-    let errors: Vec<OnceLock<slam_grid::GridError>> = (0..n).map(|_| OnceLock::new()).collect();
-    let shared: OnceLock<Shared> = OnceLock::new();
-    // Whether `shared` is set, and the groups whose maps were ready before it.
-    type Waiting<'a> = (bool, Vec<(usize, usize, &'a [Particle])>);
-    let waiting: Mutex<Waiting<'_>> = Mutex::new((false, Vec::new()));
-    let lock = || waiting.lock().unwrap_or_else(|e| e.into_inner());
-    let draw = |g: usize, start: usize, group: &[Particle], s: &Shared| {
-        let _ = out[g].set(finish(group, start, s));
-    };
-    rayon::scope(|scope| {
-        let mut best_slice = None;
-        for (g, (start, group)) in slices.into_iter().enumerate() {
-            if g == bg {
-                best_slice = Some((start, group));
-                continue;
-            }
-            let (draw, errors, shared, lock) = (&draw, &errors, &shared, &lock);
-            scope.spawn(move |_| {
-                if let Err(e) = integrate(group) {
-                    let _ = errors[g].set(e);
-                    return;
+    #[cfg(feature = "parallel")]
+    let results = {
+        use std::sync::{Mutex, OnceLock};
+        let n = slices.len();
+        let out: Vec<OnceLock<Vec<Drawn>>> = (0..n).map(|_| OnceLock::new()).collect();
+        let errors: Vec<OnceLock<slam_grid::GridError>> = (0..n).map(|_| OnceLock::new()).collect();
+        let shared: OnceLock<Shared> = OnceLock::new();
+        // Whether `shared` is set, and the groups whose maps were ready before it.
+        type Waiting<'a> = (bool, Vec<(usize, usize, &'a [Particle])>);
+        let waiting: Mutex<Waiting<'_>> = Mutex::new((false, Vec::new()));
+        let lock = || waiting.lock().unwrap_or_else(|e| e.into_inner());
+        let draw = |g: usize, start: usize, group: &[Particle], s: &Shared| {
+            let _ = out[g].set(finish(group, start, s));
+        };
+        rayon::scope(|scope| {
+            let mut best_slice = None;
+            for (g, (start, group)) in slices.into_iter().enumerate() {
+                if g == bg {
+                    best_slice = Some((start, group));
+                    continue;
                 }
-                let group: &[Particle] = group;
-                let ready = {
-                    let mut w = lock();
-                    if !w.0 {
-                        w.1.push((g, start, group));
+                let (draw, errors, shared, lock) = (&draw, &errors, &shared, &lock);
+                scope.spawn(move |_| {
+                    if let Err(e) = integrate(group) {
+                        let _ = errors[g].set(e);
+                        return;
                     }
-                    w.0
-                };
-                if let (true, Some(s)) = (ready, shared.get()) {
-                    draw(g, start, group, s);
-                }
-            });
-        }
-        // Taken first from this thread's queue (last in, first out), once the best group's
-        // work below is done: the dead maps go before the other groups write new tiles.
-        scope.spawn(move |_| drop(dead));
-        let Some((start, group)) = best_slice else {
-            return;
+                    let group: &[Particle] = group;
+                    let ready = {
+                        let mut w = lock();
+                        if !w.0 {
+                            w.1.push((g, start, group));
+                        }
+                        w.0
+                    };
+                    if let (true, Some(s)) = (ready, shared.get()) {
+                        draw(g, start, group, s);
+                    }
+                });
+            }
+            // Taken first from this thread's queue (last in, first out), once the best group's
+            // work below is done: the dead maps go before the other groups write new tiles.
+            scope.spawn(move |_| drop(dead));
+            let Some((start, group)) = best_slice else {
+                return;
+            };
+            if let Err(e) = integrate(group) {
+                let _ = errors[bg].set(e);
+                return;
+            }
+            let group: &[Particle] = group;
+            let Some(first) = group.first() else {
+                return;
+            };
+            let s = shared.get_or_init(|| best_work(first));
+            let woken = {
+                let mut w = lock();
+                w.0 = true;
+                std::mem::take(&mut w.1)
+            };
+            for (g, start, group) in woken {
+                let draw = &draw;
+                scope.spawn(move |_| draw(g, start, group, s));
+            }
+            draw(bg, start, group, s);
+        });
+        (
+            shared.into_inner(),
+            out.into_iter().map(OnceLock::into_inner).collect(),
+            errors.into_iter().map(OnceLock::into_inner).collect(),
+        )
+    };
+    #[cfg(not(feature = "parallel"))]
+    let results = {
+        let n = slices.len();
+        let mut out: Vec<Option<Vec<Drawn>>> = (0..n).map(|_| None).collect();
+        let mut errors: Vec<Option<slam_grid::GridError>> = (0..n).map(|_| None).collect();
+        drop(dead);
+        let mut slices: Vec<Option<(usize, &mut [Particle])>> =
+            slices.into_iter().map(Some).collect();
+        let Some((start, group)) = slices[bg].take() else {
+            return (None, out, errors);
         };
         if let Err(e) = integrate(group) {
-            let _ = errors[bg].set(e);
-            return;
+            errors[bg] = Some(e);
+            return (None, out, errors);
         }
-        let group: &[Particle] = group;
         let Some(first) = group.first() else {
-            return;
+            return (None, out, errors);
         };
-        let s = shared.get_or_init(|| best_work(first));
-        let woken = {
-            let mut w = lock();
-            w.0 = true;
-            std::mem::take(&mut w.1)
-        };
-        for (g, start, group) in woken {
-            let draw = &draw;
-            scope.spawn(move |_| draw(g, start, group, s));
+        let shared = best_work(first);
+        out[bg] = Some(finish(group, start, &shared));
+        for (g, slot) in slices.into_iter().enumerate() {
+            let Some((start, group)) = slot else { continue };
+            match integrate(group) {
+                Ok(()) => out[g] = Some(finish(group, start, &shared)),
+                Err(e) => errors[g] = Some(e),
+            }
         }
-        draw(bg, start, group, s);
-    });
-    (
-        shared.into_inner(),
-        out.into_iter().map(OnceLock::into_inner).collect(),
-        errors.into_iter().map(OnceLock::into_inner).collect(),
-    )
-}
-
-/// [`step_groups`] without rayon: the best group, then the others in order.
-#[cfg(not(feature = "parallel"))]
-fn run_groups<B, F, I>(
-    slices: Vec<(usize, &mut [Particle])>,
-    bg: usize,
-    dead: Vec<Particle>,
-    integrate: &I,
-    best_work: B,
-    finish: &F,
-) -> GroupResults
-where
-    B: FnOnce(&Particle) -> Shared + Send,
-    F: Fn(&[Particle], usize, &Shared) -> Vec<Drawn> + Sync,
-    I: Fn(&mut [Particle]) -> Result<(), slam_grid::GridError> + Sync,
-{
-    let n = slices.len();
-    let mut out: Vec<Option<Vec<Drawn>>> = (0..n).map(|_| None).collect();
-    let mut errors: Vec<Option<slam_grid::GridError>> = (0..n).map(|_| None).collect();
-    drop(dead);
-    let mut slices: Vec<Option<(usize, &mut [Particle])>> = slices.into_iter().map(Some).collect();
-    let Some((start, group)) = slices[bg].take() else {
-        return (None, out, errors);
+        (Some(shared), out, errors)
     };
-    if let Err(e) = integrate(group) {
-        errors[bg] = Some(e);
-        return (None, out, errors);
-    }
-    let Some(first) = group.first() else {
-        return (None, out, errors);
-    };
-    let shared = best_work(first);
-    out[bg] = Some(finish(group, start, &shared));
-    for (g, slot) in slices.into_iter().enumerate() {
-        let Some((start, group)) = slot else { continue };
-        match integrate(group) {
-            Ok(()) => out[g] = Some(finish(group, start, &shared)),
-            Err(e) => errors[g] = Some(e),
-        }
-    }
-    (Some(shared), out, errors)
+    results
 }
 
 impl FromConfig for GridFastSlam {
