@@ -44,17 +44,10 @@ pub(crate) struct ParticleStats {
 }
 
 /// The random stream of particle `index` at filter tick `tick`: a pure function of
-/// (seed, tick, index), so the draws do not depend on which thread runs the particle.
+/// (seed, tick, index), so the draws do not depend on which thread runs the particle
+/// ([`slam_models::rng::particle_stream_wide`]).
 pub(crate) fn stream(seed: u64, tick: u64, index: u64) -> Pcg64Mcg {
-    fn splitmix(mut z: u64) -> u64 {
-        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    let hi = splitmix(seed ^ splitmix(tick ^ splitmix(index)));
-    let lo = splitmix(hi ^ 0xD1B5_4A32_D192_ED03);
-    Pcg64Mcg::new(((hi as u128) << 64) | lo as u128)
+    slam_models::rng::particle_stream_wide(seed, tick, index)
 }
 
 /// Draws x ~ N(μ, Σ) for a 3×3 covariance that may be singular (a stationary robot has

@@ -17,6 +17,8 @@
 //! * [`detmath`] and [`sampling`]: transcendental functions and normal/exponential samplers
 //!   that give the same bits on every machine (pure-Rust `libm`, no platform math library);
 //!   everything in this crate uses them, so the simulator built on it is reproducible.
+//! * [`rng`]: the one derivation of seeded random streams (splitmix64 over the seed and
+//!   the particle, step or part), so that a draw never depends on the thread count.
 //! * [`keyframes`]: a keyframe filter's pose at every record of a log (last corrected
 //!   pose ⊕ odometry since, GMapping's convention).
 //! * [`odometry_jump`]: the laser filters' guard against glitched odometry (a jump between
@@ -51,6 +53,7 @@ pub mod motion;
 pub mod odometry_jump;
 pub mod particle;
 pub mod pose;
+pub mod rng;
 pub mod sampling;
 
 pub use angle::normalize_angle;

@@ -6,7 +6,7 @@
 //! the motion noise of the same seed, and the output never depends on evaluation order across
 //! parts.
 
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_pcg::Pcg64Mcg;
 use slam_models::detmath;
 
@@ -24,20 +24,9 @@ pub(crate) mod tag {
     pub const PATH: u64 = 5;
 }
 
-/// SplitMix64 finaliser (Steele, Lea & Flood 2014): a bijective 64-bit mixer.
-#[inline]
-pub(crate) fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The stream `tag` of `seed`.
+/// The stream `tag` of `seed` ([`slam_models::rng::tagged_stream`]).
 pub(crate) fn stream(seed: u64, tag: u64) -> Pcg64Mcg {
-    Pcg64Mcg::seed_from_u64(splitmix64(
-        seed ^ splitmix64(tag.wrapping_mul(0xA24B_AED4_963E_E407)),
-    ))
+    slam_models::rng::tagged_stream(seed, tag)
 }
 
 /// A Poisson(λ) draw by Knuth's product-of-uniforms method (exact; uses only uniforms,
