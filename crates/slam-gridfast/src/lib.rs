@@ -42,8 +42,8 @@ mod config;
 mod error;
 mod filter;
 mod matcher;
-mod par;
 mod proposal;
+mod setup;
 
 pub use config::{
     median_return_range, GridFastConfig, MapConfig, MatchingConfig, MotionConfig, Preset, Proposal,

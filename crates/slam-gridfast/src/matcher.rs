@@ -11,7 +11,7 @@ use slam_grid::DistanceField;
 
 /// The particle map's distance field. Every map of the filter is created with
 /// [`slam_grid::OccupancyGrid::with_incremental_distance`] (see
-/// [`crate::filter::new_map`]), so it is always there.
+/// [`crate::setup::Setup::empty`]), so it is always there.
 #[inline]
 pub(crate) fn field(map: &slam_grid::OccupancyGrid) -> DistanceField<'_> {
     map.distance_field()

@@ -333,4 +333,13 @@ pub trait ScanSlam: Send {
     fn particles(&self) -> Option<Vec<WeightedPose>> {
         None
     }
+
+    /// The configuration the filter runs with, for a front end that writes it: the
+    /// filter's own configuration type (a front end downcasts it), with every value the
+    /// given configuration left to the data taken from the data (grid FastSLAM: the range
+    /// limit and the preset, from its first processed scan). The filter is the only place
+    /// that resolves them. Default: `None` (the configuration as given).
+    fn effective_config(&self) -> Option<&dyn std::any::Any> {
+        None
+    }
 }
