@@ -34,18 +34,17 @@ pub(crate) struct Setup<'a> {
     pub sim_noise: Option<NoiseModels>,
     /// `--preset` (gridfast).
     pub preset: Option<&'a str>,
-    /// The first scan of the data (laser filters), for the settings taken from the data.
-    pub first_scan: Option<&'a slam_models::LaserScan>,
-    /// Print the settings taken from the data on stderr.
-    pub verbose: bool,
 }
 
 /// A built filter and the configuration it runs with (as TOML, written beside the output).
 pub(crate) struct Built<F: ?Sized> {
     /// The filter.
     pub filter: Box<F>,
-    /// The effective configuration, TOML.
+    /// The configuration as given, TOML (a scan filter's effective one is what it reports
+    /// after the run: [`FilterConfig::effective`]).
     pub config_toml: String,
+    /// The configuration as given.
+    pub config: FilterConfig,
     /// One line when the simulator's noise models replaced the filter's.
     pub noise_note: Option<String>,
 }
@@ -151,6 +150,7 @@ pub(crate) fn build_landmark(
     Ok(Built {
         filter,
         config_toml: parsed.config.table_toml(),
+        config: parsed.config,
         noise_note,
     })
 }
@@ -162,10 +162,12 @@ pub(crate) fn build_scan(
 ) -> Result<Built<dyn ScanSlam>, CliError> {
     let (mut parsed, noise_note) = configure(info, setup)?;
     if let FilterConfig::Gridfast(c) = &mut parsed.config {
-        gridfast_from_data(c, setup).map_err(|e| CliError::FilterConfig {
-            filter: info.name.to_string(),
-            message: e.to_string(),
-        })?;
+        c.preset = match setup.preset {
+            Some("indoor") => slam_gridfast::Preset::Indoor,
+            Some("outdoor") => slam_gridfast::Preset::Outdoor,
+            Some(_) => slam_gridfast::Preset::Auto,
+            None => c.preset,
+        };
     }
     let filter = parsed
         .config
@@ -174,48 +176,37 @@ pub(crate) fn build_scan(
     Ok(Built {
         filter,
         config_toml: parsed.config.table_toml(),
+        config: parsed.config,
         noise_note,
     })
 }
 
-/// gridfast: `--preset` over the file's `preset`, then every value the configuration leaves
-/// to the data (range limit, preset) resolved with the first scan, as the filter would
-/// resolve it there ([`slam_gridfast::GridFastConfig::resolve`]), so that `config.toml` holds
-/// the effective values; printed on stderr when `setup.verbose`.
-fn gridfast_from_data(
-    c: &mut slam_gridfast::GridFastConfig,
-    setup: &Setup<'_>,
-) -> Result<(), slam_gridfast::GridFastError> {
+/// gridfast: the values the given configuration left to the data and the filter took from
+/// its first scan (`effective`, what the filter reports), as one line for stderr.
+pub(crate) fn gridfast_settings(
+    given: &FilterConfig,
+    effective: &FilterConfig,
+    scan: &slam_models::LaserScan,
+) -> Option<String> {
     use slam_gridfast::Preset;
-    c.preset = match setup.preset {
-        Some("indoor") => Preset::Indoor,
-        Some("outdoor") => Preset::Outdoor,
-        Some(_) => Preset::Auto,
-        None => c.preset,
+    let (FilterConfig::Gridfast(c), FilterConfig::Gridfast(effective)) = (given, effective) else {
+        return None;
     };
-    let Some(scan) = setup.first_scan else {
-        return Ok(());
-    };
-    let effective = c.resolve(Some(scan))?;
-    if setup.verbose {
-        let from = |given: bool| if given { "configured" } else { "from the data" };
-        let max_range = effective.sensor.max_range.unwrap_or(scan.max_range);
-        let median = slam_gridfast::median_return_range(scan, max_range)
-            .map_or("no returns".to_string(), |m| {
-                format!("median return {m:.1} m")
-            });
-        eprintln!(
-            "gridfast: max-range {max_range} m ({}; no return at or above the scan's {} m), preset {} ({}; first scan: {} beams, {median}), cells {} m",
-            from(c.sensor.max_range.is_some()),
-            scan.max_range,
-            if effective.preset == Preset::Outdoor { "outdoor" } else { "indoor" },
-            from(c.preset != Preset::Auto),
-            scan.ranges.len(),
-            effective.map.resolution.unwrap_or(f64::NAN),
-        );
-    }
-    *c = effective;
-    Ok(())
+    let from = |given: bool| if given { "configured" } else { "from the data" };
+    let max_range = effective.sensor.max_range.unwrap_or(scan.max_range);
+    let median = slam_gridfast::median_return_range(scan, max_range)
+        .map_or("no returns".to_string(), |m| {
+            format!("median return {m:.1} m")
+        });
+    Some(format!(
+        "gridfast: max-range {max_range} m ({}; no return at or above the scan's {} m), preset {} ({}; first scan: {} beams, {median}), cells {} m",
+        from(c.sensor.max_range.is_some()),
+        scan.max_range,
+        if effective.preset == Preset::Outdoor { "outdoor" } else { "indoor" },
+        from(c.preset != Preset::Auto),
+        scan.ranges.len(),
+        effective.map.resolution.unwrap_or(f64::NAN),
+    ))
 }
 
 #[cfg(test)]

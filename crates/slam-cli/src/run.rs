@@ -109,8 +109,6 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         initial_pose: slam_models::Pose2::default(),
         sim_noise: None,
         preset: args.preset.as_deref(),
-        first_scan: None,
-        verbose: false,
     };
     match info.kind {
         _ if both => {}
@@ -394,8 +392,6 @@ fn run_landmark(
             initial_pose: dataset.initial_pose,
             sim_noise,
             preset: ctx.args.preset.as_deref(),
-            first_scan: None,
-            verbose: false,
         },
     )?;
     let mut filter = built.filter;
@@ -538,8 +534,6 @@ fn run_scan(
             initial_pose: slam_models::Pose2::default(),
             sim_noise: None,
             preset: ctx.args.preset.as_deref(),
-            first_scan: dataset.records.iter().find_map(|r| r.scan.as_ref()),
-            verbose: !ctx.args.quiet,
         },
     )?;
     let mut filter = built.filter;
@@ -562,6 +556,15 @@ fn run_scan(
     progress.finish();
     warn(&run.warnings);
     let particles = filter.particles();
+    // The configuration the filter ran with: it alone resolves what the given one left to
+    // the data (gridfast: the range limit and preset, from its first scan).
+    let effective = built.config.effective(filter.as_ref());
+    let first_scan = dataset.records.iter().find_map(|r| r.scan.as_ref());
+    if let (false, Some(scan)) = (ctx.args.quiet, first_scan) {
+        if let Some(line) = filters::gridfast_settings(&built.config, &effective, scan) {
+            eprintln!("{line}");
+        }
+    }
     // The outputs need nothing more from the filter: its particles' maps and kept scans
     // (and the per-record diagnostics) are freed before the pictures are drawn, so that the
     // outputs reuse their memory instead of adding to the run's peak.
@@ -623,7 +626,7 @@ fn run_scan(
     pic.save_png(&p)?;
     files.push(p);
     let p = dir.join("config.toml");
-    std::fs::write(&p, &built.config_toml).map_err(write_err(&p))?;
+    std::fs::write(&p, effective.table_toml()).map_err(write_err(&p))?;
     files.push(p);
     let p = dir.join("metrics.json");
     run.metrics.write(&p).map_err(write_err(&p))?;

@@ -559,6 +559,20 @@ impl FilterConfig {
         })
     }
 
+    /// The configuration `filter` (built from this one) reports it runs with
+    /// ([`ScanSlam::effective_config`]: grid FastSLAM's, once its first scan has fixed the
+    /// values left to the data), or this one when it reports none.
+    pub fn effective(&self, filter: &dyn ScanSlam) -> FilterConfig {
+        let reported = filter.effective_config();
+        match (
+            self,
+            reported.and_then(|c| c.downcast_ref::<GridFastConfig>()),
+        ) {
+            (FilterConfig::Gridfast(_), Some(c)) => FilterConfig::Gridfast(c.clone()),
+            _ => self.clone(),
+        }
+    }
+
     /// Builds a scan filter starting at the identity pose (its map in the odometry frame, as
     /// GMapping's), its random numbers
     /// from `seed` (particle filters).
