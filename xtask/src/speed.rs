@@ -272,26 +272,25 @@ pub(crate) fn speed(extra: &[String]) -> Result<(), String> {
                     .ok_or(format!("{}: no CPU, wall or RSS line", report.display()))?;
                 // GMapping's output is not read (its format depends on the user's build):
                 // its ATE stays NaN, "NaN" in the tables.
-                let tum = match &runners[r] {
-                    Runner::Gridfast { .. } => {
-                        let file = dir.join("trajectory.tum");
-                        let text = std::fs::read_to_string(&file)
-                            .map_err(|e| format!("{}: {e}", file.display()))?;
-                        Some(
-                            gridfast_at_scans(&text, &scans)
-                                .map_err(|e| format!("{}: {e}", file.display()))?,
-                        )
-                    }
+                type AtScans = fn(&str, &[(usize, f64)]) -> Result<String, String>;
+                let output: Option<(&str, AtScans)> = match &runners[r] {
+                    Runner::Gridfast { .. } => Some(("trajectory.tum", gridfast_at_scans)),
                     Runner::Gmapping { .. } => None,
                     Runner::RbpfSlam { .. } => {
-                        let file = dir.join("out/most_likely_path.txt");
+                        Some(("out/most_likely_path.txt", rbpf_path_at_scans))
+                    }
+                };
+                let tum = match output {
+                    Some((name, at_scans)) => {
+                        let file = dir.join(name);
                         let text = std::fs::read_to_string(&file)
                             .map_err(|e| format!("{}: {e}", file.display()))?;
                         Some(
-                            rbpf_path_at_scans(&text, &scans)
+                            at_scans(&text, &scans)
                                 .map_err(|e| format!("{}: {e}", file.display()))?,
                         )
                     }
+                    None => None,
                 };
                 let ate_aligned = match tum {
                     Some(tum) => {
