@@ -5,7 +5,15 @@
 //
 // For the k-th scan it writes a CActionCollection holding a CActionRobotMovement2D with the
 // odometry increment since scan k-1 (odom_{k-1}^-1 (+) odom_k; zero for the first scan),
-// MRPT's default Gaussian motion model, then a CSensoryFrame holding the scan, unchanged.
+// MRPT's default Gaussian motion model, then a CSensoryFrame holding the scan.
+//
+// The scan's beam geometry is set as slam-io reads a FLASER line (the line states none;
+// the datasets README: a 180 deg field of view, beam k at -90 deg + k*res, res = 180 deg/N
+// for N = 180 or 360, 180 deg/(N-1) otherwise). carmen2rawlog 2.5 gives a 180-beam scan
+// an aperture of 90 deg, which squeezes every scan to half its width. MRPT spreads N beams
+// evenly over `aperture` centred on the sensor's heading, so aperture = (N-1)*res and the
+// sensor yaw is the centre of the span (-0.5 deg for N = 180). Ranges and validity flags
+// (readings at or beyond maxRange are invalid) are kept.
 // Our own adapter, compiled by `cargo xtask eval speed` against Debian's libmrpt-obs-dev;
 // no MRPT source is built.
 //
@@ -19,6 +27,7 @@
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/serialization/CArchive.h>
 
+#include <cmath>
 #include <iostream>
 #include <vector>
 
@@ -67,6 +76,19 @@ int main(int argc, char** argv)
       move.timestamp = scans[k]->timestamp;
       CActionCollection actions;
       actions.insert(move);
+      auto& scan = *scans[k];
+      const size_t n = scan.getScanSize();
+      if (n < 2)
+      {
+        std::cerr << argv[1] << ": scan " << k << " has " << n << " beams\n";
+        return 1;
+      }
+      const double res = (n == 180 || n == 360) ? M_PI / n : M_PI / (n - 1);
+      scan.aperture = static_cast<float>((n - 1) * res);
+      scan.rightToLeft = true;
+      auto pose = scan.sensorPose;
+      pose.setYawPitchRoll(-M_PI / 2 + 0.5 * (n - 1) * res, 0, 0);
+      scan.setSensorPose(pose);
       CSensoryFrame frame;
       frame.insert(scans[k]);
       arch << actions << frame;

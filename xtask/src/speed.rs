@@ -522,9 +522,9 @@ fn gridfast_at_scans(tum: &str, scans: &[(usize, f64)]) -> Result<String, String
     Ok(out)
 }
 
-/// rbpf-slam's `most_likely_path.txt` (`x y yaw` per processed scan, in order: the final
-/// most likely particle's path) as TUM text on the scans' time stamps. The path must have
-/// one pose per scan.
+/// rbpf-slam's `most_likely_path.txt` (`x y yaw`: the final most likely particle's path,
+/// its initial pose first, then one pose per processed scan, in order) as TUM text on the
+/// scans' time stamps. The path must have one pose per scan after the initial one.
 fn rbpf_path_at_scans(path: &str, scans: &[(usize, f64)]) -> Result<String, String> {
     let poses: Vec<[f64; 3]> = path
         .lines()
@@ -539,15 +539,15 @@ fn rbpf_path_at_scans(path: &str, scans: &[(usize, f64)]) -> Result<String, Stri
                 .ok_or(format!("not `x y yaw`: {l:?}"))
         })
         .collect::<Result<_, _>>()?;
-    if poses.len() != scans.len() {
+    if poses.len() != scans.len() + 1 {
         return Err(format!(
-            "{} poses for {} scans (every scan must be processed: lower the ini's \
-             localize/insertion distances)",
+            "{} poses for {} scans and the initial pose (every scan must be processed: \
+             lower the ini's localize distances)",
             poses.len(),
             scans.len()
         ));
     }
-    Ok(poses
+    Ok(poses[1..]
         .iter()
         .zip(scans)
         .map(|(p, (_, t))| {
@@ -698,13 +698,14 @@ mod tests {
         assert_eq!(parse_aligned_ate("RPE mean 1 m\n"), None);
     }
 
-    /// A quarter turn's yaw becomes the quaternion (0, 0, sin 45°, cos 45°) on the scan's
-    /// time stamp; a path with a pose missing is refused.
+    /// The initial pose is dropped, a quarter turn's yaw becomes the quaternion
+    /// (0, 0, sin 45°, cos 45°) on the scan's time stamp; a path with a pose missing, or a
+    /// line that is not `x y yaw`, is refused.
     #[test]
     fn writes_the_peer_path_as_tum() {
         let scans = [(0, 1.0), (5, 2.5)];
-        let tum =
-            rbpf_path_at_scans("0.000 0.000 0.000\n1.000 -2.000 1.5707963\n", &scans).unwrap();
+        let path = "0.000 0.000 0.000\n0.000 0.000 0.000\n1.000 -2.000 1.5707963\n";
+        let tum = rbpf_path_at_scans(path, &scans).unwrap();
         let rows: Vec<Vec<f64>> = tum
             .lines()
             .map(|l| l.split(' ').map(|x| x.parse().unwrap()).collect())
@@ -713,7 +714,7 @@ mod tests {
         assert_eq!(&rows[1][..4], &[2.5, 1.0, -2.0, 0.0]);
         let h = std::f64::consts::FRAC_1_SQRT_2;
         assert!((rows[1][6] - h).abs() < 1e-7 && (rows[1][7] - h).abs() < 1e-7);
-        assert!(rbpf_path_at_scans("0 0 0\n", &scans).is_err());
-        assert!(rbpf_path_at_scans("0 0\n1 1 1\n", &scans).is_err());
+        assert!(rbpf_path_at_scans("0 0 0\n1 1 1\n", &scans).is_err());
+        assert!(rbpf_path_at_scans("0 0 0\n0 0\n1 1 1\n", &scans).is_err());
     }
 }
