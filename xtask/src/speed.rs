@@ -465,25 +465,83 @@ fn mrpt_rawlog(log: &Path, scratch: &Path, converter: &Path) -> Result<PathBuf, 
     Ok(out)
 }
 
-/// `configs/peers/rbpf-slam.ini` with its output folder and random seed replaced.
+/// The ini `rbpf-slam` runs with: MRPT's own configuration named by the `base` key of
+/// `configs/peers/rbpf-slam.ini` (a file Debian's mrpt-apps installs), with every other
+/// `key = value` line of that file put in place of the base's line for the same key (or
+/// added at the top of `[MappingApplication]` when the base has none), and the output
+/// folder and random seed of this run.
 fn write_rbpf_ini(ini: &Path, out_dir: &Path, seed: u32) -> Result<(), String> {
     let source = Path::new("configs/peers/rbpf-slam.ini");
     let text = std::fs::read_to_string(source).map_err(|e| format!("{}: {e}", source.display()))?;
+    let mut overrides = ini_pairs(&text);
+    let base = overrides
+        .iter()
+        .position(|(k, _)| k == "base")
+        .map(|i| overrides.remove(i).1)
+        .ok_or(format!("{}: no `base = <MRPT ini>` line", source.display()))?;
+    let base_text = std::fs::read_to_string(&base)
+        .map_err(|e| format!("{base} (the base of {}): {e}", source.display()))?;
     let out_dir =
         std::path::absolute(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
-    let text: String = text
-        .lines()
-        .map(|l| {
-            if l.starts_with("logOutput_dir=") {
-                format!("logOutput_dir={}\n", out_dir.display())
-            } else if l.starts_with("RANDOM_SEED=") {
-                format!("RANDOM_SEED={seed}\n")
-            } else {
-                format!("{l}\n")
+    overrides.push(("logOutput_dir".into(), out_dir.display().to_string()));
+    overrides.push(("RANDOM_SEED".into(), seed.to_string()));
+    std::fs::write(ini, override_ini(&base_text, &overrides))
+        .map_err(|e| format!("{}: {e}", ini.display()))
+}
+
+/// The `key = value` lines of an ini text (comments, blank lines and `[sections]` left
+/// out; a trailing `// comment` removed), in order.
+fn ini_pairs(text: &str) -> Vec<(String, String)> {
+    text.lines()
+        .map(|l| l.split("//").next().unwrap_or_default().trim())
+        .filter(|l| !l.is_empty() && !l.starts_with('#') && !l.starts_with('['))
+        .filter_map(|l| l.split_once('='))
+        .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
+        .collect()
+}
+
+/// `base` with each `(key, value)` written in place of the base's line for `key` in its
+/// `[MappingApplication]` section, or, where that section has none, right after its header.
+fn override_ini(base: &str, overrides: &[(String, String)]) -> String {
+    let key_of = |l: &str| {
+        let l = l.trim_start();
+        (!l.starts_with('#') && !l.starts_with('[') && !l.starts_with("//"))
+            .then(|| l.split_once('=').map(|(k, _)| k.trim().to_string()))
+            .flatten()
+    };
+    const MAIN: &str = "[MappingApplication]";
+    let mut section = String::new();
+    let mut present = Vec::new();
+    for l in base.lines() {
+        if l.trim_start().starts_with('[') {
+            section = l.trim().to_string();
+        } else if let Some(k) = key_of(l).filter(|_| section == MAIN) {
+            present.push(k);
+        }
+    }
+    let mut out = String::new();
+    section.clear();
+    for l in base.lines() {
+        if l.trim_start().starts_with('[') {
+            section = l.trim().to_string();
+        }
+        let replaced = key_of(l)
+            .filter(|_| section == MAIN)
+            .and_then(|k| overrides.iter().find(|(o, _)| *o == k));
+        match replaced {
+            Some((k, v)) => out.push_str(&format!("{k}={v}\n")),
+            None => {
+                out.push_str(l);
+                out.push('\n');
             }
-        })
-        .collect();
-    std::fs::write(ini, text).map_err(|e| format!("{}: {e}", ini.display()))
+        }
+        if l.trim() == MAIN {
+            for (k, v) in overrides.iter().filter(|(k, _)| !present.contains(k)) {
+                out.push_str(&format!("{k}={v}\n"));
+            }
+        }
+    }
+    out
 }
 
 /// For each FLASER line of a CARMEN log, in file order: its record index (the position
@@ -696,6 +754,25 @@ mod tests {
             ATE RMSE 1.4520 m, aligned 0.2804 m\n  RPE mean 0.0337 m / 0.845 deg\n";
         assert_eq!(parse_aligned_ate(eval), Some(0.2804));
         assert_eq!(parse_aligned_ate("RPE mean 1 m\n"), None);
+    }
+
+    /// MRPT's base ini with the overrides: a key the base has is replaced in place (its
+    /// `// comment` goes with it), a key it lacks is added under `[MappingApplication]`,
+    /// other sections keep their own keys of the same name.
+    #[test]
+    fn builds_the_peer_ini_from_mrpt_s_own() {
+        let base = "# MRPT\n[MappingApplication]\nsampleSize=10\t\t// Sample size\n\
+            SAVE_3D_SCENE=1\n[MappingApplication_pointsMap_00_insertOpts]\nsampleSize=3\n";
+        let ours = "# ours\nbase = /usr/share/x.ini\n[MappingApplication]\nsampleSize = 30 // N\n\
+            RANDOM_SEED=1\n";
+        let pairs = ini_pairs(ours);
+        assert_eq!(pairs[0], ("base".into(), "/usr/share/x.ini".into()));
+        let got = override_ini(base, &pairs[1..]);
+        assert_eq!(
+            got,
+            "# MRPT\n[MappingApplication]\nRANDOM_SEED=1\nsampleSize=30\nSAVE_3D_SCENE=1\n\
+             [MappingApplication_pointsMap_00_insertOpts]\nsampleSize=3\n"
+        );
     }
 
     /// The initial pose is dropped, a quarter turn's yaw becomes the quaternion
