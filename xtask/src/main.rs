@@ -13,10 +13,11 @@
 //!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
 //!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
-//! * `cargo xtask eval speed [--pairs N] [--other-pairs M] [--only NAME,…]
-//!   [--gmapping-src DIR]`: grid FastSLAM (1 and 2 threads) and GMapping side by side under
-//!   `/usr/bin/time -v` on the bench logs (see [`speed::speed`]), writing into
-//!   `slam-out/speed/`.
+//! * `cargo xtask eval speed [--pairs N] [--other-pairs M] [--only NAME,…] [--peers P,…]
+//!   [--install-peers]`: grid FastSLAM (1 and 2 threads) beside the peer programs found
+//!   (GMapping from `$GMAPPING_BIN`, MRPT's `rbpf-slam`) under `/usr/bin/time -v` on the
+//!   bench logs, each run scored against the log's reference (see [`speed::speed`]),
+//!   writing into `slam-out/speed/`.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
