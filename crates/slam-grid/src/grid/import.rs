@@ -88,8 +88,7 @@ impl OccupancyGrid {
             start.0 + max_range * dx / res,
             start.1 + max_range * dy / res,
         );
-        if !(start.0.is_finite() && start.1.is_finite() && end.0.is_finite() && end.1.is_finite())
-        {
+        if !(start.0.is_finite() && start.1.is_finite() && end.0.is_finite() && end.1.is_finite()) {
             return None;
         }
         let mut ray = Ray::new(start, end);
