@@ -334,3 +334,44 @@ impl MclConfig {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// configs/mcl.toml spells out every default, key by key.
+    #[test]
+    fn the_example_file_is_the_defaults() {
+        let text = include_str!("../../../configs/mcl.toml");
+        let parsed: MclConfig = toml::from_str(text).unwrap();
+        assert_eq!(parsed, MclConfig::default());
+        // Every key is in the file: a table written from the defaults has no key the file
+        // lacks.
+        let written = toml::to_string(&MclConfig::default()).unwrap();
+        let keys = |t: &str| -> Vec<String> {
+            t.lines()
+                .filter_map(|l| l.split_once('=').map(|(k, _)| k.trim().to_string()))
+                .filter(|k| !k.starts_with('#'))
+                .collect()
+        };
+        let in_file = keys(text);
+        for k in keys(&written) {
+            assert!(in_file.contains(&k), "configs/mcl.toml lacks `{k}`");
+        }
+        assert!(toml::from_str::<MclConfig>("update-min-dd = 1").is_err());
+    }
+
+    #[test]
+    fn bounds_name_their_field() {
+        let mut c = MclConfig::default();
+        c.kld.max_particles = 10;
+        assert_eq!(c.validate().unwrap_err().key(), "kld.max-particles");
+        let mut c = MclConfig::default();
+        c.sensor.weight_exponent = 0.0;
+        assert_eq!(c.validate().unwrap_err().key(), "sensor.weight-exponent");
+        let mut c = MclConfig::default();
+        c.recovery.alpha_fast = 0.0005;
+        assert_eq!(c.validate().unwrap_err().key(), "recovery.alpha-fast");
+        assert!(MclConfig::default().validate().is_ok());
+    }
+}
