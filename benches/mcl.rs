@@ -8,7 +8,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_grid::{KnownPoseConfig, KnownPoseMapping};
-use slam_io::dataset::{open_dataset, Dataset};
+use slam_io::{open_dataset, Dataset};
 use slam_mcl::{InitialBelief, Mcl, MclConfig, MclMap};
 use slam_models::{Pose2, ScanDataset, ScanSlam};
 use std::path::Path;

@@ -29,6 +29,14 @@ pub fn bin_of(p: &Pose2, config: &KldConfig) -> (i32, i32, i32) {
     )
 }
 
+/// n_θ = ⌈2π / bin_θ⌉, the number of heading bins.
+#[inline]
+pub fn theta_bins(config: &KldConfig) -> i32 {
+    (std::f64::consts::TAU / config.bin_theta)
+        .ceil()
+        .clamp(1.0, 1e6) as i32
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -47,12 +55,4 @@ mod tests {
         // More bins, more particles.
         assert!(kld_bound(1000, 0.05, 2.33) > kld_bound(100, 0.05, 2.33));
     }
-}
-
-/// n_θ = ⌈2π / bin_θ⌉, the number of heading bins.
-#[inline]
-pub fn theta_bins(config: &KldConfig) -> i32 {
-    (std::f64::consts::TAU / config.bin_theta)
-        .ceil()
-        .clamp(1.0, 1e6) as i32
 }
