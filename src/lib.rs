@@ -31,6 +31,7 @@ pub use slam_graph as graph;
 pub use slam_grid as grid;
 pub use slam_gridfast as gridfast;
 pub use slam_io as io;
+pub use slam_mcl as mcl;
 pub use slam_models as models;
 pub use slam_sim as sim;
 

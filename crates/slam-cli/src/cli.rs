@@ -37,6 +37,8 @@ pub enum Command {
     Eval(EvalArgs),
     /// Optimise a pose graph (g2o file); write the result, its χ² and a before/after picture.
     Optimize(OptimizeArgs),
+    /// Localize a log on a saved map (Monte Carlo localization); write trajectory, picture and metrics.
+    Localize(crate::localize::LocalizeArgs),
     /// List the filters and scenarios, and whether each is available in this build.
     List,
     /// Say what a dataset holds (a ROS bag's topics, counts, laser and odometry; a log's records).

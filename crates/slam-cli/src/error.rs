@@ -83,6 +83,9 @@ pub enum CliError {
     /// Reading a dataset or writing an output failed in slam-io.
     #[error(transparent)]
     Io(#[from] slam_io::IoError),
+    /// Monte Carlo localization failed (configuration, map, record).
+    #[error(transparent)]
+    Localize(#[from] slam_mcl::MclError),
     /// A metric could not be computed (slam-eval).
     #[error(transparent)]
     Eval(#[from] slam_eval::EvalError),

@@ -40,6 +40,7 @@ pub mod eval;
 pub mod filters;
 mod info;
 mod list;
+pub mod localize;
 mod mcap;
 pub mod optimize;
 mod outdir;
@@ -92,6 +93,8 @@ pub enum Outcome {
     Optimized(Box<OptimizeOutput>),
     /// `slam info` described a dataset.
     Described,
+    /// `slam localize` ran.
+    Localized(Box<localize::LocalizeReport>),
     /// `slam completions` printed a shell completion script.
     Completions,
 }
@@ -122,6 +125,9 @@ where
         cli::Command::Optimize(a) => {
             optimize::optimize(&a, out).map(|r| Outcome::Optimized(Box::new(r)))
         }
+        cli::Command::Localize(a) => {
+            localize::localize(&a, out).map(|r| Outcome::Localized(Box::new(r)))
+        }
         cli::Command::Info(a) => info::info(&a, out).map(|_| Outcome::Described),
         cli::Command::Completions(a) => {
             // Into a buffer first: clap_complete panics on a write error (a closed pipe,
@@ -143,7 +149,7 @@ where
 /// suggestions), whitespace collapsed, without the `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval, optimize, info, list or completions (see `slam --help`)"
+        return "missing subcommand: run, sim, eval, optimize, localize, info, list or completions (see `slam --help`)"
             .into();
     }
     let text = e.render().to_string();

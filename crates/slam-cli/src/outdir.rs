@@ -53,6 +53,8 @@ pub(crate) enum Owner {
     Sim,
     /// `slam optimize`: marker `.slam-optimize`.
     Optimize,
+    /// `slam localize`: marker `.slam-localize`.
+    Localize,
 }
 
 impl Owner {
@@ -61,6 +63,7 @@ impl Owner {
             Owner::Run => ".slam-run",
             Owner::Sim => ".slam-sim",
             Owner::Optimize => ".slam-optimize",
+            Owner::Localize => ".slam-localize",
         }
     }
 
@@ -69,6 +72,7 @@ impl Owner {
             Owner::Run => "slam run",
             Owner::Sim => "slam sim",
             Owner::Optimize => "slam optimize",
+            Owner::Localize => "slam localize",
         }
     }
 }
@@ -157,15 +161,16 @@ impl OutDir {
                     others.join(", ")
                 };
                 match owner {
-                    Owner::Run if !force => {
+                    Owner::Run | Owner::Localize if !force => {
                         return invalid(format!(
-                            "--out {} is not empty ({shown}) and is not a folder slam run \
+                            "--out {} is not empty ({shown}) and is not a folder {} \
                              wrote; choose a new or empty folder, or pass --force to replace \
-                             slam run's output files in it",
-                            dir.display()
+                             its output files in it",
+                            dir.display(),
+                            owner.command()
                         ))
                     }
-                    Owner::Run => {}
+                    Owner::Run | Owner::Localize => {}
                     Owner::Sim => {
                         return invalid(format!(
                             "--out {} is not empty ({shown}) and is not a folder slam sim \

@@ -27,7 +27,7 @@ use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
 use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
 use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
-use slam_grid::{ScanMatchConfig, ScanMatchOdometry};
+use slam_grid::{KnownPoseConfig, KnownPoseMapping, ScanMatchConfig, ScanMatchOdometry};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{BoxedError, LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
@@ -106,6 +106,14 @@ pub fn filters() -> Vec<FilterInfo> {
             name: "scanmatch",
             kind: DataKind::Laser,
             description: "scan-matching odometry against an occupancy grid (no loop closure)",
+            particle_filter: false,
+            unavailable: None,
+        },
+        FilterInfo {
+            name: "known-poses",
+            kind: DataKind::Laser,
+            description:
+                "mapping with known poses: each scan written at the log's own pose (or --poses)",
             particle_filter: false,
             unavailable: None,
         },
@@ -277,6 +285,8 @@ pub enum FilterConfig {
     Scanmatch(ScanMatchConfig),
     /// Grid-based FastSLAM.
     Gridfast(GridFastConfig),
+    /// Mapping with known poses (the log's own poses trusted).
+    KnownPoses(KnownPoseConfig),
     /// The laser front end of slam-graph (pose-graph SLAM); its example file is
     /// `configs/graph-laser.toml` (`configs/graph.toml` is `slam optimize`'s); `filter =
     /// "graph"` on laser data, the tag `graph-laser` in serde's own form.
@@ -315,6 +325,7 @@ impl ParsedConfig {
             }
             FilterConfig::Scanmatch(_)
             | FilterConfig::Gridfast(_)
+            | FilterConfig::KnownPoses(_)
             | FilterConfig::GraphLaser(_) => NoiseApplied::default(),
         }
     }
@@ -349,6 +360,7 @@ impl FilterConfig {
             }),
             "scanmatch" => FilterConfig::Scanmatch(ScanMatchConfig::default()),
             "gridfast" => FilterConfig::Gridfast(GridFastConfig::default()),
+            "known-poses" => FilterConfig::KnownPoses(KnownPoseConfig::default()),
             "graph" if kind == DataKind::Landmark => {
                 FilterConfig::GraphLandmark(GraphLandmarkConfig::default())
             }
@@ -459,6 +471,7 @@ impl FilterConfig {
             }
             "scanmatch" => FilterConfig::Scanmatch(de(&body)?),
             "gridfast" => FilterConfig::Gridfast(de(&body)?),
+            "known-poses" => FilterConfig::KnownPoses(de(&body)?),
             "graph" if info.kind == DataKind::Landmark => FilterConfig::GraphLandmark(de(&body)?),
             "graph" => FilterConfig::GraphLaser(Box::new(de(&body)?)),
             other => {
@@ -480,6 +493,7 @@ impl FilterConfig {
             FilterConfig::GraphLandmark(_) | FilterConfig::GraphLaser(_) => "graph",
             FilterConfig::Scanmatch(_) => "scanmatch",
             FilterConfig::Gridfast(_) => "gridfast",
+            FilterConfig::KnownPoses(_) => "known-poses",
         }
     }
 
@@ -492,6 +506,7 @@ impl FilterConfig {
             | FilterConfig::GraphLandmark(_) => DataKind::Landmark,
             FilterConfig::Scanmatch(_)
             | FilterConfig::Gridfast(_)
+            | FilterConfig::KnownPoses(_)
             | FilterConfig::GraphLaser(_) => DataKind::Laser,
         }
     }
@@ -504,6 +519,7 @@ impl FilterConfig {
             FilterConfig::Ekf(_)
             | FilterConfig::GraphLandmark(_)
             | FilterConfig::GraphLaser(_)
+            | FilterConfig::KnownPoses(_)
             | FilterConfig::Scanmatch(_) => {
                 return Err(FactoryError::NotAParticleFilter {
                     filter: self.name(),
@@ -523,6 +539,7 @@ impl FilterConfig {
             FilterConfig::GraphLaser(c) => toml::to_string_pretty(c),
             FilterConfig::Scanmatch(c) => toml::to_string_pretty(c),
             FilterConfig::Gridfast(c) => toml::to_string_pretty(c),
+            FilterConfig::KnownPoses(c) => toml::to_string_pretty(c),
         };
         text.unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
     }
@@ -550,6 +567,7 @@ impl FilterConfig {
             ),
             FilterConfig::Scanmatch(_)
             | FilterConfig::Gridfast(_)
+            | FilterConfig::KnownPoses(_)
             | FilterConfig::GraphLaser(_) => {
                 return Err(FactoryError::WrongKind {
                     filter: self.name(),
@@ -585,6 +603,10 @@ impl FilterConfig {
             ),
             FilterConfig::Gridfast(c) => Box::new(
                 GridFastSlam::new(c.clone(), Pose2::IDENTITY, seed)
+                    .map_err(|e| FactoryError::invalid(name, e))?,
+            ),
+            FilterConfig::KnownPoses(c) => Box::new(
+                KnownPoseMapping::new(*c, Pose2::IDENTITY, seed)
                     .map_err(|e| FactoryError::invalid(name, e))?,
             ),
             FilterConfig::GraphLaser(c) => Box::new(

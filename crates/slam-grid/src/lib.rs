@@ -20,6 +20,9 @@
 //!   incremental distance field, with the same hill climber and an exhaustive search under a
 //!   motion prior (the matching of grid FastSLAM and of scan-matching odometry). Every
 //!   matcher takes the one [`PreparedScan`].
+//! * [`KnownPoseMapping`]: mapping with known poses, each scan written at the log's own
+//!   pose (`ScanSlam`, name `"known-poses"`); [`OccupancyGrid::from_grid_map`] and
+//!   [`OccupancyGrid::cast_ray`] load a saved map back and cast beams on it (localization).
 //! * [`ScanMatchOdometry`]: each scan matched against the map built so far with
 //!   [`matcher::endpoint`] (`ScanSlam`, name `"scanmatch"`).
 //!
@@ -52,6 +55,8 @@ pub use matcher::{
     BranchBoundMatcher, CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, MatchResult,
     MaxPyramid, RefinedCorrelativeMatcher, ScanMatcher,
 };
+pub mod known_poses;
+pub use known_poses::{KnownPoseConfig, KnownPoseMapping};
 pub mod scanmatch;
 pub use scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
 

@@ -339,7 +339,7 @@ impl OccupancyGrid {
 
     /// The tile of `slot`, private to this grid: created if absent, copied if shared
     /// (copy-on-write, counted in the stats).
-    fn tile_for_write(&mut self, slot: usize) -> &mut Tile {
+    pub(super) fn tile_for_write(&mut self, slot: usize) -> &mut Tile {
         let entry = &mut self.tiles[slot];
         let arc = match entry {
             None => {

@@ -8,6 +8,7 @@
 //! the likelihood module.
 
 pub mod distance;
+mod import;
 mod integrate;
 mod raytrace;
 pub(crate) mod sensor_model;
@@ -453,7 +454,7 @@ impl OccupancyGrid {
     /// The slot of tile (tx, ty) for a write: stored now if it was not, with its eight
     /// neighbours (whose cached fields and distance tiles its obstacles reach), each new
     /// slot getting an empty entry in every per-slot table.
-    fn slot_for_write(&mut self, tx: i32, ty: i32) -> usize {
+    pub(super) fn slot_for_write(&mut self, tx: i32, ty: i32) -> usize {
         // (Written tiles lie in the covered rectangle, where `slot` sees every stored one.)
         if let Some(s) = self.table.slot(tx, ty) {
             if self.tiles[s].is_some() {

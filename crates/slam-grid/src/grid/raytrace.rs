@@ -100,6 +100,21 @@ impl Ray {
         self.n_x + self.n_y
     }
 
+    /// The segment parameter t ∈ [0, 1] at which the walk entered its current cell (0 in
+    /// the start cell): the larger of the last x and y boundary crossings.
+    #[inline]
+    pub(crate) fn entry_t(&self) -> f64 {
+        let tx = self.t_max_x - self.t_delta_x;
+        let ty = self.t_max_y - self.t_delta_y;
+        let t = match (tx.is_finite(), ty.is_finite()) {
+            (true, true) => tx.max(ty),
+            (true, false) => tx,
+            (false, true) => ty,
+            (false, false) => 0.0,
+        };
+        t.max(0.0)
+    }
+
     /// Moves to the next cell (only while [`Ray::steps_left`] > 0); true when the step was
     /// along x (by `step_x`), false when along y (by `step_y`). The x step is taken while
     /// the next x boundary comes first (`t_max_x ≤ t_max_y`) and x steps remain, or when
