@@ -135,6 +135,15 @@ pub struct RunArgs {
     #[arg(long, value_name = "TOPIC", requires = "dataset")]
     pub odom_topic: Option<String>,
 
+    /// ROS bags: the odometry frame of the /tf odometry chain (default odom).
+    #[arg(long, value_name = "FRAME", requires = "dataset")]
+    pub odom_frame: Option<String>,
+
+    /// ROS bags: the robot's base frame of the /tf odometry chain (needed when several
+    /// transforms leave the odometry frame, e.g. odom → base_footprint and odom → base_link).
+    #[arg(long, value_name = "FRAME", requires = "dataset")]
+    pub base_frame: Option<String>,
+
     /// ROS bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
     /// radians); replaces /tf_static.
     #[arg(long, value_name = "X,Y,THETA", requires = "dataset", value_parser = laser_pose, allow_hyphen_values = true)]

@@ -310,6 +310,8 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
         scan_topic: args.scan_topic.clone(),
         odom_topic: args.odom_topic.clone(),
         laser_pose: args.laser_pose,
+        odom_frame: args.odom_frame.clone(),
+        base_frame: args.base_frame.clone(),
     };
     Ok(input::open(path, &options)?)
 }
