@@ -177,7 +177,8 @@ pub struct RunArgs {
     pub out: Option<PathBuf>,
 
     /// Write into a non-empty --out that slam run did not make: the files slam run writes
-    /// are replaced there, all others are left alone.
+    /// are replaced there, all others are left alone. Also lets --mcap replace an MCAP file
+    /// slam did not write.
     #[arg(long)]
     pub force: bool,
 
@@ -204,7 +205,8 @@ pub struct RunArgs {
 
     /// Also write the run as an MCAP file of ROS 2 messages (map, trajectory, poses, tf,
     /// scans, particles, landmarks; see docs/rosbag.md), for Foxglove or `ros2 bag play`.
-    /// Not an input nor inside an input folder or --out; an existing MCAP file is replaced.
+    /// Not an input nor inside an input folder or --out; an existing MCAP file slam wrote is
+    /// replaced, another MCAP file only with --force.
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
 

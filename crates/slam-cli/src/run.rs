@@ -144,7 +144,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         inputs.push(("--sim replay map", map));
     }
     if let Some(mcap) = &args.mcap {
-        crate::mcap::check_path(mcap, &inputs, &out_dir)?;
+        crate::mcap::check_path(mcap, &inputs, &out_dir, args.force)?;
     }
     // The filter against the kind of data, before anything is generated or read.
     if let Some(kind) = input::kind_before_loading(args.sim.as_deref(), args.dataset.as_deref()) {
