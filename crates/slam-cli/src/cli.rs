@@ -137,6 +137,15 @@ pub struct RunArgs {
     #[arg(long, value_name = "TOPIC", requires = "dataset")]
     pub odom_topic: Option<String>,
 
+    /// ROS bags: the odometry frame of the /tf odometry chain (default odom).
+    #[arg(long, value_name = "FRAME", requires = "dataset")]
+    pub odom_frame: Option<String>,
+
+    /// ROS bags: the robot's base frame of the /tf odometry chain (needed when several
+    /// transforms leave the odometry frame, e.g. odom → base_footprint and odom → base_link).
+    #[arg(long, value_name = "FRAME", requires = "dataset")]
+    pub base_frame: Option<String>,
+
     /// ROS bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
     /// radians); replaces /tf_static.
     #[arg(long, value_name = "X,Y,THETA", requires = "dataset", value_parser = laser_pose, allow_hyphen_values = true)]
@@ -170,7 +179,8 @@ pub struct RunArgs {
     pub out: Option<PathBuf>,
 
     /// Write into a non-empty --out that slam run did not make: the files slam run writes
-    /// are replaced there, all others are left alone.
+    /// are replaced there, all others are left alone. Also lets --mcap replace an MCAP file
+    /// slam did not write.
     #[arg(long)]
     pub force: bool,
 
@@ -197,7 +207,8 @@ pub struct RunArgs {
 
     /// Also write the run as an MCAP file of ROS 2 messages (map, trajectory, poses, tf,
     /// scans, particles, landmarks; see docs/rosbag.md), for Foxglove or `ros2 bag play`.
-    /// Not an input nor inside an input folder or --out; an existing MCAP file is replaced.
+    /// Not an input nor inside an input folder or --out; an existing MCAP file slam wrote is
+    /// replaced, another MCAP file only with --force.
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
 

@@ -10,8 +10,10 @@
 //!
 //! The file is refused, before any data is loaded ([`check_path`]), when it is one of the
 //! run's inputs or lies inside an input folder, lies inside the output folder (whose contents the run replaces), or exists
-//! and is not an MCAP file; an existing MCAP file is replaced. The file appears only when
-//! the run completes (slam-io writes `FILE.partial` and renames it).
+//! and is not an MCAP file slam wrote (its header's `library` field does not start with
+//! `slam-rs`); with `--force` any existing MCAP file is replaced, never another kind of file.
+//! An MCAP file slam wrote is replaced. The file appears only when the run completes
+//! (slam-io writes `FILE.partial` and renames it).
 
 use crate::cli::RunArgs;
 use crate::error::CliError;
@@ -23,11 +25,37 @@ use std::path::{Path, PathBuf};
 /// Snapshots per run when `--mcap-every` is not given.
 const DEFAULT_SNAPSHOTS: usize = 100;
 
-/// Checks `--mcap` against the inputs and the output folder (module doc).
+/// The `library` an MCAP file's header names (the string after the 8 magic bytes, the
+/// header record's opcode and length, and its `profile` string), up to 256 bytes of it;
+/// `None` when the file is not an MCAP file.
+fn mcap_library(path: &Path) -> Option<String> {
+    use std::io::Read as _;
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .take(8 + 9 + 4 + 256 + 4 + 256)
+        .read_to_end(&mut head)
+        .ok()?;
+    if !head.starts_with(b"\x89MCAP0\r\n") || head.get(8) != Some(&0x01) {
+        return None;
+    }
+    let string = |at: usize| -> Option<(&[u8], usize)> {
+        let n = u32::from_le_bytes(head.get(at..at + 4)?.try_into().ok()?) as usize;
+        let end = (at + 4).checked_add(n)?;
+        Some((head.get(at + 4..end.min(head.len()))?, end))
+    };
+    let (_, after_profile) = string(17)?;
+    let (library, _) = string(after_profile)?;
+    Some(String::from_utf8_lossy(library).into_owned())
+}
+
+/// Checks `--mcap` against the inputs and the output folder (module doc); `force` allows
+/// replacing an MCAP file slam did not write.
 pub(crate) fn check_path(
     mcap: &Path,
     inputs: &[(&str, &Path)],
     out_dir: &Path,
+    force: bool,
 ) -> Result<(), CliError> {
     let refuse =
         |why: String| CliError::InvalidArgument(format!("--mcap {}: {why}", mcap.display()));
@@ -77,15 +105,20 @@ pub(crate) fn check_path(
         return Err(e);
     }
     if target.exists() {
-        let mut magic = [0u8; 8];
-        let is_mcap = std::fs::File::open(&target)
-            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-            .is_ok()
-            && magic == *b"\x89MCAP0\r\n";
-        if !is_mcap {
-            return Err(refuse(
-                "the file exists and is not an MCAP file; it is left alone".into(),
-            ));
+        match mcap_library(&target) {
+            None => {
+                return Err(refuse(
+                    "the file exists and is not an MCAP file; it is left alone".into(),
+                ))
+            }
+            Some(lib) if !lib.starts_with("slam-rs") && !force => {
+                return Err(refuse(format!(
+                    "the file exists and is an MCAP file slam did not write (library {:?}); \
+                     it is left alone (--force replaces it)",
+                    lib.chars().take(60).collect::<String>()
+                )))
+            }
+            Some(_) => {}
         }
     }
     Ok(())

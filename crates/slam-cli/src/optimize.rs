@@ -58,6 +58,21 @@ fn parse_kernel(s: &str) -> Result<RobustKernel, CliError> {
     }
 }
 
+/// The phases of `slam optimize` between which Ctrl-C stops it: read, optimise, write.
+const PHASES: usize = 3;
+
+/// Ctrl-C honoured as `slam run` honours it: after `done` phases, a stop leaves the staged
+/// files uncommitted (dropped), so an earlier output in the folder stays as it was.
+fn stopped(done: usize) -> Result<(), CliError> {
+    if crate::stop_requested() {
+        return Err(CliError::Interrupted {
+            step: done,
+            steps: PHASES,
+        });
+    }
+    Ok(())
+}
+
 /// Runs `slam optimize` with `args`, printing a summary to `out`.
 pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutput, CliError> {
     let mut cfg: OptimizerConfig = config::load(args.config.as_deref())?.config;
@@ -73,8 +88,10 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     let staging = OutDir::prepare(&args.out, Owner::Optimize, false, &inputs)?;
     let stage = staging.stage().to_path_buf();
     let before = slam_io::g2o::read_g2o(&args.graph)?;
+    stopped(1)?;
     let mut graph = before.clone();
     let report = Optimizer::new(&graph, cfg)?.optimize(&mut graph)?;
+    stopped(2)?;
     slam_io::g2o::write_g2o(&stage.join("optimized.g2o"), &graph)?;
     slam_io::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
     let result = OptimizeOutput {
@@ -96,6 +113,7 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
         .map_err(|e| CliError::InvalidArgument(format!("result.json: {e}")))?;
     write("result.json", json + "\n")?;
     write("config.toml", config::to_toml(&cfg))?;
+    stopped(3)?;
     staging.commit(&["optimized.g2o", "graph.png", "config.toml", "result.json"])?;
     let _ = writeln!(
         out,

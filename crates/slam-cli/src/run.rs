@@ -142,7 +142,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         inputs.push(("--sim replay map", map));
     }
     if let Some(mcap) = &args.mcap {
-        crate::mcap::check_path(mcap, &inputs, &out_dir)?;
+        crate::mcap::check_path(mcap, &inputs, &out_dir, args.force)?;
     }
     // The filter against the kind of data, before anything is generated or read.
     if let Some(kind) = input::kind_before_loading(args.sim.as_deref(), args.dataset.as_deref()) {
@@ -308,6 +308,8 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
         scan_topic: args.scan_topic.clone(),
         odom_topic: args.odom_topic.clone(),
         laser_pose: args.laser_pose,
+        odom_frame: args.odom_frame.clone(),
+        base_frame: args.base_frame.clone(),
     };
     Ok(input::open(path, &options)?)
 }

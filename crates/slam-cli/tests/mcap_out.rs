@@ -161,6 +161,18 @@ fn mcap_paths_that_would_lose_data_are_refused_before_the_run() {
     let e = run(&notes);
     assert!(e.contains("not an MCAP file"), "{e}");
     assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine");
+    // An MCAP file another program wrote (rosbags' writer): left alone without --force.
+    let theirs = dir.join("theirs.mcap");
+    std::fs::copy(fixture("intel-tf/intel-tf.mcap"), &theirs).unwrap();
+    let e = run(&theirs);
+    assert!(
+        e.contains("an MCAP file slam did not write") && e.contains("--force replaces it"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read(&theirs).unwrap(),
+        std::fs::read(fixture("intel-tf/intel-tf.mcap")).unwrap()
+    );
     // A storage file of a rosbag2 folder given as the input.
     let folder = dir.join("bag");
     std::fs::create_dir_all(&folder).unwrap();

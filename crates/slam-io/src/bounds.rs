@@ -38,6 +38,14 @@ pub const MAX_MAGNITUDE: f64 = 1e12;
 pub const RESOLUTION_RANGE: (f64, f64) = (1e-4, 1e3);
 /// Most cells in a map image (2²⁸: 256 MiB of 8-bit cells).
 pub const MAX_MAP_CELLS: usize = 1 << 28;
+/// Most beams (range readings) in one laser scan, for every reader (CARMEN lines, bag
+/// messages): ten times the densest 2-D scanners (a 0.1° scanner has 3,600 beams per turn).
+pub const MAX_BEAMS: usize = 100_000;
+/// Largest record a binary container may hold, bytes (256 MiB), compressed or after
+/// decompression: an MCAP record or chunk, a ROS 1 bag record or decompressed chunk, a
+/// rosbag2 zstd-compressed message. A length field is trusted only up to this cap and the
+/// bytes the file still holds; a scan of [`MAX_BEAMS`] beams is 0.4 MB.
+pub const MAX_RECORD_BYTES: usize = 1 << 28;
 
 /// Tracks the times of one file: each must be within [`MAX_TIME_SPAN`] of the file's first
 /// time, either way. Times may repeat or step back: real logs do (the Intel log has records

@@ -75,7 +75,7 @@
 //! in the same frame, and the `robot_frontlaser_offset` / `robot_rearlaser_offset` PARAM
 //! (forward offset, metres; 0 when absent) is used instead.
 
-use crate::bounds::{MAX_RANGE, MAX_SPEED, MAX_TIME, MAX_TURN_RATE};
+use crate::bounds::{MAX_BEAMS, MAX_RANGE, MAX_SPEED, MAX_TIME, MAX_TURN_RATE};
 use crate::error::IoError;
 use crate::text::{read_text, write_text, Line, TextFile};
 use slam_models::{LaserScan, Pose2, ScanDataset, ScanRecord, TimedPose};
@@ -208,8 +208,8 @@ fn count(l: &mut Line<'_>, what: &str) -> Result<usize, IoError> {
     let n = l.u64(what)?;
     usize::try_from(n)
         .ok()
-        .filter(|&n| n <= 100_000)
-        .ok_or_else(|| l.error(format!("{what} ≤ 100000"), &n.to_string()))
+        .filter(|&n| n <= MAX_BEAMS)
+        .ok_or_else(|| l.error(format!("{what} ≤ {MAX_BEAMS}"), &n.to_string()))
 }
 
 fn ranges(l: &mut Line<'_>, n: usize) -> Result<Vec<f64>, IoError> {
@@ -467,7 +467,9 @@ pub(crate) fn parse_carmen(f: &TextFile) -> Result<CarmenLog, IoError> {
                 params.insert(name.to_string(), value.to_string());
             }
             other => {
-                *unknown.entry(other.to_string()).or_insert(0) += 1;
+                // Kept shortened: a "record type" can be a whole line of gigabytes (a gzip of
+                // zeros), which must not be copied, listed or echoed whole.
+                *unknown.entry(crate::text::shorten(other)).or_insert(0) += 1;
                 continue;
             }
         }

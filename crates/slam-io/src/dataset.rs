@@ -17,6 +17,10 @@ pub struct DatasetOptions {
     pub odom_topic: Option<String>,
     /// ROS bags: the laser's pose in the robot's base frame, replacing `/tf_static`.
     pub laser_pose: Option<Pose2>,
+    /// ROS bags: the odometry frame of the `/tf` odometry chain (default `odom`).
+    pub odom_frame: Option<String>,
+    /// ROS bags: the robot's base frame of the `/tf` odometry chain.
+    pub base_frame: Option<String>,
 }
 
 impl DatasetOptions {
@@ -27,6 +31,10 @@ impl DatasetOptions {
             Some("--odom-topic")
         } else if self.laser_pose.is_some() {
             Some("--laser-pose")
+        } else if self.odom_frame.is_some() {
+            Some("--odom-frame")
+        } else if self.base_frame.is_some() {
+            Some("--base-frame")
         } else {
             None
         }
@@ -70,9 +78,14 @@ fn is_bag(path: &Path) -> bool {
         .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
         .unwrap_or(0);
     let head = &head[..n];
-    [&b"\x89MCAP0\r\n"[..], b"SQLite format 3\0", b"#ROSBAG V"]
-        .iter()
-        .any(|m| head.starts_with(m))
+    [
+        &b"\x89MCAP0\r\n"[..],
+        b"SQLite format 3\0",
+        b"#ROSBAG V",
+        b"#ROSRECORD V",
+    ]
+    .iter()
+    .any(|m| head.starts_with(m))
 }
 
 #[cfg(feature = "rosbag")]
@@ -81,6 +94,8 @@ fn open_bag(path: &Path, o: &DatasetOptions) -> Result<(Dataset, String), IoErro
         scan_topic: o.scan_topic.clone(),
         odom_topic: o.odom_topic.clone(),
         laser_pose: o.laser_pose,
+        odom_frame: o.odom_frame.clone(),
+        base_frame: o.base_frame.clone(),
     };
     let bag = crate::rosbag::read_rosbag(path, &opts)?;
     let msg = bag.summary(path);

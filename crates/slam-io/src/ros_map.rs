@@ -343,6 +343,18 @@ fn parse_map_yaml(f: &crate::text::TextFile) -> Result<MapYaml, IoError> {
     };
     let occupied_thresh = thresh("occupied_thresh", 0.65)?;
     let free_thresh = thresh("free_thresh", 0.196)?;
+    // map_server's trinary and scale modes need free < occupied: between them is unknown,
+    // and scale divides by their difference.
+    if free_thresh >= occupied_thresh {
+        let at = get("occupied_thresh")
+            .or(get("free_thresh"))
+            .map_or(1, line);
+        return Err(err(
+            at,
+            "free_thresh < occupied_thresh",
+            &format!("free_thresh {free_thresh} ≥ occupied_thresh {occupied_thresh}"),
+        ));
+    }
     let scale = match get("mode") {
         None => false,
         Some(n) => match &n.data {
@@ -479,32 +491,43 @@ fn read_pgm(path: &Path, bytes: &[u8]) -> Result<(usize, usize, Vec<u8>), IoErro
     match magic {
         "P5" => {
             let data = &bytes[(pos + 1).min(bytes.len())..];
-            if data.len() < n {
-                return Err(IoError::invalid(
-                    path,
-                    format!("image data too short: {} of {n} pixels", data.len()),
-                ));
-            }
-            Ok((w, h, data[..n].iter().map(|&v| scale(v as usize)).collect()))
+            exact_pixels(path, data.len(), (w, h))?;
+            Ok((w, h, data.iter().map(|&v| scale(v as usize)).collect()))
         }
         "P2" => {
             let rest = String::from_utf8_lossy(&bytes[pos..]);
             let vals: Result<Vec<u8>, _> = rest
                 .split_whitespace()
-                .take(n)
+                .take(n + 1)
                 .map(|t| t.parse::<usize>().map(scale))
                 .collect();
             let vals = vals.map_err(|_| bad("pixel values"))?;
-            if vals.len() < n {
-                return Err(IoError::invalid(
-                    path,
-                    format!("image data too short: {} of {n} pixels", vals.len()),
-                ));
-            }
+            exact_pixels(path, vals.len(), (w, h))?;
             Ok((w, h, vals))
         }
         _ => Err(bad("a P5 or P2 PGM image, or a PNG image")),
     }
+}
+
+/// The image data must hold exactly width × height pixels: fewer is a truncated image,
+/// more (or rows a pixel short, which shear the map) an image of another size.
+fn exact_pixels(path: &Path, found: usize, (w, h): (usize, usize)) -> Result<(), IoError> {
+    let n = w * h;
+    if found == n {
+        return Ok(());
+    }
+    let hint = if h > 1 && found % h == 0 && found / h != w {
+        format!(" (rows of {} pixels?)", found / h)
+    } else {
+        String::new()
+    };
+    Err(IoError::invalid(
+        path,
+        format!(
+            "image data of {}{found} pixels{hint}, the header says {w}×{h} = {n}",
+            if found > n { "at least " } else { "" }
+        ),
+    ))
 }
 
 #[cfg(test)]
@@ -604,10 +627,44 @@ mod tests {
         }
         std::fs::write(&y, "image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n").unwrap();
         std::fs::write(d.join("m.pgm"), b"P5\n4 4\n255\n\x00\x00").unwrap();
-        assert!(read_ros_map(&y)
-            .unwrap_err()
-            .to_string()
-            .contains("too short"));
+        let e = read_ros_map(&y).unwrap_err().to_string();
+        assert!(
+            e.contains("image data of 2 pixels, the header says 4×4 = 16"),
+            "{e}"
+        );
+        // Rows one pixel short (a sheared map): 3 rows of 3 pixels under a 4×3 header, in
+        // both PGM flavours; and one pixel too many.
+        std::fs::write(
+            d.join("m.pgm"),
+            b"P5\n4 3\n255\n\x00\x00\x00\x00\x00\x00\x00\x00\x00",
+        )
+        .unwrap();
+        let e = read_ros_map(&y).unwrap_err().to_string();
+        assert!(
+            e.contains("9 pixels (rows of 3 pixels?), the header says 4×3 = 12"),
+            "{e}"
+        );
+        std::fs::write(d.join("m.pgm"), b"P2\n4 3\n255\n0 0 0\n0 0 0\n0 0 0\n").unwrap();
+        let e = read_ros_map(&y).unwrap_err().to_string();
+        assert!(e.contains("(rows of 3 pixels?)"), "{e}");
+        std::fs::write(d.join("m.pgm"), b"P5\n2 1\n255\n\x00\x00\x00").unwrap();
+        let e = read_ros_map(&y).unwrap_err().to_string();
+        assert!(
+            e.contains("image data of at least 3 pixels, the header says 2×1 = 2"),
+            "{e}"
+        );
+        // Thresholds in the wrong order, named with the line of occupied_thresh.
+        std::fs::write(
+            &y,
+            "image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\noccupied_thresh: 0.1\nfree_thresh: 0.5\n",
+        )
+        .unwrap();
+        let e = read_ros_map(&y).unwrap_err().to_string();
+        assert!(
+            e.contains("m.yaml:4") && e.contains("free_thresh 0.5 ≥ occupied_thresh 0.1"),
+            "{e}"
+        );
+        std::fs::write(&y, "image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n").unwrap();
         std::fs::write(d.join("m.pgm"), b"P6\n1 1\n255\n\x00").unwrap();
         assert!(read_ros_map(&y)
             .unwrap_err()

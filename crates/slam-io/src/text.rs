@@ -103,8 +103,8 @@ pub(crate) fn write_text(path: &Path, content: &str) -> Result<(), IoError> {
         .map_err(|e| IoError::io(path, e))
 }
 
-/// Shortens a line for an error message.
-fn shorten(s: &str) -> String {
+/// Shortens a line (or a name) for an error message: at most 60 characters, then `…`.
+pub(crate) fn shorten(s: &str) -> String {
     const MAX: usize = 60;
     if s.chars().count() <= MAX {
         s.to_string()

@@ -657,6 +657,7 @@ fn special_readings_and_values_out_of_bounds_in_every_container() {
         scan_topic: Some(scan.into()),
         odom_topic: Some(odom.into()),
         laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
     };
     for (name, format) in [
         ("bad-bounds.mcap", BagFormat::Mcap),

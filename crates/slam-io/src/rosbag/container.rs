@@ -4,6 +4,7 @@
 //! (a `metadata.yaml` naming the storage and its files). Everything above this module sees
 //! messages only, whatever the container.
 
+use crate::bounds::MAX_RECORD_BYTES;
 use crate::error::IoError;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -56,6 +57,8 @@ impl BagFormat {
 /// The first bytes of each container.
 const SQLITE_MAGIC: &[u8] = b"SQLite format 3\0";
 const ROS1_MAGIC: &[u8] = b"#ROSBAG V";
+/// ROS 1's format 1.2 and older (`#ROSRECORD V1.2`): recognised, to be refused by name.
+const ROS1_OLD_MAGIC: &[u8] = b"#ROSRECORD V";
 
 /// The container of the file at `path`, by its first bytes; `None` for anything else.
 pub(crate) fn sniff(path: &Path) -> Option<BagFormat> {
@@ -67,7 +70,7 @@ pub(crate) fn sniff(path: &Path) -> Option<BagFormat> {
         Some(BagFormat::Mcap)
     } else if head.starts_with(SQLITE_MAGIC) {
         Some(BagFormat::Sqlite3)
-    } else if head.starts_with(ROS1_MAGIC) {
+    } else if head.starts_with(ROS1_MAGIC) || head.starts_with(ROS1_OLD_MAGIC) {
         Some(BagFormat::Ros1)
     } else {
         None
@@ -294,8 +297,8 @@ impl Topics {
 }
 
 /// The largest message after zstd decompression, bytes (a bound on what a hostile
-/// compressed message can make us allocate; a laser scan of 10⁵ beams is 0.8 MB).
-const MAX_MESSAGE: u64 = 1 << 28;
+/// compressed message can make us allocate).
+const MAX_MESSAGE: u64 = MAX_RECORD_BYTES as u64;
 
 /// Decompresses one zstd frame of at most [`MAX_MESSAGE`] bytes.
 fn unzstd(data: &[u8]) -> Result<Vec<u8>, String> {
@@ -366,19 +369,26 @@ pub(crate) fn for_each_message(
 /// The callback each container calls with its messages.
 pub(crate) type Each<'f> = dyn FnMut(RawMessage<'_>) -> Result<(), IoError> + 'f;
 
-/// The messages of one MCAP file.
+/// The messages of one MCAP file, streamed (the file is never held whole): through the
+/// `mcap` crate's streaming reader with every record, compressed chunk and decompressed
+/// chunk content bounded by [`MAX_RECORD_BYTES`], so a length field cannot make us
+/// allocate more than that cap.
 fn mcap_messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Result<(), IoError> {
-    let buf = std::fs::read(file).map_err(|e| IoError::io(file, e))?;
-    if !buf.starts_with(mcap::MAGIC) {
+    let src = std::fs::File::open(file).map_err(|e| IoError::io(file, e))?;
+    let mut head = [0u8; 8];
+    let starts = std::io::Read::read_exact(&mut &src, &mut head).is_ok();
+    if !starts || !head.starts_with(mcap::MAGIC) {
         return Err(IoError::invalid(
             file,
             "not an MCAP file (it does not start with the MCAP magic bytes)",
         ));
     }
-    let stream =
-        mcap::MessageStream::new(&buf).map_err(|e| IoError::invalid(file, e.to_string()))?;
+    std::io::Seek::rewind(&mut &src).map_err(|e| IoError::io(file, e))?;
+    let options =
+        mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES);
+    let stream = mcap::io::MessageReader::new_with_options(std::io::BufReader::new(src), options);
     for m in stream {
-        let m = m.map_err(|e| topics.damaged(file, BagFormat::Mcap, e))?;
+        let m = m.map_err(|e| topics.damaged(file, BagFormat::Mcap, mcap_error(e)))?;
         let ch = &m.channel;
         let msg_type = ch
             .schema
@@ -395,4 +405,16 @@ fn mcap_messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Result<(
         })?;
     }
     Ok(())
+}
+
+/// The `mcap` crate's error in words, with the cap named when a record was too large.
+fn mcap_error(e: mcap::McapError) -> String {
+    match e {
+        mcap::McapError::ChunkTooLarge(n)
+        | mcap::McapError::ChunkBufferTooLarge(n)
+        | mcap::McapError::RecordTooLarge { len: n, .. } => {
+            format!("a record or chunk of {n} bytes, expected at most {MAX_RECORD_BYTES} bytes")
+        }
+        other => other.to_string(),
+    }
 }

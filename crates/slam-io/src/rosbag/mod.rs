@@ -87,6 +87,12 @@ pub struct BagOptions {
     /// The laser's pose in the robot's base frame (x, y metres, θ radians), replacing
     /// `/tf_static`.
     pub laser_pose: Option<Pose2>,
+    /// The odometry frame of the `/tf` odometry chain (the parent; by default `odom`).
+    pub odom_frame: Option<String>,
+    /// The robot's base frame of the `/tf` odometry chain (the child), needed when several
+    /// transforms leave the odometry frame (e.g. `odom → base_footprint` and
+    /// `odom → base_link`).
+    pub base_frame: Option<String>,
 }
 
 /// Where the odometry came from.
@@ -261,41 +267,43 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
         topics.len(),
         t0 as f64 * 1e-9
     );
-    let w = topics
+    // Names are shortened for the table: a hostile 64 KiB topic name must not set the width.
+    let rows: Vec<(String, String, &TopicInfo)> = topics
         .iter()
-        .map(|t| t.topic.len())
-        .max()
-        .unwrap_or(5)
-        .max(5);
-    let wt = topics
-        .iter()
-        .map(|t| t.msg_type.len())
-        .max()
-        .unwrap_or(4)
-        .max(4);
+        .map(|t| (shorten(&t.topic), shorten(&t.msg_type), t))
+        .collect();
+    let width = |f: fn(&(String, String, &TopicInfo)) -> usize, min: usize| {
+        rows.iter().map(f).max().unwrap_or(min).max(min)
+    };
+    let w = width(|r| r.0.chars().count(), 5);
+    let wt = width(|r| r.1.chars().count(), 4);
     let _ = writeln!(
         s,
         "  {:w$}  {:wt$}  encoding  messages  rate",
         "topic", "type"
     );
-    for t in &topics {
+    for (topic, msg_type, t) in &rows {
         let dt = (t.log_time_ns.1 - t.log_time_ns.0) as f64 * 1e-9;
-        let rate = if t.count > 1 && dt > 0.0 {
+        // No rate from fewer than three messages: two latched messages a microsecond apart
+        // are not a 10 kHz topic.
+        let rate = if t.count >= MIN_RATE_MESSAGES && dt > 0.0 {
             format!("{:.1} Hz", (t.count - 1) as f64 / dt)
         } else {
             "-".into()
         };
         let _ = writeln!(
             s,
-            "  {:w$}  {:wt$}  {:8}  {:8}  {rate}",
-            t.topic, t.msg_type, t.encoding, t.count
+            "  {topic:w$}  {msg_type:wt$}  {:8}  {:8}  {rate}",
+            shorten(&t.encoding),
+            t.count
         );
     }
     for (topic, m) in &first_scan {
         let _ = writeln!(
             s,
-            "laser {topic}: frame {:?}, {} beams from {:.2}° to {:.2}° by {:.3}°, range {} … {} m",
-            m.header.frame_id,
+            "laser {}: frame {:?}, {} beams from {:.2}° to {:.2}° by {:.3}°, range {} … {} m",
+            shorten(topic),
+            shorten(&m.header.frame_id),
             m.ranges.len(),
             m.angle_min.to_degrees(),
             m.angle_max.to_degrees(),
@@ -307,32 +315,71 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     if first_scan.is_empty() {
         let _ = writeln!(s, "laser: no {LASER_SCAN} topic");
     }
+    // The odometry: the Odometry topics and the one /tf chain the reader would use (or the
+    // candidates it would ask to choose between); the other /tf edges folded apart.
+    let tf_edges: Vec<(String, String)> = edges
+        .keys()
+        .filter(|(st, _, _)| !st)
+        .map(|(_, p, c)| (p.clone(), c.clone()))
+        .collect();
+    let chains = odometry_edges(&tf_edges, None, None);
+    let arrow = |(p, c): &(String, String)| format!("{} → {}", shorten(p), shorten(c));
+    let transforms =
+        |(p, c): &(String, String)| edges.get(&(false, p.clone(), c.clone())).map_or(0, |e| e.0);
     let mut odometry: Vec<String> = odom_frames
         .iter()
-        .map(|(t, (p, c))| format!("{t} ({p} → {c})"))
+        .map(|(t, (p, c))| format!("{} ({} → {})", shorten(t), shorten(p), shorten(c)))
         .collect();
-    odometry.extend(
-        edges
-            .iter()
-            .filter(|((st, _, _), _)| !st)
-            .map(|((_, p, c), (n, _))| format!("/tf {p} → {c} ({n} transforms)")),
-    );
+    let tf_note = if odometry.is_empty() {
+        ""
+    } else {
+        ", with --odom-topic /tf"
+    };
+    match chains.as_slice() {
+        [] => {}
+        [one] => odometry.push(format!(
+            "/tf {} ({} transforms{tf_note})",
+            arrow(one),
+            transforms(one)
+        )),
+        many => odometry.push(format!(
+            "/tf, one of {} (choose with --base-frame{tf_note})",
+            fold(many.iter().map(|e| arrow(e)).collect())
+        )),
+    }
     let _ = writeln!(
         s,
         "odometry: {}",
         if odometry.is_empty() {
-            "none (no Odometry topic, no /tf)".into()
+            "none (no Odometry topic, no /tf odom → base transform)".into()
         } else {
             odometry.join("; ")
         }
     );
+    let others: Vec<String> = tf_edges
+        .iter()
+        .filter(|e| !chains.contains(e))
+        .map(|e| format!("{} ({})", arrow(e), transforms(e)))
+        .collect();
+    if !others.is_empty() {
+        let _ = writeln!(
+            s,
+            "/tf, not odometry: {} edge(s): {}",
+            others.len(),
+            fold(others)
+        );
+    }
     let statics: Vec<String> = edges
         .iter()
         .filter(|((st, _, _), _)| *st)
         .map(|((_, p, c), (_, q))| {
             format!(
-                "{p} → {c} at ({:.4} m, {:.4} m, {:.4} rad)",
-                q.x, q.y, q.theta
+                "{} → {} at ({:.4} m, {:.4} m, {:.4} rad)",
+                shorten(p),
+                shorten(c),
+                q.x,
+                q.y,
+                q.theta
             )
         })
         .collect();
@@ -342,10 +389,34 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
         if statics.is_empty() {
             "none".into()
         } else {
-            statics.join("; ")
+            format!("{} edge(s): {}", statics.len(), fold(statics))
         }
     );
     Ok(s)
+}
+
+/// Fewest messages a topic needs for `slam info` to give its rate.
+const MIN_RATE_MESSAGES: usize = 3;
+/// Most items a listing of `slam info` shows before folding the rest into a count.
+const FOLD_AFTER: usize = 6;
+
+/// The first [`FOLD_AFTER`] items joined by `; `, and how many more there are.
+fn fold(items: Vec<String>) -> String {
+    let more = items.len().saturating_sub(FOLD_AFTER);
+    let mut s = items
+        .into_iter()
+        .take(FOLD_AFTER)
+        .collect::<Vec<_>>()
+        .join("; ");
+    if more > 0 {
+        s.push_str(&format!("; … and {more} more"));
+    }
+    s
+}
+
+/// A name shortened for a table or a listing (at most 60 characters and `…`).
+fn shorten(s: &str) -> String {
+    crate::text::shorten(s)
 }
 
 fn pick(
@@ -539,7 +610,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     let (source, odom) = match odom_topic {
         Some(t) => (OdometrySource::Topic(t), odom),
         None => {
-            let (parent, child) = tf_odometry_edge(path, &tf)?;
+            let (parent, child) = tf_odometry_edge(path, &tf, options)?;
             let poses = tf
                 .into_iter()
                 .filter(|p| p.parent == parent && p.child == child)
@@ -559,54 +630,108 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     )
 }
 
-/// The `/tf` edge that is the odometry: `odom → X` when there is exactly one such edge,
-/// else the only edge of `/tf`.
-fn tf_odometry_edge(path: &Path, tf: &[StampedPose]) -> Result<(String, String), IoError> {
+/// The `/tf` edges (parent, child) that may be the odometry: those from the odometry frame
+/// (`odom_frame`, by default `odom`; any frame when only `base_frame` is given) to
+/// `base_frame` (any child when not given); when neither is given and no edge leaves
+/// `odom`, the only edge of `/tf` if there is one.
+fn odometry_edges<'e>(
+    edges: &'e [(String, String)],
+    odom_frame: Option<&str>,
+    base_frame: Option<&str>,
+) -> Vec<&'e (String, String)> {
+    let parent_ok = |p: &str| match (odom_frame, base_frame) {
+        (Some(o), _) => p == o,
+        (None, Some(_)) => true,
+        (None, None) => p == DEFAULT_ODOM_FRAME,
+    };
+    let found: Vec<&(String, String)> = edges
+        .iter()
+        .filter(|(p, c)| parent_ok(p) && base_frame.is_none_or(|b| b == c))
+        .collect();
+    match (found.is_empty(), odom_frame, base_frame, edges) {
+        (true, None, None, [one]) => vec![one],
+        _ => found,
+    }
+}
+
+/// The odometry frame of REP 105.
+const DEFAULT_ODOM_FRAME: &str = "odom";
+
+/// The `/tf` edge that is the odometry ([`odometry_edges`]); none or several is an error
+/// naming the edges and the options that choose.
+fn tf_odometry_edge(
+    path: &Path,
+    tf: &[StampedPose],
+    options: &BagOptions,
+) -> Result<(String, String), IoError> {
     let mut edges: Vec<(String, String)> = tf
         .iter()
         .map(|p| (p.parent.clone(), p.child.clone()))
         .collect();
     edges.sort();
     edges.dedup();
-    let odom: Vec<&(String, String)> = edges.iter().filter(|(p, _)| p == "odom").collect();
-    let one = match (odom.as_slice(), edges.as_slice()) {
-        ([one], _) => Some(*one),
-        ([], [one]) => Some(one),
-        _ => None,
-    };
-    match one {
-        Some(one) => Ok(one.clone()),
-        None => Err(IoError::Bag {
-            path: path.to_path_buf(),
-            topic: TF.into(),
-            what: format!(
-                "expected one odom → base transform, found {}",
-                if edges.is_empty() {
-                    "no transform".to_string()
-                } else {
-                    edges
-                        .iter()
-                        .map(|(p, c)| format!("{p} → {c}"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                }
-            ),
-        }),
+    let (odom, base) = (options.odom_frame.as_deref(), options.base_frame.as_deref());
+    let found = odometry_edges(&edges, odom, base);
+    if let [one] = found.as_slice() {
+        return Ok((*one).clone());
     }
+    let list = |e: &[&(String, String)]| {
+        fold(
+            e.iter()
+                .map(|(p, c)| format!("{} → {}", shorten(p), shorten(c)))
+                .collect(),
+        )
+    };
+    let wanted = format!(
+        "{} → {}",
+        odom.unwrap_or(if base.is_some() {
+            "*"
+        } else {
+            DEFAULT_ODOM_FRAME
+        }),
+        base.unwrap_or("*")
+    );
+    let what = if found.is_empty() {
+        format!(
+            "expected one odometry transform {wanted}, found {}; name the chain with \
+             --odom-frame and --base-frame",
+            if edges.is_empty() {
+                "no transform".to_string()
+            } else {
+                list(&edges.iter().collect::<Vec<_>>())
+            }
+        )
+    } else {
+        format!(
+            "{} transforms {wanted} could be the odometry ({}); choose the base frame with \
+             --base-frame (and the odometry frame with --odom-frame)",
+            found.len(),
+            list(&found)
+        )
+    };
+    Err(IoError::Bag {
+        path: path.to_path_buf(),
+        topic: TF.into(),
+        what,
+    })
 }
 
-/// The pose of `frame` in `base` through the static transforms (parent → child edges).
+/// The pose of `frame` in `base` through the static transforms (parent → child edges; of
+/// several edges into one child, the last): one look-up per frame of the chain, so a chain
+/// of n frames costs O(n), not O(n²).
 fn static_chain(statics: &[StampedPose], base: &str, frame: &str) -> Option<Pose2> {
-    // Walk up from `frame` to `base`; each frame has one parent in a tf tree.
+    // Each frame has one parent in a tf tree; the last transform into a child wins.
+    let parent: std::collections::HashMap<&str, &StampedPose> =
+        statics.iter().map(|p| (p.child.as_str(), p)).collect();
     let mut pose = Pose2::IDENTITY;
-    let mut at = frame.to_string();
-    for _ in 0..=statics.len() {
+    let mut at = frame;
+    for _ in 0..=parent.len() {
         if at == base {
             return Some(pose);
         }
-        let edge = statics.iter().rev().find(|p| p.child == at)?;
+        let edge = parent.get(at)?;
         pose = edge.pose.compose(&pose);
-        at = edge.parent.clone();
+        at = &edge.parent;
     }
     None
 }

@@ -96,10 +96,7 @@ fn laser_scan_fields(c: &mut dyn Wire) -> Result<ScanMsg, DecodeError> {
     let range_max = c.f32("range_max")?;
     let ranges = c.seq_f32("ranges")?;
     // Intensities are not used; their count is still checked.
-    let n = c.count("intensities", 4)?;
-    for _ in 0..n {
-        c.f32("intensities")?;
-    }
+    c.seq_f32("intensities")?;
     Ok(ScanMsg {
         header,
         angle_min,

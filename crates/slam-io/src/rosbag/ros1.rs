@@ -14,6 +14,12 @@
 //! | 0x02 | message data: `conn`, `time` (`uint32` s, `uint32` ns) | the message |
 //! | 0x04, 0x06 | index data, chunk info | counted |
 //!
+//! The file is streamed record by record (never held whole); a length field is trusted only
+//! up to the bytes the file still holds and [`crate::bounds::MAX_RECORD_BYTES`]. An index
+//! data record (0x04, version 1) is read by its entry `count` (12 bytes each), not by its
+//! data length, as the official reader (`rosbag`'s `bag.py`) does: the 2010 writers wrote
+//! data lengths that disagree with the count.
+//!
 //! A connection's `md5sum` is checked against the definitions we decode
 //! (`msgs::ros1_md5`): another definition under a known name is refused when its topic is
 //! used. An indexed bag (`index_pos` ≠ 0) must hold the chunks and chunk-info records its
@@ -21,15 +27,19 @@
 
 use super::container::{normalise_type, BagFormat, Each, RawMessage, Topics};
 use super::msgs::ros1_md5;
+use crate::bounds::MAX_RECORD_BYTES;
 use crate::error::IoError;
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
 const MAGIC: &[u8] = b"#ROSBAG V2.0\n";
-/// The largest chunk after decompression, bytes (rosbag's default is 768 KiB): the bound
-/// on what a hostile `size` field can make us allocate.
-const MAX_CHUNK: usize = 1 << 28;
+/// The largest record and the largest chunk after decompression, bytes (rosbag's default
+/// chunk is 768 KiB): the bound on what a hostile length or `size` field can make us
+/// allocate ([`crate::bounds::MAX_RECORD_BYTES`]).
+const MAX_CHUNK: usize = MAX_RECORD_BYTES;
+/// Bytes of one index entry (format 2.0 index data, version 1): `time` (8) and `offset` (4).
+const INDEX_ENTRY: u64 = 12;
 
 const OP_MSG_DATA: u8 = 0x02;
 const OP_BAG_HEADER: u8 = 0x03;
@@ -92,7 +102,7 @@ fn len(buf: &[u8], pos: &mut usize, what: &str) -> Result<usize, String> {
     Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
 }
 
-/// The record at `*pos` of `buf` (the file, or a chunk's decompressed records).
+/// The record at `*pos` of `buf` (a chunk's decompressed records).
 fn record<'a>(buf: &'a [u8], pos: &mut usize) -> Result<Record<'a>, String> {
     let at = *pos;
     let n = len(buf, pos, "a record's header length")?;
@@ -101,6 +111,78 @@ fn record<'a>(buf: &'a [u8], pos: &mut usize) -> Result<Record<'a>, String> {
     let n = len(buf, pos, "a record's data length")?;
     let data = take(buf, pos, n, "a record's data")?;
     Ok(Record { at, fields, data })
+}
+
+/// The bag file, read record by record.
+struct Source {
+    r: std::io::BufReader<std::fs::File>,
+    /// The byte the next read starts at.
+    pos: u64,
+    /// The file's length, bytes.
+    len: u64,
+}
+
+impl Source {
+    /// The next `n` bytes into `out`: `n` is trusted up to the bytes left in the file and
+    /// [`MAX_RECORD_BYTES`], checked before anything is allocated.
+    fn bytes(&mut self, out: &mut Vec<u8>, n: u64, what: &str) -> Result<(), String> {
+        use std::io::Read as _;
+        let left = self.len - self.pos;
+        if n > left {
+            return Err(format!(
+                "at byte {}: {what} of {n} byte(s), only {left} byte(s) left in the file",
+                self.pos
+            ));
+        }
+        if n > MAX_RECORD_BYTES as u64 {
+            return Err(format!(
+                "at byte {}: {what} of {n} bytes, more than the {MAX_RECORD_BYTES} read",
+                self.pos
+            ));
+        }
+        out.clear();
+        out.resize(n as usize, 0);
+        self.r
+            .read_exact(out)
+            .map_err(|e| format!("at byte {}: {what}: {e}", self.pos))?;
+        self.pos += n;
+        Ok(())
+    }
+
+    /// A `uint32` length field.
+    fn len_field(&mut self, what: &str) -> Result<u64, String> {
+        let mut b = Vec::new();
+        self.bytes(&mut b, 4, what)?;
+        Ok(u64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])))
+    }
+
+    /// The record at the reading position: its header into `header`, its data into `data`.
+    /// An index data record's data is its entry count's worth of bytes (module doc).
+    fn record<'b>(
+        &mut self,
+        header: &'b mut Vec<u8>,
+        data: &'b mut Vec<u8>,
+    ) -> Result<Record<'b>, String> {
+        let at = self.pos as usize;
+        let n = self.len_field("a record's header length")?;
+        self.bytes(header, n, "a record header")?;
+        let header: &'b Vec<u8> = header;
+        let fields =
+            record_fields(header, &mut 0).map_err(|e| format!("record at byte {at}: {e}"))?;
+        let r = Record {
+            at,
+            fields,
+            data: &[],
+        };
+        let stated = self.len_field("a record's data length")?;
+        let n = match (r.op(), r.u32("ver"), r.u32("count")) {
+            (Ok(OP_INDEX_DATA), Ok(1), Ok(count)) => u64::from(count) * INDEX_ENTRY,
+            _ => stated,
+        };
+        self.bytes(data, n, "a record's data")?;
+        let data: &'b Vec<u8> = data;
+        Ok(Record { data, ..r })
+    }
 }
 
 /// A chunk's records, decompressed.
@@ -266,12 +348,12 @@ impl Reader<'_, '_> {
         Ok(())
     }
 
-    fn all(&mut self, topics: &mut Topics, buf: &[u8]) -> Result<(), Stop> {
-        let mut pos = MAGIC.len();
+    fn all(&mut self, topics: &mut Topics, src: &mut Source) -> Result<(), Stop> {
         let mut header: Option<(u64, u32, u32)> = None;
         let (mut chunks, mut chunk_infos) = (0u64, 0u64);
-        while pos < buf.len() {
-            let r = record(buf, &mut pos)?;
+        let (mut hbuf, mut dbuf) = (Vec::new(), Vec::new());
+        while src.pos < src.len {
+            let r = src.record(&mut hbuf, &mut dbuf)?;
             let op = r.op()?;
             if header.is_none() && op != OP_BAG_HEADER {
                 return Err(Stop::Damaged(format!(
@@ -309,10 +391,10 @@ impl Reader<'_, '_> {
             return Err(Stop::Damaged("no bag header record".into()));
         };
         if index_pos != 0 {
-            if index_pos > buf.len() as u64 {
+            if index_pos > src.len {
                 return Err(Stop::Damaged(format!(
                     "the bag header puts the index at byte {index_pos}, the file ends at byte {}",
-                    buf.len()
+                    src.len
                 )));
             }
             let want = u64::from(chunk_count);
@@ -327,29 +409,49 @@ impl Reader<'_, '_> {
     }
 }
 
-/// The messages of one ROS 1 bag, in file order.
+/// The messages of one ROS 1 bag, in file order, the file streamed record by record.
 pub(crate) fn messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Result<(), IoError> {
-    let buf = std::fs::read(file).map_err(|e| IoError::io(file, e))?;
-    if !buf.starts_with(MAGIC) {
-        let line = String::from_utf8_lossy(&buf[..buf.len().min(16)])
+    use std::io::Read as _;
+    let io = |e| IoError::io(file, e);
+    let fd = std::fs::File::open(file).map_err(io)?;
+    let len = fd.metadata().map_err(io)?.len();
+    let mut r = std::io::BufReader::new(fd);
+    let mut head = Vec::with_capacity(MAGIC.len());
+    (&mut r)
+        .take(MAGIC.len() as u64)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    if head != MAGIC {
+        // The first line, for the message (at most 32 bytes of it).
+        (&mut r).take(19).read_to_end(&mut head).map_err(io)?;
+        let line = String::from_utf8_lossy(&head)
             .lines()
             .next()
             .unwrap_or_default()
             .to_string();
+        let version = line
+            .strip_prefix("#ROSBAG V")
+            .or_else(|| line.strip_prefix("#ROSRECORD V"))
+            .map_or_else(String::new, |v| format!(" (format {v})"));
         return Err(IoError::invalid(
             file,
             format!(
-                "{line:?}: only ROS 1 bag format 2.0 (#ROSBAG V2.0) is read; `rosbag fix` \
-                 rewrites older bags"
+                "{line:?}{version}: only ROS 1 bag format 2.0 (#ROSBAG V2.0) is read; \
+                 `rosbag fix` rewrites older bags as format 2.0"
             ),
         ));
     }
+    let mut src = Source {
+        r,
+        pos: MAGIC.len() as u64,
+        len,
+    };
     let mut reader = Reader {
         file,
         conns: BTreeMap::new(),
         f,
     };
-    match reader.all(topics, &buf) {
+    match reader.all(topics, &mut src) {
         Ok(()) => Ok(()),
         Err(Stop::Consumer(e)) => Err(e),
         Err(Stop::Damaged(why)) => Err(topics.damaged(file, BagFormat::Ros1, why)),
@@ -399,7 +501,10 @@ mod tests {
 
     /// The messages of `bytes`, or the error.
     fn read(bytes: &[u8]) -> Result<Vec<Read>, String> {
-        let p = std::env::temp_dir().join(format!("slam-io-ros1-{}.bag", std::process::id()));
+        // One file per call: the tests of this module run in parallel.
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let p = std::env::temp_dir().join(format!("slam-io-ros1-{}-{k}.bag", std::process::id()));
         std::fs::write(&p, bytes).unwrap();
         let mut out = Vec::new();
         let mut topics = Topics::new();
@@ -515,5 +620,83 @@ mod tests {
         );
         let e = read(b"#ROSBAG V1.2\n").unwrap_err();
         assert!(e.contains("only ROS 1 bag format 2.0"), "{e}");
+    }
+
+    /// An index data record (version 1) of `count` entries after a message on `conn`,
+    /// with the data length field `stated` (the 2010 writers' may disagree with the count).
+    fn index(conn: u32, count: u32, stated: u32) -> Vec<u8> {
+        let mut r = rec(
+            &[
+                ("op", &[OP_INDEX_DATA]),
+                ("ver", &1u32.to_le_bytes()),
+                ("conn", &conn.to_le_bytes()),
+                ("count", &count.to_le_bytes()),
+            ],
+            &[],
+        );
+        r.truncate(r.len() - 4);
+        r.extend(stated.to_le_bytes());
+        for k in 0..count {
+            r.extend(k.to_le_bytes());
+            r.extend(0u32.to_le_bytes());
+            r.extend(13u32.to_le_bytes());
+        }
+        r
+    }
+
+    #[test]
+    fn index_records_are_read_by_their_entry_count_as_rosbag_does() {
+        let md5 = "90c7ef2dc6895d81024acba2ac42f369";
+        let before = [
+            conn(1, "/scan", "sensor_msgs/LaserScan", md5),
+            msg(1, 7, 0, b"abc"),
+        ];
+        // Length fields of 0, of one entry too few and of one too many, each followed by a
+        // further message that must still be read (the count decides where the record ends).
+        for stated in [0, 12, 36] {
+            let mut records = before.to_vec();
+            records.push(index(1, 2, stated));
+            records.push(msg(1, 8, 0, b"de"));
+            let m = read(&bag(&records)).unwrap();
+            assert_eq!(m.len(), 2, "stated {stated}");
+            assert_eq!(m[1].3, b"de".to_vec());
+        }
+        // A count beyond the file is damage, not an allocation.
+        let mut records = before.to_vec();
+        records.push(index(1, 2, 24)[..40].to_vec());
+        let mut b = bag(&records);
+        let n = b.len();
+        b[n - 4..].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = read(&b).unwrap_err();
+        assert!(e.contains("truncated or corrupt ROS 1 bag"), "{e}");
+    }
+
+    #[test]
+    fn old_formats_are_refused_by_their_version() {
+        let e = read(b"#ROSRECORD V1.2\nrest").unwrap_err();
+        assert!(
+            e.contains("\"#ROSRECORD V1.2\" (format 1.2): only ROS 1 bag format 2.0"),
+            "{e}"
+        );
+        let e = read(b"#ROSBAG V1.3\n").unwrap_err();
+        assert!(e.contains("(format 1.3)"), "{e}");
+    }
+
+    #[test]
+    fn lengths_beyond_the_file_or_the_cap_are_errors_before_allocating() {
+        // A message whose data length claims 4 GiB in a file of a few dozen bytes.
+        let mut m = msg(1, 7, 0, b"abc");
+        let n = m.len();
+        m[n - 7..n - 3].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = read(&bag(&[conn(1, "/x", "std_msgs/String", "*"), m])).unwrap_err();
+        assert!(
+            e.contains("a record's data of 4294967295 byte(s), only 3 byte(s) left in the file"),
+            "{e}"
+        );
+        // A header length beyond the file.
+        let mut b = bag(&[]);
+        b.extend(u32::MAX.to_le_bytes());
+        let e = read(&b).unwrap_err();
+        assert!(e.contains("a record header of 4294967295 byte(s)"), "{e}");
     }
 }

@@ -9,6 +9,7 @@
 //! seconds then `uint32` nanoseconds; `std_msgs/Header` starts with a `uint32 seq` that
 //! ROS 2 dropped.
 
+use crate::bounds::MAX_BEAMS;
 use std::fmt;
 
 /// Why a message did not decode: the byte offset in the message body where decoding stopped
@@ -72,9 +73,15 @@ pub(crate) trait Wire {
         Ok(n)
     }
 
-    /// A `float32[]` sequence, widened to `f64`.
+    /// A `float32[]` sequence of a laser scan's beams, widened to `f64`: at most
+    /// [`MAX_BEAMS`] elements (the cap of every reader), checked before allocating.
     fn seq_f32(&mut self, what: &str) -> Result<Vec<f64>, DecodeError> {
         let n = self.count(what, 4)?;
+        if n > MAX_BEAMS {
+            return Err(self.err(format!(
+                "{what}: {n} beams, expected at most {MAX_BEAMS} per scan"
+            )));
+        }
         let mut v = Vec::with_capacity(n);
         for _ in 0..n {
             v.push(self.f32(what)?);

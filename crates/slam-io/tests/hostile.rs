@@ -1,0 +1,393 @@
+//! What a recording can do to the process (issue 32): hostile bags generated at test time,
+//! none stored, each with the verdict it must get — a clear error naming the file and what
+//! was expected, or the correct result; never a panic, an abort or an allocation the bytes
+//! present do not justify.
+//!
+//! The MCAP files are written by the `mcap` crate's writer (Foxglove's reference
+//! implementation) or, where the writer would refuse the lie, assembled record by record
+//! from the MCAP specification (mcap.dev/spec); the CDR bodies are written here from the
+//! ROS 2 message definitions (little-endian CDR, alignment from the body's start).
+
+use slam_io::bounds::{MAX_BEAMS, MAX_RECORD_BYTES};
+use slam_io::rosbag::{describe_bag, read_rosbag, BagOptions};
+use slam_io::Pose2;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("slam-io-hostile-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A little-endian CDR body (encapsulation header `00 01 00 00`).
+struct Cdr(Vec<u8>);
+
+impl Cdr {
+    fn new() -> Self {
+        Cdr(vec![0, 1, 0, 0])
+    }
+    fn align(&mut self, n: usize) {
+        while (self.0.len() - 4) % n != 0 {
+            self.0.push(0);
+        }
+    }
+    fn u32(&mut self, v: u32) -> &mut Self {
+        self.align(4);
+        self.0.extend(v.to_le_bytes());
+        self
+    }
+    fn f32(&mut self, v: f32) -> &mut Self {
+        self.align(4);
+        self.0.extend(v.to_le_bytes());
+        self
+    }
+    fn f64(&mut self, v: f64) -> &mut Self {
+        self.align(8);
+        self.0.extend(v.to_le_bytes());
+        self
+    }
+    fn string(&mut self, s: &str) -> &mut Self {
+        self.u32(s.len() as u32 + 1);
+        self.0.extend(s.as_bytes());
+        self.0.push(0);
+        self
+    }
+    /// `std_msgs/msg/Header`: stamp (int32 sec, uint32 nanosec) and frame_id.
+    fn header(&mut self, t: u32, frame: &str) -> &mut Self {
+        self.u32(t).u32(0).string(frame)
+    }
+    /// A pose (position x, y, z and the quaternion of yaw `th`).
+    fn pose(&mut self, x: f64, y: f64, th: f64) -> &mut Self {
+        self.f64(x).f64(y).f64(0.0);
+        self.f64(0.0)
+            .f64(0.0)
+            .f64((th / 2.0).sin())
+            .f64((th / 2.0).cos())
+    }
+}
+
+/// `sensor_msgs/msg/LaserScan` at `t` s with `n` beams of 2 m (`beams` says how many the
+/// count field claims).
+fn scan(t: u32, n: usize, claimed: u32) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.header(t, "laser")
+        .f32(-1.5)
+        .f32(1.5)
+        .f32(3.0 / n.max(2) as f32)
+        .f32(0.0)
+        .f32(0.0)
+        .f32(0.1)
+        .f32(30.0)
+        .u32(claimed);
+    for _ in 0..n {
+        c.f32(2.0);
+    }
+    c.u32(0);
+    c.0
+}
+
+/// `nav_msgs/msg/Odometry` odom → base_link at `t` s.
+fn odom(t: u32, x: f64) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.header(t, "odom").string("base_link").pose(x, 0.0, 0.0);
+    for _ in 0..78 {
+        c.f64(0.0);
+    }
+    c.0
+}
+
+/// `tf2_msgs/msg/TFMessage` of the transforms (parent, child, x, yaw).
+fn tf(t: u32, edges: &[(String, String, f64, f64)]) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.u32(edges.len() as u32);
+    for (p, ch, x, th) in edges {
+        c.header(t, p).string(ch).pose(*x, 0.0, *th);
+    }
+    c.0
+}
+
+/// An MCAP file written by the `mcap` writer: (topic, type, log time s, CDR body).
+fn mcap(name: &str, messages: &[(&str, &str, u32, Vec<u8>)]) -> PathBuf {
+    let p = temp(name);
+    let f = std::io::BufWriter::new(std::fs::File::create(&p).unwrap());
+    let mut w = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .profile("ros2")
+        .create(f)
+        .unwrap();
+    let mut channels: BTreeMap<String, u16> = BTreeMap::new();
+    for (k, (topic, ty, t, data)) in messages.iter().enumerate() {
+        let id = match channels.get(*topic) {
+            Some(id) => *id,
+            None => {
+                let s = w.add_schema(ty, "ros2msg", b"").unwrap();
+                let id = w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap();
+                channels.insert(topic.to_string(), id);
+                id
+            }
+        };
+        let ns = u64::from(*t) * 1_000_000_000;
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: k as u32,
+            log_time: ns,
+            publish_time: ns,
+        };
+        w.write_to_known_channel(&header, data).unwrap();
+    }
+    w.finish().unwrap();
+    p
+}
+
+const SCAN: &str = "sensor_msgs/msg/LaserScan";
+const ODOM: &str = "nav_msgs/msg/Odometry";
+const TF: &str = "tf2_msgs/msg/TFMessage";
+
+/// An MCAP record: opcode, `uint64` length, content.
+fn record(op: u8, content: &[u8]) -> Vec<u8> {
+    let mut r = vec![op];
+    r.extend((content.len() as u64).to_le_bytes());
+    r.extend(content);
+    r
+}
+
+/// A hand-made MCAP file: magic, header, one chunk (zstd-compressed `inner`, which claims
+/// `uncompressed_size` bytes), no footer.
+fn mcap_with_chunk(name: &str, inner: &[u8], uncompressed_size: u64) -> PathBuf {
+    let mut b = b"\x89MCAP0\r\n".to_vec();
+    let mut header = Vec::new();
+    for s in ["ros2", "hostile"] {
+        header.extend((s.len() as u32).to_le_bytes());
+        header.extend(s.as_bytes());
+    }
+    b.extend(record(0x01, &header));
+    let compressed = zstd::encode_all(inner, 3).unwrap();
+    let mut chunk = Vec::new();
+    chunk.extend(0u64.to_le_bytes());
+    chunk.extend(0u64.to_le_bytes());
+    chunk.extend(uncompressed_size.to_le_bytes());
+    chunk.extend(0u32.to_le_bytes());
+    chunk.extend(4u32.to_le_bytes());
+    chunk.extend(b"zstd");
+    chunk.extend((compressed.len() as u64).to_le_bytes());
+    chunk.extend(&compressed);
+    b.extend(record(0x06, &chunk));
+    let p = temp(name);
+    std::fs::write(&p, b).unwrap();
+    p
+}
+
+/// A chunk's first record declares 2⁴⁰ bytes (the issue's 293-byte file that aborted every
+/// command with "memory allocation of 1099511627785 bytes failed"), and a chunk that claims
+/// 3 GiB uncompressed holding a 3 GiB message: each an error naming the cap.
+#[test]
+fn chunk_records_larger_than_the_cap_are_errors_not_allocations() {
+    let mut inner = vec![0x05];
+    inner.extend((1u64 << 40).to_le_bytes());
+    inner.extend([0u8; 16]);
+    let p = mcap_with_chunk("huge-record.mcap", &inner, 1 << 40);
+    assert!(std::fs::metadata(&p).unwrap().len() < 400);
+    let e = describe_bag(&p).unwrap_err().to_string();
+    assert!(e.contains("huge-record.mcap"), "{e}");
+    assert!(e.contains("truncated or corrupt MCAP"), "{e}");
+    let three_gib = 3u64 << 30;
+    let mut inner = vec![0x05];
+    inner.extend(three_gib.to_le_bytes());
+    inner.extend(vec![0u8; 4096]);
+    let p = mcap_with_chunk("huge-message.mcap", &inner, three_gib + 9);
+    let e = read_rosbag(&p, &BagOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!("expected at most {MAX_RECORD_BYTES} bytes")),
+        "{e}"
+    );
+}
+
+/// A scan of MAX_BEAMS + 1 beams (the issue's was 10⁷ in a 55 kB file): refused by the cap
+/// every reader has, naming the topic and the message; MAX_BEAMS beams read.
+#[test]
+fn scans_beyond_the_beam_cap_are_refused_by_every_bag_reader() {
+    let bag = |n: usize| {
+        mcap(
+            &format!("beams-{n}.mcap"),
+            &[
+                ("/odom", ODOM, 1, odom(1, 0.0)),
+                ("/scan", SCAN, 1, scan(1, n, n as u32)),
+                ("/odom", ODOM, 2, odom(2, 0.1)),
+            ],
+        )
+    };
+    let o = BagOptions {
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+    let e = read_rosbag(&bag(MAX_BEAMS + 1), &o)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("topic /scan: message 1")
+            && e.contains(&format!(
+                "ranges: {} beams, expected at most {MAX_BEAMS} per scan",
+                MAX_BEAMS + 1
+            )),
+        "{e}"
+    );
+    let r = read_rosbag(&bag(MAX_BEAMS), &o).unwrap();
+    let s = r.dataset.records.iter().find_map(|r| r.scan.as_ref());
+    assert_eq!(s.map(|s| s.len()), Some(MAX_BEAMS));
+    // A count that claims 10⁷ beams in a message of a few bytes: the bytes decide.
+    let p = mcap(
+        "beams-claimed.mcap",
+        &[("/scan", SCAN, 1, scan(1, 3, 10_000_000))],
+    );
+    let e = describe_bag(&p).unwrap_err().to_string();
+    assert!(e.contains("10000000 element(s)"), "{e}");
+}
+
+/// A topic name of 64 KiB (and one of 1 MiB) made `slam info` panic ("Formatting argument
+/// out of range"): the listing shortens it.
+#[test]
+fn huge_topic_names_are_shortened_in_the_listing() {
+    for n in [1 << 16, 1 << 20] {
+        let topic = format!("/{}", "t".repeat(n));
+        let p = mcap(
+            &format!("topic-{n}.mcap"),
+            &[(topic.as_str(), "std_msgs/msg/String", 1, vec![0, 1, 0, 0])],
+        );
+        let s = describe_bag(&p).unwrap();
+        assert!(
+            s.contains(&format!("/{}…", "t".repeat(59))),
+            "{}",
+            &s[..200]
+        );
+        assert!(s.len() < 2000, "{} bytes", s.len());
+    }
+}
+
+/// Two odometry chains in /tf (odom → base_footprint and odom → base_link, beside map →
+/// odom): without a choice an error naming both and --base-frame; `base_frame` (and
+/// `odom_frame`) choose; `slam info` lists the two candidates as odometry and map → odom
+/// apart. A latched topic of two messages gets no rate.
+#[test]
+fn two_odometry_chains_in_tf_are_chosen_by_base_frame() {
+    let e = |p: &str, c: &str, x: f64| (p.to_string(), c.to_string(), x, 0.0);
+    let mut msgs = vec![(
+        "/tf_static",
+        TF,
+        1,
+        tf(
+            1,
+            &[
+                e("base_link", "laser", 0.2),
+                e("base_footprint", "laser_f", 0.0),
+            ],
+        ),
+    )];
+    for t in 1..=3 {
+        let x = f64::from(t);
+        msgs.push((
+            "/tf",
+            TF,
+            t,
+            tf(
+                t,
+                &[
+                    e("odom", "base_footprint", -x),
+                    e("odom", "base_link", x),
+                    e("map", "odom", 5.0),
+                ],
+            ),
+        ));
+        msgs.push(("/scan", SCAN, t, scan(t, 5, 5)));
+    }
+    msgs.push(("/tf_static", TF, 3, tf(3, &[e("base_link", "laser", 0.2)])));
+    let p = mcap("two-chains.mcap", &msgs);
+    let err = read_rosbag(&p, &BagOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(
+            "2 transforms odom → * could be the odometry (odom → base_footprint; odom → base_link)"
+        ) && err.contains("--base-frame"),
+        "{err}"
+    );
+    let o = BagOptions {
+        base_frame: Some("base_link".into()),
+        ..Default::default()
+    };
+    let r = read_rosbag(&p, &o).unwrap();
+    assert_eq!(r.base_frame, "base_link");
+    assert_eq!(r.laser_pose.0, Pose2::new(0.2, 0.0, 0.0));
+    let xs: Vec<f64> = r.dataset.records.iter().map(|r| r.odometry.x).collect();
+    assert_eq!(xs, [1.0, 2.0, 3.0]);
+    let o = BagOptions {
+        odom_frame: Some("map".into()),
+        ..Default::default()
+    };
+    let err = read_rosbag(&p, &o).unwrap_err().to_string();
+    // map → odom is the chain named, and the laser frame is not below odom.
+    assert!(
+        err.contains("no static transform chain from the base frame \"odom\""),
+        "{err}"
+    );
+    let info = describe_bag(&p).unwrap();
+    assert!(
+        info.contains(
+            "odometry: /tf, one of odom → base_footprint; odom → base_link (choose with --base-frame)"
+        ),
+        "{info}"
+    );
+    assert!(
+        info.contains("/tf, not odometry: 1 edge(s): map → odom (3)"),
+        "{info}"
+    );
+    let latched = info.lines().find(|l| l.contains("/tf_static ")).unwrap();
+    assert!(latched.trim_end().ends_with(" -"), "{latched}");
+}
+
+/// A /tf_static chain of 100,001 frames (18–41 s before, quadratic): the laser's mounting
+/// is the composition of every edge, read in one pass; `slam info` folds the listing.
+#[test]
+fn a_static_chain_of_100001_frames_is_composed_and_folded() {
+    const N: usize = 100_001;
+    let mut edges = Vec::with_capacity(N);
+    let name = |k: usize| {
+        if k == 0 {
+            "base_link".to_string()
+        } else if k == N {
+            "laser".to_string()
+        } else {
+            format!("f{k}")
+        }
+    };
+    for k in 0..N {
+        edges.push((name(k), name(k + 1), 1e-3, 0.0));
+    }
+    let p = mcap(
+        "long-chain.mcap",
+        &[
+            ("/tf_static", TF, 1, tf(1, &edges)),
+            ("/odom", ODOM, 1, odom(1, 0.0)),
+            ("/scan", SCAN, 1, scan(1, 5, 5)),
+            ("/odom", ODOM, 2, odom(2, 0.1)),
+        ],
+    );
+    let r = read_rosbag(&p, &BagOptions::default()).unwrap();
+    assert_eq!(r.laser_pose.1, "/tf_static");
+    // 100,001 steps of 1 mm along x.
+    assert!(
+        (r.laser_pose.0.x - 100.001).abs() < 1e-6,
+        "{:?}",
+        r.laser_pose
+    );
+    let info = describe_bag(&p).unwrap();
+    let statics = info.lines().last().unwrap();
+    assert!(
+        statics.starts_with("/tf_static: 100001 edge(s): ")
+            && statics.ends_with("; … and 99995 more"),
+        "{}",
+        &statics[..200.min(statics.len())]
+    );
+}
