@@ -4,12 +4,11 @@
 //! Built when the filter is made and again when the first scan fixes the values the
 //! configuration left open; nothing of it is rebuilt per update.
 
-use crate::config::{GridFastConfig, Proposal, StartChoice};
+use crate::config::{GridFastConfig, Proposal, ResamplingConfig, StartChoice};
 use crate::error::GridFastError;
 use slam_grid::matcher::endpoint::{EndpointModel, HillClimbSteps, SearchWindow};
 use slam_grid::{InverseSensorModel, OccupancyGrid};
 use slam_models::motion::OdometryModel;
-use slam_models::particle::Resampler;
 use slam_models::{Matrix3, Vector3};
 
 /// A search window, ± range and step in x/y (metres) and θ (radians): the coarse search's
@@ -92,12 +91,11 @@ pub(crate) struct Setup {
     /// `proposal.corrected-odometry-noise-scale`.
     pub corrected_odometry_noise_scale: f64,
     /// `motion.odometry`.
-    pub motion: OdometryModel,
+    pub odometry: OdometryModel,
     /// `motion.min-std` squared: the variances (m², m², rad²) added to the motion covariance.
     pub min_var: Vector3,
-    /// `resampling.threshold`, `resampling.scheme`.
-    pub resample_threshold: f64,
-    pub resampler: Resampler,
+    /// `resampling` (`threshold`, `scheme`).
+    pub resampling: ResamplingConfig,
 }
 
 /// An `Option` the effective configuration has set (NaN otherwise, which the filter never
@@ -169,10 +167,9 @@ impl Setup {
                 p.sample_range_theta,
             ),
             corrected_odometry_noise_scale: p.corrected_odometry_noise_scale,
-            motion: config.motion.odometry,
+            odometry: config.motion.odometry,
             min_var: Vector3::new(min_std[0].powi(2), min_std[0].powi(2), min_std[1].powi(2)),
-            resample_threshold: config.resampling.threshold,
-            resampler: config.resampling.scheme,
+            resampling: config.resampling,
         })
     }
 

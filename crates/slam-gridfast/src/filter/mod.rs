@@ -46,7 +46,7 @@ struct Particle {
 /// ([`GridFastConfig::scan_update_fraction`]: motion the odometry missed); the first scan
 /// is always used. An update
 /// draws every particle's pose from the configured [`crate::Proposal`], updates the weights,
-/// resamples when N_eff < `resample_threshold`·M, and integrates the scan into every
+/// resamples when N_eff < `resampling.threshold`·M, and integrates the scan into every
 /// surviving particle's map. Between updates a pose is the last corrected pose ⊕ the
 /// odometry increment since; a record with both the time stamp and the odometry of the
 /// next processed scan is that scan's instant and takes its corrected pose (GMapping's

@@ -64,11 +64,11 @@ impl GridFastSlam {
     ) -> Result<ScanUpdateInfo, GridFastError> {
         let r_prev = self.scan_records[k - 1];
         let odo_now = *self.odometry.last().unwrap_or(&Pose2::IDENTITY);
-        let u = (self.setup.motion).control_from_poses(&self.odometry[r_prev], &odo_now);
+        let u = (self.setup.odometry).control_from_poses(&self.odometry[r_prev], &odo_now);
         let (shared, drawn) = self.match_and_draw(k, &prepared, u)?;
         let w = self.reweigh(k, &drawn, shared.failures)?;
         let m = self.particles.len();
-        let resample = w.n_eff < self.setup.resample_threshold * m as f64;
+        let resample = w.n_eff < self.setup.resampling.threshold * m as f64;
         let regrouped = self.resample_into_groups(k, &w, resample)?;
         self.queue_integration(k, prepared, regrouped)?;
         self.n_eff = w.n_eff;
@@ -179,7 +179,7 @@ impl GridFastSlam {
             let weights: Vec<f64> = w.log_w.iter().map(|l| l.exp()).collect();
             let mut rng = stream(self.seed, k, u64::MAX);
             Some(
-                (self.setup.resampler)
+                (self.setup.resampling.scheme)
                     .resample(&weights, &mut rng)
                     .map_err(|e| GridFastError::Numerical {
                         scan: k,
@@ -290,7 +290,7 @@ fn shared_match(
     u: OdometryControl,
     m: usize,
 ) -> Shared {
-    let motion = setup.motion;
+    let motion = setup.odometry;
     let mut shared = Shared {
         correction: Pose2::IDENTITY,
         u,

@@ -167,7 +167,7 @@ impl Fitted {
             }
             Fitted::Failed => {
                 let mut d =
-                    motion_and_likelihood(pose, field, step, &step.setup.motion, &step.u, rng);
+                    motion_and_likelihood(pose, field, step, &step.setup.odometry, &step.u, rng);
                 d.match_failed = true;
                 d
             }
@@ -185,9 +185,9 @@ pub(crate) fn improved_fit(
     step: &Step<'_>,
 ) -> Fitted {
     let setup = step.setup;
-    let predicted = setup.motion.predict(pose, &step.u);
+    let predicted = setup.odometry.predict(pose, &step.u);
     let covariance =
-        setup.motion.noise_covariance(pose, &step.u) + Matrix3::from_diagonal(&setup.min_var);
+        setup.odometry.noise_covariance(pose, &step.u) + Matrix3::from_diagonal(&setup.min_var);
     let m = climb(field, step, &predicted, &covariance);
     let (m, covariance, recovered) = match setup.recovery {
         Some(rc) => match recover(map, field, step, &rc, &predicted, &covariance, &m) {

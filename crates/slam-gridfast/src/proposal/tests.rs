@@ -34,7 +34,7 @@ fn the_gain_tempers_the_weight_not_the_proposal() {
             c.matching.recovery.trigger_fraction = 0.0;
         });
         assert_eq!((setup.likelihood.radius, setup.capture.radius), (0.15, 0.2));
-        assert_eq!(setup.motion, motion);
+        assert_eq!(setup.odometry, motion);
         let step = Step {
             setup: &setup,
             scan: &scan,
@@ -174,7 +174,7 @@ fn indoor_draw(
     let step = Step {
         setup,
         scan,
-        u: setup.motion.control_from_poses(&previous, &to),
+        u: setup.odometry.control_from_poses(&previous, &to),
         correction,
     };
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
