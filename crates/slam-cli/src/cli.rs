@@ -87,7 +87,7 @@ pub struct OptimizeArgs {
 #[derive(Debug, Clone, Args)]
 #[command(group(ArgGroup::new("input").required(true).args(["sim", "dataset"])))]
 pub struct RunArgs {
-    /// Filter to run (see `slam list`): ekf, fastslam1, fastslam2, graph, scanmatch, gridfast.
+    /// Filter to run (see `slam list`): ekf, fastslam1, fastslam2, graph, scanmatch, known-poses, gridfast.
     #[arg(long, value_name = "NAME", value_parser = filter_names())]
     pub filter: String,
 

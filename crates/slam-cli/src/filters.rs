@@ -270,6 +270,9 @@ mod tests {
                 "scanmatch" => {
                     example_is_complete_and_default::<slam_grid::ScanMatchConfig>(f.name, |_| ())
                 }
+                "known-poses" => {
+                    example_is_complete_and_default::<slam_grid::KnownPoseConfig>(f.name, |_| ())
+                }
                 "ekf" => example_is_complete_and_default::<slam_ekf::EkfConfig>(f.name, |_| ()),
                 // `graph` on landmark data; configs/graph.toml is `slam optimize`'s.
                 "graph" if f.kind == DataKind::Landmark => example_is_complete_and_default::<

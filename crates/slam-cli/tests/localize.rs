@@ -53,18 +53,25 @@ fn map_then_localize(site: &str) -> Option<slam_cli::localize::LocalizeReport> {
     Some(*report)
 }
 
-/// Intel (issue 35's figures): converged (spread < 0.5 m for good) within the first 30 m
-/// travelled, then ATE ≤ 0.10 m without alignment against GMapping's reference. Measured
-/// (seed 0): converged after 0.7 m, ATE 0.063 m (max 0.29 m), 500–5000 particles.
+/// Localizes `site` and checks issue 35's figures: converged (spread < 0.5 m for good)
+/// within the first 30 m travelled, then ATE ≤ 0.10 m without alignment against GMapping's
+/// reference. Returns the report (`None` when the data is missing outside CI).
+fn assert_localized(site: &str) -> Option<slam_cli::localize::LocalizeReport> {
+    let r = map_then_localize(site)?;
+    let conv = r.converged_after.expect("converged");
+    assert!(conv <= 30.0, "{site}: converged after {conv} m");
+    let ate = r.ate_rmse_converged.unwrap();
+    assert!(ate <= 0.10, "{site}: ATE {ate} m");
+    Some(r)
+}
+
+/// Intel. Measured (seed 0): converged after 0.7 m, ATE 0.063 m (max 0.29 m), 500–5000
+/// particles.
 #[test]
 fn intel_is_localized_globally_on_its_known_pose_map() {
-    let Some(r) = map_then_localize("intel") else {
+    let Some(r) = assert_localized("intel") else {
         return;
     };
-    let conv = r.converged_after.expect("converged");
-    assert!(conv <= 30.0, "converged after {conv} m");
-    let ate = r.ate_rmse_converged.unwrap();
-    assert!(ate <= 0.10, "ATE {ate} m");
     assert_eq!(r.records, 14610);
     assert!(
         r.particles_max > r.particles_min,
@@ -72,16 +79,10 @@ fn intel_is_localized_globally_on_its_known_pose_map() {
     );
 }
 
-/// FR101: measured (seed 0) converged after 0.1 m, ATE 0.058 m.
+/// FR101. Measured (seed 0): converged after 0.1 m, ATE 0.058 m.
 #[test]
 fn freiburg_101_is_localized_globally_on_its_known_pose_map() {
-    let Some(r) = map_then_localize("freiburg-101") else {
-        return;
-    };
-    let conv = r.converged_after.expect("converged");
-    assert!(conv <= 30.0, "converged after {conv} m");
-    let ate = r.ate_rmse_converged.unwrap();
-    assert!(ate <= 0.10, "ATE {ate} m");
+    assert_localized("freiburg-101");
 }
 
 /// A bad start and a missing start are refused with clear errors, not panics.
