@@ -21,7 +21,7 @@ use crate::metrics_json::{finite, peak_rss_mb, Metrics};
 use slam_io::estimates_csv::PoseEstimateRow;
 use slam_io::relations::Relation;
 use slam_models::{
-    FilterError, GridMap, LandmarkDataset, LandmarkEstimate, LandmarkSlam, LandmarkStep, Pose2,
+    FilterError, GridMap, LandmarkDataset, LandmarkEstimate, LandmarkSlam, LandmarkStep,
     ScanDataset, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose, UpdateInfo,
 };
 use std::time::{Duration, Instant};
@@ -403,28 +403,7 @@ pub fn run_scans_observed(
     let mut observed = Duration::ZERO;
     let filter_name = filter.name().to_string();
     let start = Instant::now();
-    // One frame for every laser filter (docs/evaluation.md, "Frames"): the odometry is
-    // re-expressed relative to the first record's, o'_k = o_0⁻¹ ⊕ o_k, so every filter
-    // starts at the identity whatever the recording's odometry origin. The increments
-    // o'_{k-1}⁻¹ ⊕ o'_k are those of the recording; a recording that starts at the identity
-    // (every bench log) is fed unchanged.
-    let origin = records
-        .first()
-        .map(|r| r.odometry)
-        .filter(|o| *o != Pose2::IDENTITY)
-        .map(|o| o.inverse());
     for (k, record) in records.iter().enumerate() {
-        let moved;
-        let record = match origin {
-            Some(o) => {
-                moved = ScanRecord {
-                    odometry: o.compose(&record.odometry),
-                    ..record.clone()
-                };
-                &moved
-            }
-            None => record,
-        };
         let info = filter.process(record).map_err(|source| RunError::Step {
             filter: filter_name.clone(),
             step: k,

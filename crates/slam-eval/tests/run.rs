@@ -440,69 +440,12 @@ fn the_run_functions_give_the_hand_loops_trajectory() {
             .build_scan(9)
             .unwrap()
     };
-    // The run feeds the odometry re-expressed from its first pose (docs/evaluation.md,
-    // "Frames"; the office's starts at (20, 6)): the hand loop does the same.
     let mut by_hand = build();
-    let o0 = sim.dataset.records[0].odometry.inverse();
-    assert!(o0 != Pose2::IDENTITY);
     for r in &sim.dataset.records {
-        let mut r = r.clone();
-        r.odometry = o0.compose(&r.odometry);
-        by_hand.process(&r).unwrap();
+        by_hand.process(r).unwrap();
     }
     let mut by_run = build();
     let run = run_scans(by_run.as_mut(), &sim.dataset, &RunOptions::default()).unwrap();
     assert_eq!(by_hand.trajectory(), run.trajectory);
     assert_eq!(by_hand.map(), run.map);
-}
-
-/// One frame for every laser filter (docs/evaluation.md, "Frames"): on a recording whose
-/// odometry starts 21 m from the origin and turned by 1 rad (the simulated office's
-/// odometry moved rigidly), scanmatch, gridfast and graph all start at the identity and
-/// give the trajectory they give on the recording starting at the origin (the same
-/// increments; issue 32 found gridfast and graph 20 m from scanmatch).
-#[test]
-fn every_laser_filter_starts_at_the_identity_wherever_the_odometry_starts() {
-    let opts = ScenarioOptions {
-        steps: Some(30),
-        ..Default::default()
-    };
-    let SimOutput::Laser(sim) = generate("office", &opts).unwrap() else {
-        panic!("office is a laser scenario")
-    };
-    let start = sim.dataset.records[0].odometry;
-    let mut at_origin = sim.dataset.clone();
-    let mut away = sim.dataset.clone();
-    let shift = Pose2::new(20.0, -7.0, 1.0);
-    for (o, a) in at_origin.records.iter_mut().zip(&mut away.records) {
-        o.odometry = start.inverse().compose(&o.odometry);
-        a.odometry = shift.compose(&o.odometry);
-    }
-    assert!(away.records[0].odometry.x.hypot(away.records[0].odometry.y) > 20.0);
-    for name in ["scanmatch", "gridfast", "graph"] {
-        let run = |data: &slam_models::ScanDataset| {
-            let mut f = FilterConfig::default_for_kind(name, DataKind::Laser)
-                .unwrap()
-                .build_scan(3)
-                .unwrap();
-            run_scans(f.as_mut(), data, &RunOptions::default())
-                .unwrap()
-                .trajectory
-        };
-        let (a, b) = (run(&at_origin), run(&away));
-        assert!(
-            b[0].pose.approx_eq(&Pose2::IDENTITY, 1e-9),
-            "{name} starts at {:?}",
-            b[0].pose
-        );
-        for (p, q) in a.iter().zip(&b) {
-            assert!(
-                p.pose.approx_eq(&q.pose, 1e-6),
-                "{name} at t = {}: {:?} from the origin, {:?} from 21 m away",
-                p.t,
-                p.pose,
-                q.pose
-            );
-        }
-    }
 }
