@@ -230,7 +230,7 @@ fn a_bag_folder_runs_and_info_describes_it() {
         "/tf         tf2_msgs/msg/TFMessage     cdr           3616",
         "180 beams from -90.00° to 89.00° by 1.000°, range 0 … 81.83 m",
         "odometry: /tf odom → base_link (3616 transforms)",
-        "/tf_static: base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)",
+        "/tf_static: 1 edge(s): base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)",
     ] {
         assert!(text.contains(want), "{want:?} missing from\n{text}");
     }
@@ -266,7 +266,7 @@ fn info_describes_sqlite_and_ros1_bags() {
             format!("/tf         {tf}     {enc}"),
             "180 beams from -90.00° to 89.00° by 1.000°, range 0 … 81.83 m".into(),
             "odometry: /tf odom → base_link (3616 transforms)".into(),
-            "/tf_static: base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)".into(),
+            "/tf_static: 1 edge(s): base_link → laser at (0.1200 m, -0.0300 m, 0.0500 rad)".into(),
         ] {
             assert!(text.contains(&want), "{want:?} missing from\n{text}");
         }
