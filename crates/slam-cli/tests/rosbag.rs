@@ -337,8 +337,6 @@ fn bag_mistakes_are_one_line_errors() {
         ("bad-two-scans.mcap", &two[..]),
         ("bad-two-scans.db3", &two[..]),
         ("bad-two-scans.bag", &two[..]),
-        ("bad-no-odom.mcap", &["no odometry"][..]),
-        ("bad-no-odom.bag", &["no odometry"][..]),
     ] {
         let (code, err) = run(&[
             "run",

@@ -18,9 +18,11 @@
 //!    the prediction by branch and bound over a coarse-to-fine pyramid
 //!    ([`crate::matcher::endpoint::wide_search`]), then the hill climber. The window is
 //!    `matcher.matching`'s (wide by default here: ±0.5 m, ±0.35 rad); with a rotation prior
-//!    its rotation range is `prior_range_theta`. A match with too few inliers is retried in
-//!    the recovery window (±`recovery_range_xy`, ±`recovery_range_theta`); if that fails
-//!    too the prediction is kept and the scan counted as failed.
+//!    its rotation range is `prior_range_theta`; a weak Gaussian prior around the prediction
+//!    breaks near-ties. A match with too few inliers (25 % of the end points) is retried in
+//!    the recovery window (±`recovery_range_xy`, ±`recovery_range_theta`), accepted with
+//!    60 % inliers; if that fails too the prediction is kept, the scan counted as failed,
+//!    and the next prediction is zero motion.
 //! 3. **Map update**: the scan is written into the map at its pose when the robot moved
 //!    `matcher.linear_update` or turned `matcher.angular_update` since the last written
 //!    scan (Hector's map update thresholds); the first scan is always written.
@@ -67,6 +69,10 @@ pub struct LaserOdometryConfig {
     /// With a rotation prior, the first search's ± θ range around it, radians. Default
     /// 0.1 rad.
     pub prior_range_theta: f64,
+    /// A recovery match is accepted only when this fraction of the end points fit the map
+    /// (within `matcher.matching.likelihood-radius`), in [0, 1]: a wide window finds a
+    /// wrong pose more easily. Default 0.6 (grid FastSLAM's wide matches).
+    pub recovery_min_inlier_fraction: f64,
 }
 
 impl Default for LaserOdometryConfig {
@@ -76,6 +82,10 @@ impl Default for LaserOdometryConfig {
                 matching: EndpointMatchingConfig {
                     search_range_xy: 0.5,
                     search_range_theta: 0.35,
+                    // A weak pull to the prediction: it decides only between near-equal
+                    // fits (a corridor's length), not against the scan.
+                    search_prior_std: [0.5, 0.3],
+                    min_inlier_fraction: 0.25,
                     ..EndpointMatchingConfig::default()
                 },
                 ..ScanMatchConfig::default()
@@ -84,6 +94,7 @@ impl Default for LaserOdometryConfig {
             recovery_range_xy: 1.2,
             recovery_range_theta: 0.7,
             prior_range_theta: 0.1,
+            recovery_min_inlier_fraction: 0.4,
         }
     }
 }
@@ -138,6 +149,12 @@ impl LaserOdometry {
             "in [0, π] rad and at most 1000 search steps",
         )?;
         ensure_config(
+            (0.0..=1.0).contains(&config.recovery_min_inlier_fraction),
+            "recovery-min-inlier-fraction",
+            config.recovery_min_inlier_fraction,
+            "in [0, 1]",
+        )?;
+        ensure_config(
             (0.0..=std::f64::consts::PI).contains(&config.prior_range_theta),
             "prior-range-theta",
             config.prior_range_theta,
@@ -184,7 +201,14 @@ impl LaserOdometry {
             return Ok((Pose2::IDENTITY, MatchOutcome::First));
         };
         let mut increment = match self.config.prediction {
-            MotionPrediction::ConstantVelocity => velocity,
+            // No more than the recovery window per scan: a larger step could not have been
+            // matched, and a wrong one must not grow from scan to scan.
+            MotionPrediction::ConstantVelocity => {
+                let reach = self.config.recovery_range_xy;
+                let d = velocity.x.hypot(velocity.y);
+                let k = if d > reach { reach / d } else { 1.0 };
+                Pose2::new(k * velocity.x, k * velocity.y, velocity.theta)
+            }
             MotionPrediction::ZeroMotion => Pose2::IDENTITY,
         };
         let configured = self.matcher.window();
@@ -196,33 +220,29 @@ impl LaserOdometry {
             }
         }
         let predicted = last.compose(&increment);
-        let (pose, outcome) =
-            match self
-                .matcher
-                .match_scan_in(&prepared, &predicted, window.as_ref())?
-            {
-                Some(pose) => (pose, MatchOutcome::Matched),
-                None => {
-                    let wide = configured.map(|w| SearchWindow {
-                        range_xy: self.config.recovery_range_xy,
-                        range_theta: self.config.recovery_range_theta,
-                        ..w
-                    });
-                    match self
-                        .matcher
-                        .match_scan_in(&prepared, &predicted, wide.as_ref())?
-                    {
-                        Some(pose) => {
-                            self.recoveries += 1;
-                            (pose, MatchOutcome::Recovered)
-                        }
-                        None => {
-                            self.failures += 1;
-                            (predicted, MatchOutcome::Failed)
-                        }
+        let m = self.config.matcher.matching.min_inlier_fraction;
+        let (pose, outcome) = match self.search(&prepared, &predicted, window.as_ref(), m) {
+            Ok(Some(pose)) => (pose, MatchOutcome::Matched),
+            Ok(None) => {
+                let wide = configured.map(|w| SearchWindow {
+                    range_xy: self.config.recovery_range_xy,
+                    range_theta: self.config.recovery_range_theta,
+                    ..w
+                });
+                let needed = self.config.recovery_min_inlier_fraction;
+                match self.search(&prepared, &predicted, wide.as_ref(), needed)? {
+                    Some(pose) => {
+                        self.recoveries += 1;
+                        (pose, MatchOutcome::Recovered)
+                    }
+                    None => {
+                        self.failures += 1;
+                        (predicted, MatchOutcome::Failed)
                     }
                 }
-            };
+            }
+            Err(e) => return Err(e),
+        };
         let c = self.matcher.config();
         if self.written.distance(&pose) >= c.linear_update
             || normalize_angle(pose.theta - self.written.theta).abs() >= c.angular_update
@@ -230,8 +250,30 @@ impl LaserOdometry {
             self.matcher.integrate(&pose, &prepared)?;
             self.written = pose;
         }
-        self.last = Some((pose, last.between(&pose)));
+        // After a failed match the motion is unknown: predict none next time rather than
+        // repeat a guess (a constant velocity kept through failures runs away).
+        let velocity = if outcome == MatchOutcome::Failed {
+            Pose2::IDENTITY
+        } else {
+            last.between(&pose)
+        };
+        self.last = Some((pose, velocity));
         Ok((pose, outcome))
+    }
+}
+
+impl LaserOdometry {
+    /// One search of the map around `predicted` over `window`, accepted with
+    /// `min_inlier_fraction` of the end points on the map.
+    fn search(
+        &self,
+        scan: &PreparedScan,
+        predicted: &Pose2,
+        window: Option<&SearchWindow>,
+        min_inlier_fraction: f64,
+    ) -> Result<Option<Pose2>, GridError> {
+        self.matcher
+            .match_scan_in(scan, predicted, window, min_inlier_fraction)
     }
 }
 

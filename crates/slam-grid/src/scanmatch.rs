@@ -372,16 +372,23 @@ impl ScanMatchOdometry {
         scan: &PreparedScan,
         predicted: &Pose2,
     ) -> Result<Option<Pose2>, GridError> {
-        self.match_scan_in(scan, predicted, self.matching.window.as_ref())
+        self.match_scan_in(
+            scan,
+            predicted,
+            self.matching.window.as_ref(),
+            self.matching.min_inlier_fraction,
+        )
     }
 
     /// [`Self::match_scan`] with the window search over `window` (none: the climb alone)
-    /// instead of the configured one (laser odometry's recovery search).
+    /// and the inlier fraction `min_inlier_fraction` instead of the configured ones (laser
+    /// odometry's searches).
     pub(crate) fn match_scan_in(
         &self,
         scan: &PreparedScan,
         predicted: &Pose2,
         window: Option<&SearchWindow>,
+        min_inlier_fraction: f64,
     ) -> Result<Option<Pose2>, GridError> {
         let m = &self.matching;
         let reach = window.map_or(0.0, |w| w.range_xy)
@@ -413,7 +420,7 @@ impl ScanMatchOdometry {
             None => *predicted,
         };
         let matched = hill_climb(&field, scan, &start, &m.capture, &m.lk, &m.hc);
-        let needed = ((m.min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
+        let needed = ((min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
         Ok((matched.score.inliers >= needed).then_some(matched.pose))
     }
 

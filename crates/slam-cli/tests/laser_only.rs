@@ -1,0 +1,185 @@
+//! Laser-only mapping (issue 32): recordings without odometry, and `--odometry none`, through
+//! `slam info` and every laser filter. The bags are slam-io's fixtures written by the Python
+//! `rosbags` package (make_laser_only_fixtures.py) from the first 200 scans of the real Intel
+//! log: `/scan` only, and `/scan` + `/imu` (its yaw rate derived from the log's odometry,
+//! with noise) in MCAP and in a ROS 1 bag.
+
+mod common;
+use common::{dataset, scratch, slam};
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../slam-io/tests/fixtures/rosbag")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+/// TUM lines → time in µs → (x, y, yaw), the last line of each time.
+fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut m = BTreeMap::new();
+    for l in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        let v: Vec<f64> = l.split_whitespace().map(|f| f.parse().unwrap()).collect();
+        m.insert(
+            (v[0] * 1e6).round() as i64,
+            (v[1], v[2], 2.0 * v[6].atan2(v[7])),
+        );
+    }
+    m
+}
+
+/// The reference (GMapping's trajectory, `bench/intel.ref.tum`) at the fixtures' scan
+/// times, in the frame of the first scan: the truth the laser-only runs are scored by.
+fn reference_at(times: &[i64]) -> Option<Vec<(f64, f64)>> {
+    let reference = tum(&dataset("bench/intel.ref.tum")?);
+    let at = |t: i64| {
+        reference
+            .range(t - 6000..=t + 6000)
+            .next()
+            .map(|(_, p)| *p)
+            .unwrap()
+    };
+    let (x0, y0, th0) = at(times[0]);
+    Some(
+        times
+            .iter()
+            .map(|&t| {
+                let (x, y, _) = at(t);
+                let (dx, dy) = (x - x0, y - y0);
+                (
+                    th0.cos() * dx + th0.sin() * dy,
+                    -th0.sin() * dx + th0.cos() * dy,
+                )
+            })
+            .collect(),
+    )
+}
+
+/// Runs `filter` on `bag` with `extra` options; the trajectory and the printed text.
+fn run(filter: &str, bag: &str, extra: &[&str]) -> (BTreeMap<i64, (f64, f64, f64)>, String) {
+    let out = scratch(&format!("{filter}-{}", bag.replace('.', "-")));
+    let o = out.join("out");
+    let args = [
+        &["run", "--filter", filter, "--dataset", &fixture(bag)][..],
+        extra,
+        &["--quiet", "--out", o.to_str().unwrap()],
+    ]
+    .concat();
+    let (r, text) = slam(&args);
+    r.unwrap_or_else(|e| panic!("{filter} on {bag}: {e}"));
+    (tum(&o.join("trajectory.tum")), text)
+}
+
+/// Every laser filter maps the laser-only bag: the input line says there is no odometry and
+/// that laser odometry made it; one pose per scan; and the path follows GMapping's over the
+/// 200 scans (717 s, about 60 m of travel) within 0.5 m RMS, in the frame of the first scan
+/// (odometry alone would be needed otherwise: it is not in the bag).
+#[test]
+fn every_laser_filter_maps_a_bag_without_odometry() {
+    for filter in ["scanmatch", "graph", "gridfast"] {
+        let extra: &[&str] = if filter == "gridfast" {
+            &["--particles", "5"]
+        } else {
+            &[]
+        };
+        let (traj, text) = run(filter, "intel-laser-only.mcap", extra);
+        assert!(
+            text.contains("no odometry")
+                && text.contains("odometry: none in the recording — laser odometry"),
+            "{text}"
+        );
+        assert_eq!(traj.len(), 200, "{filter}");
+        let times: Vec<i64> = traj.keys().copied().collect();
+        let Some(reference) = reference_at(&times) else {
+            continue;
+        };
+        let sq: f64 = traj
+            .values()
+            .zip(&reference)
+            .map(|(e, r)| (e.0 - r.0).powi(2) + (e.1 - r.1).powi(2))
+            .sum();
+        let rms = (sq / 200.0).sqrt();
+        assert!(rms < 0.5, "{filter}: {rms} m RMS from the reference");
+    }
+}
+
+/// `--imu-topic /imu` uses the IMU's yaw rate as the rotation prior (said on the input line)
+/// and reads the same from MCAP and from the ROS 1 bag: the same trajectory bit for bit.
+#[test]
+fn the_imu_yaw_rate_is_the_rotation_prior_in_mcap_and_ros1() {
+    let (a, text) = run(
+        "scanmatch",
+        "intel-laser-imu.mcap",
+        &["--imu-topic", "/imu"],
+    );
+    assert!(
+        text.contains("the IMU's yaw rate as rotation prior on 199 scans"),
+        "{text}"
+    );
+    let (b, _) = run("scanmatch", "intel-laser-imu.bag", &["--imu-topic", "/imu"]);
+    assert_eq!(a, b);
+    let (c, text) = run("scanmatch", "intel-laser-imu.mcap", &[]);
+    assert!(!text.contains("rotation prior"), "{text}");
+    assert_ne!(a, c);
+}
+
+/// `slam info` on the laser-only bags: no odometry (laser odometry will make it), and the
+/// IMU topic with the option that uses it.
+#[test]
+fn info_says_there_is_no_odometry_and_names_the_imu() {
+    let (r, text) = slam(&["info", &fixture("intel-laser-only.mcap")]);
+    r.unwrap();
+    assert!(
+        text.contains("odometry: none") && text.contains("laser odometry"),
+        "{text}"
+    );
+    for bag in ["intel-laser-imu.mcap", "intel-laser-imu.bag"] {
+        let (r, text) = slam(&["info", &fixture(bag)]);
+        r.unwrap();
+        assert!(
+            text.contains("imu /imu: 3421 messages") && text.contains("--imu-topic /imu"),
+            "{text}"
+        );
+    }
+}
+
+/// `--odometry none` on a bag that has odometry withholds it (said on the input line), and
+/// on a simulated laser scenario too.
+#[test]
+fn odometry_none_withholds_recorded_odometry() {
+    let (traj, text) = run("scanmatch", "intel-odom.mcap", &["--odometry", "none"]);
+    assert!(
+        text.contains("odometry: withheld (--odometry none)"),
+        "{text}"
+    );
+    // One record per scan: the odometry messages are not read.
+    assert_eq!(traj.len(), 200);
+    let out = scratch("sim-none");
+    let o = out.join("out");
+    let (r, text) = slam(&[
+        "run",
+        "--filter",
+        "scanmatch",
+        "--sim",
+        "office",
+        "--steps",
+        "40",
+        "--odometry",
+        "none",
+        "--quiet",
+        "--out",
+        o.to_str().unwrap(),
+    ]);
+    r.unwrap();
+    assert!(
+        text.contains("odometry: withheld (--odometry none)"),
+        "{text}"
+    );
+}
