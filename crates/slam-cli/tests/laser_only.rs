@@ -5,38 +5,10 @@
 //! with noise) in MCAP and in a ROS 1 bag.
 
 mod common;
-use common::{scratch, slam};
-
-use std::collections::BTreeMap;
-use std::path::Path;
-
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../slam-io/tests/fixtures/rosbag")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-/// TUM lines → time in µs → (x, y, yaw), the last line of each time.
-fn tum(path: &Path) -> BTreeMap<i64, (f64, f64, f64)> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut m = BTreeMap::new();
-    for l in text
-        .lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-    {
-        let v: Vec<f64> = l.split_whitespace().map(|f| f.parse().unwrap()).collect();
-        m.insert(
-            (v[0] * 1e6).round() as i64,
-            (v[1], v[2], 2.0 * v[6].atan2(v[7])),
-        );
-    }
-    m
-}
+use common::{bag_fixture as fixture, scratch, slam, tum, Trajectory};
 
 /// Runs `filter` on `bag` with `extra` options; the trajectory and the printed text.
-fn run(filter: &str, bag: &str, extra: &[&str]) -> (BTreeMap<i64, (f64, f64, f64)>, String) {
+fn run(filter: &str, bag: &str, extra: &[&str]) -> (Trajectory, String) {
     let out = scratch(&format!("{filter}-{}", bag.replace('.', "-")));
     let o = out.join("out");
     let bag_path = fixture(bag);

@@ -223,28 +223,37 @@ impl LaserOdometry {
         }
         let predicted = last.compose(&increment);
         let m = self.config.matcher.matching.min_inlier_fraction;
-        let (pose, outcome) = match self.search(&prepared, &predicted, window.as_ref(), m) {
-            Ok(Some(pose)) => (pose, MatchOutcome::Matched),
-            Ok(None) => {
-                let wide = configured.map(|w| SearchWindow {
-                    range_xy: self.config.recovery_range_xy,
-                    range_theta: self.config.recovery_range_theta,
-                    ..w
-                });
-                let needed = self.config.recovery_min_inlier_fraction;
-                match self.search(&prepared, &predicted, wide.as_ref(), needed)? {
-                    Some(pose) => {
-                        self.recoveries += 1;
-                        (pose, MatchOutcome::Recovered)
-                    }
-                    None => {
-                        self.failures += 1;
-                        (predicted, MatchOutcome::Failed)
+        let (pose, outcome) =
+            match self
+                .matcher
+                .match_scan_in(&prepared, &predicted, window.as_ref(), m)
+            {
+                Ok(Some(pose)) => (pose, MatchOutcome::Matched),
+                Ok(None) => {
+                    let wide = configured.map(|w| SearchWindow {
+                        range_xy: self.config.recovery_range_xy,
+                        range_theta: self.config.recovery_range_theta,
+                        ..w
+                    });
+                    let needed = self.config.recovery_min_inlier_fraction;
+                    match self.matcher.match_scan_in(
+                        &prepared,
+                        &predicted,
+                        wide.as_ref(),
+                        needed,
+                    )? {
+                        Some(pose) => {
+                            self.recoveries += 1;
+                            (pose, MatchOutcome::Recovered)
+                        }
+                        None => {
+                            self.failures += 1;
+                            (predicted, MatchOutcome::Failed)
+                        }
                     }
                 }
-            }
-            Err(e) => return Err(e),
-        };
+                Err(e) => return Err(e),
+            };
         let c = self.matcher.config();
         if self.written.distance(&pose) >= c.linear_update
             || normalize_angle(pose.theta - self.written.theta).abs() >= c.angular_update
@@ -261,21 +270,6 @@ impl LaserOdometry {
         };
         self.last = Some((pose, velocity));
         Ok((pose, outcome))
-    }
-}
-
-impl LaserOdometry {
-    /// One search of the map around `predicted` over `window`, accepted with
-    /// `min_inlier_fraction` of the end points on the map.
-    fn search(
-        &self,
-        scan: &PreparedScan,
-        predicted: &Pose2,
-        window: Option<&SearchWindow>,
-        min_inlier_fraction: f64,
-    ) -> Result<Option<Pose2>, GridError> {
-        self.matcher
-            .match_scan_in(scan, predicted, window, min_inlier_fraction)
     }
 }
 
