@@ -6,7 +6,6 @@ mod common;
 use common::{bag_fixture as fixture, dataset, scratch, slam, tum, Trajectory};
 
 use slam_cli::Outcome;
-use std::path::Path;
 use std::process::Command;
 
 /// The scans in the fixtures (make_fixtures.py's `SCANS`). Their message counts below

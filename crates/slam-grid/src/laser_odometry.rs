@@ -282,7 +282,7 @@ pub const MAX_RATE_GAP: f64 = 0.5;
 /// first and last; `None` when `t1 ≤ t0`, a rate is not finite, or the samples leave a
 /// gap longer than [`MAX_RATE_GAP`] in the interval (no prior then).
 pub fn integrate_yaw_rate(rates: &[YawRate], t0: f64, t1: f64) -> Option<f64> {
-    if !(t1 > t0) {
+    if t1.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     // The samples in [t0 − gap, t1 + gap], and the rate at any time by interpolation.
