@@ -145,6 +145,16 @@ pub struct RunArgs {
     /// transforms leave the odometry frame, e.g. odom → base_footprint and odom → base_link).
     #[arg(long, value_name = "FRAME", requires = "dataset")]
     pub base_frame: Option<String>,
+    /// Laser data: `none` makes the odometry from the scans (laser odometry: each scan
+    /// matched against the map of those before it) instead of using the recording's; a
+    /// recording without odometry gets it anyway.
+    #[arg(long, value_name = "SOURCE", value_parser = ["recorded", "none"])]
+    pub odometry: Option<String>,
+
+    /// ROS bags: a sensor_msgs/msg/Imu topic whose yaw rate (angular_velocity.z) is the
+    /// rotation prior of laser odometry (recordings without odometry, --odometry none).
+    #[arg(long, value_name = "TOPIC", requires = "dataset")]
+    pub imu_topic: Option<String>,
 
     /// ROS bags: the laser's pose in the robot's base frame, `x,y,theta` (metres,
     /// radians); replaces /tf_static.

@@ -92,6 +92,9 @@ pub enum CliError {
     /// The simulator rejected the scenario or its options.
     #[error(transparent)]
     Sim(#[from] slam_sim::SimError),
+    /// Laser odometry (the odometry of an input without it) failed.
+    #[error("{0}")]
+    LaserOdometry(String),
     /// The filter failed while processing the data.
     #[error("filter `{filter}` failed at step {step} (t = {t} s): {source}")]
     FilterStep {
@@ -134,6 +137,7 @@ impl From<slam_eval::InputError> for CliError {
         match e {
             InputError::Io(e) => CliError::Io(e),
             InputError::Sim(e) => CliError::Sim(e),
+            e @ InputError::LaserOdometry(_) => CliError::LaserOdometry(e.to_string()),
             InputError::TooFewSteps {
                 name,
                 seed,

@@ -291,12 +291,12 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
             landmarks: args.landmarks,
             laps: args.laps,
         };
-        return Ok(input::simulate_with(
-            spec,
-            args.seed,
-            args.steps.map(|s| s as usize),
-            params,
-        )?);
+        let mut input =
+            input::simulate_with(spec, args.seed, args.steps.map(|s| s as usize), params)?;
+        if args.odometry.as_deref() == Some("none") {
+            input::withhold_odometry(&mut input, &[], input::NoOdometry::Withheld)?;
+        }
+        return Ok(input);
     }
     let Some(path) = &args.dataset else {
         return Err(CliError::InvalidArgument(
@@ -310,6 +310,8 @@ fn load_input(args: &RunArgs) -> Result<Input, CliError> {
         laser_pose: args.laser_pose,
         odom_frame: args.odom_frame.clone(),
         base_frame: args.base_frame.clone(),
+        laser_only: args.odometry.as_deref() == Some("none"),
+        imu_topic: args.imu_topic.clone(),
     };
     Ok(input::open(path, &options)?)
 }

@@ -81,6 +81,10 @@ pub enum InputError {
         /// `"steps"` or `"scans"`.
         what: &'static str,
     },
+    /// Laser odometry (the odometry of a laser-only input) failed: its configuration, or a
+    /// scan it could not use.
+    #[error("laser odometry (scan-to-map matching, for an input without odometry): {0}")]
+    LaserOdometry(#[from] slam_grid::GridError),
     /// A scenario parameter given for a scenario that does not use it.
     #[error(
         "scenario {scenario} does not use the parameter `{option}`; it applies to {honoured_by}"
@@ -356,10 +360,78 @@ pub fn dataset_stem(path: &Path) -> String {
         .to_string()
 }
 
-/// Reads the dataset at `path` ([`slam_io::open_dataset_with`]) as an input, named by the
-/// dataset's own name or else [`dataset_stem`].
+/// Why a laser input's odometry is made from its scans ([`withhold_odometry`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoOdometry {
+    /// The recording has none (a ROS bag with no odometry topic and no `/tf`).
+    InRecording,
+    /// It was asked for (`--odometry none`): the recording's odometry is not used.
+    Withheld,
+}
+
+/// Replaces the odometry of a laser input by laser odometry
+/// ([`slam_grid::laser_odometry`], default configuration): each scan matched against the
+/// map of the scans before it, from a constant-velocity prediction, with `yaw_rates` (an
+/// IMU's, time order) as the rotation prior when given; every laser filter then takes it
+/// as wheel odometry. Records without a scan get the time interpolation of the scan poses
+/// around them. The ground truth is kept; the description line gains what was done. A
+/// landmark input is left as it is.
+pub fn withhold_odometry(
+    input: &mut Input,
+    yaw_rates: &[slam_models::YawRate],
+    why: NoOdometry,
+) -> Result<(), InputError> {
+    let InputData::Laser(d) = &mut input.data else {
+        return Ok(());
+    };
+    let rates = (!yaw_rates.is_empty()).then_some(yaw_rates);
+    let run = slam_grid::laser_odometry(&d.records, rates, Default::default())?;
+    for (r, pose) in d.records.iter_mut().zip(run.odometry) {
+        r.odometry = pose;
+    }
+    let prior = if rates.is_some() {
+        format!(
+            ", the IMU's yaw rate as rotation prior on {} scans",
+            run.with_prior
+        )
+    } else {
+        String::new()
+    };
+    input.description.push_str(&format!(
+        "; odometry: {} — laser odometry (each scan matched against the map of those before \
+         it) over {} scans, {} recovered by the wide search, {} unmatched{prior}",
+        match why {
+            NoOdometry::InRecording => "none in the recording",
+            NoOdometry::Withheld => "withheld (--odometry none)",
+        },
+        run.scans,
+        run.recoveries,
+        run.failures,
+    ));
+    Ok(())
+}
+
+/// Reads the dataset at `path` ([`slam_io::open_dataset_report`]) as an input, named by the
+/// dataset's own name or else [`dataset_stem`]. Laser data without odometry (a ROS bag
+/// that has none, or any laser data opened with [`DatasetOptions::laser_only`]) gets laser
+/// odometry ([`withhold_odometry`], with the IMU's yaw rates of
+/// [`DatasetOptions::imu_topic`]).
 pub fn open(path: &Path, options: &DatasetOptions) -> Result<Input, InputError> {
-    let (dataset, description) = slam_io::open_dataset_with(path, options)?;
+    let opened = slam_io::open_dataset_report(path, options)?;
+    let (has_odometry, yaw_rates) = (opened.has_odometry, opened.yaw_rates);
+    let mut input = open_parts(path, opened.dataset, opened.description);
+    if !has_odometry {
+        let why = if options.laser_only {
+            NoOdometry::Withheld
+        } else {
+            NoOdometry::InRecording
+        };
+        withhold_odometry(&mut input, &yaw_rates, why)?;
+    }
+    Ok(input)
+}
+
+fn open_parts(path: &Path, dataset: Dataset, description: String) -> Input {
     let name_of = |n: &str| {
         if n.is_empty() {
             dataset_stem(path)
@@ -371,7 +443,7 @@ pub fn open(path: &Path, options: &DatasetOptions) -> Result<Input, InputError> 
     // carries the `times.dat` sidecar that simulated data is written with.
     let freiburg_without_clock =
         path.join("sensor_data.dat").is_file() && !path.join("times.dat").is_file();
-    Ok(match dataset {
+    match dataset {
         Dataset::Landmark(d) => Input {
             name: name_of(&d.name),
             label: path.display().to_string(),
@@ -391,7 +463,7 @@ pub fn open(path: &Path, options: &DatasetOptions) -> Result<Input, InputError> 
             simulated: false,
             data: InputData::Laser(d),
         },
-    })
+    }
 }
 
 #[cfg(test)]

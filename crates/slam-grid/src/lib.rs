@@ -25,6 +25,10 @@
 //!   [`OccupancyGrid::cast_ray`] load a saved map back and cast beams on it (localization).
 //! * [`ScanMatchOdometry`]: each scan matched against the map built so far with
 //!   [`matcher::endpoint`] (`ScanSlam`, name `"scanmatch"`).
+//! * [`LaserOdometry`]: the odometry of a recording that has none, each scan matched
+//!   against the map of the scans before it from a constant-velocity prediction with a wide
+//!   multi-resolution search (Hector SLAM's and Cartographer's front end), optionally with
+//!   an IMU's yaw rate as the rotation prior; the front stage of laser-only mapping.
 //!
 //! Units: metres, radians; world frame right-handed, θ counter-clockwise.
 
@@ -59,12 +63,14 @@ pub mod known_poses;
 pub use known_poses::{KnownPoseConfig, KnownPoseMapping};
 pub mod scanmatch;
 pub use scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
+pub mod laser_odometry;
+pub use laser_odometry::{laser_odometry, LaserOdometry, LaserOdometryConfig, LaserOdometryRun};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// the occupancy grid and scan matchers compiles with this crate alone (sophus-rs style).
 pub use slam_models::{
     ConfigError, FilterError, FromConfig, GridMap, LaserScan, Point2, Pose2, ScanDataset,
-    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
+    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose, YawRate,
 };
 
 /// Traits only, for glob import: `use slam_grid::prelude::*;` (re-exports

@@ -372,8 +372,26 @@ impl ScanMatchOdometry {
         scan: &PreparedScan,
         predicted: &Pose2,
     ) -> Result<Option<Pose2>, GridError> {
+        self.match_scan_in(
+            scan,
+            predicted,
+            self.matching.window.as_ref(),
+            self.matching.min_inlier_fraction,
+        )
+    }
+
+    /// [`Self::match_scan`] with the window search over `window` (none: the climb alone)
+    /// and the inlier fraction `min_inlier_fraction` instead of the configured ones (laser
+    /// odometry's searches).
+    pub(crate) fn match_scan_in(
+        &self,
+        scan: &PreparedScan,
+        predicted: &Pose2,
+        window: Option<&SearchWindow>,
+        min_inlier_fraction: f64,
+    ) -> Result<Option<Pose2>, GridError> {
         let m = &self.matching;
-        let reach = self.config.matching.search_range_xy
+        let reach = window.map_or(0.0, |w| w.range_xy)
             + CLIMB_REACH_STEPS * self.config.matching.linear_step;
         if check_input(&self.grid, scan, predicted, m.min_points, reach).is_err() {
             return Ok(None);
@@ -382,7 +400,7 @@ impl ScanMatchOdometry {
             // Unreachable: the grid is made with its distance field in `new`.
             return Ok(None);
         };
-        let start = match &m.window {
+        let start = match window {
             Some(window) => {
                 wide_search(&field, scan, predicted, &m.capture, window)
                     .map_err(|e| match e {
@@ -402,8 +420,25 @@ impl ScanMatchOdometry {
             None => *predicted,
         };
         let matched = hill_climb(&field, scan, &start, &m.capture, &m.lk, &m.hc);
-        let needed = ((m.min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
+        let needed = ((min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
         Ok((matched.score.inliers >= needed).then_some(matched.pose))
+    }
+
+    /// The configured window search ([`EndpointMatchingConfig`]), `None` when it is off.
+    pub(crate) fn window(&self) -> Option<SearchWindow> {
+        self.matching.window
+    }
+
+    /// Writes `scan` into the map at `pose` (world frame).
+    pub(crate) fn integrate(&mut self, pose: &Pose2, scan: &PreparedScan) -> Result<(), GridError> {
+        self.grid.try_integrate_prepared(pose, scan)?;
+        self.map_has_scan = true;
+        Ok(())
+    }
+
+    /// The configuration.
+    pub(crate) fn config(&self) -> &ScanMatchConfig {
+        &self.config
     }
 
     fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridError> {

@@ -21,6 +21,12 @@ pub struct DatasetOptions {
     pub odom_frame: Option<String>,
     /// ROS bags: the robot's base frame of the `/tf` odometry chain.
     pub base_frame: Option<String>,
+    /// Laser data: the recording's odometry is not wanted (`--odometry none`): a ROS bag
+    /// is read without it, and [`OpenedDataset::has_odometry`] is false for any laser data.
+    pub laser_only: bool,
+    /// ROS bags: a `sensor_msgs/msg/Imu` topic whose yaw rates are read
+    /// ([`OpenedDataset::yaw_rates`]).
+    pub imu_topic: Option<String>,
 }
 
 impl DatasetOptions {
@@ -35,6 +41,8 @@ impl DatasetOptions {
             Some("--odom-frame")
         } else if self.base_frame.is_some() {
             Some("--base-frame")
+        } else if self.imu_topic.is_some() {
+            Some("--imu-topic")
         } else {
             None
         }
@@ -89,25 +97,64 @@ fn is_bag(path: &Path) -> bool {
 }
 
 #[cfg(feature = "rosbag")]
-fn open_bag(path: &Path, o: &DatasetOptions) -> Result<(Dataset, String), IoError> {
+fn open_bag(path: &Path, o: &DatasetOptions) -> Result<OpenedDataset, IoError> {
     let opts = crate::rosbag::BagOptions {
         scan_topic: o.scan_topic.clone(),
         odom_topic: o.odom_topic.clone(),
         laser_pose: o.laser_pose,
         odom_frame: o.odom_frame.clone(),
         base_frame: o.base_frame.clone(),
+        laser_only: o.laser_only,
+        imu_topic: o.imu_topic.clone(),
     };
     let bag = crate::rosbag::read_rosbag(path, &opts)?;
-    let msg = bag.summary(path);
-    Ok((Dataset::Scan(bag.dataset), msg))
+    Ok(OpenedDataset {
+        description: bag.summary(path),
+        has_odometry: bag.odometry != crate::rosbag::OdometrySource::None,
+        yaw_rates: bag.yaw_rates,
+        dataset: Dataset::Scan(bag.dataset),
+    })
 }
 
 #[cfg(not(feature = "rosbag"))]
-fn open_bag(path: &Path, _: &DatasetOptions) -> Result<(Dataset, String), IoError> {
+fn open_bag(path: &Path, _: &DatasetOptions) -> Result<OpenedDataset, IoError> {
     Err(IoError::invalid(
         path,
         "a ROS bag, but slam-io was built without its `rosbag` feature",
     ))
+}
+
+/// A dataset opened by [`open_dataset_report`]: what [`open_dataset_with`] gives, and what
+/// laser-only mapping needs to know.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpenedDataset {
+    /// The data.
+    pub dataset: Dataset,
+    /// One line: what was found ([`open_dataset_with`]'s).
+    pub description: String,
+    /// Laser data whose records carry the recording's odometry: false for a ROS bag
+    /// without odometry (its records' odometry is the identity) and for any laser data
+    /// opened with [`DatasetOptions::laser_only`]; true for landmark data.
+    pub has_odometry: bool,
+    /// The yaw rates of [`DatasetOptions::imu_topic`], in time order (seconds, the
+    /// records' clock; rad/s); empty without it.
+    pub yaw_rates: Vec<slam_models::YawRate>,
+}
+
+/// [`open_dataset_with`], saying also whether the laser data has odometry and giving the
+/// IMU's yaw rates when asked for.
+pub fn open_dataset_report(path: &Path, o: &DatasetOptions) -> Result<OpenedDataset, IoError> {
+    if is_bag(path) && o.robot.is_none() {
+        return open_bag(path, o);
+    }
+    let (dataset, description) = open_dataset_with(path, o)?;
+    let laser = matches!(dataset, Dataset::Scan(_));
+    Ok(OpenedDataset {
+        dataset,
+        description,
+        has_odometry: !(laser && o.laser_only),
+        yaw_rates: Vec::new(),
+    })
 }
 
 /// A dataset of either kind.
@@ -169,7 +216,8 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
                 "--robot applies to MRCLAM folders; this is a ROS bag",
             ));
         }
-        return open_bag(path, o);
+        let opened = open_bag(path, o)?;
+        return Ok((opened.dataset, opened.description));
     }
     if let Some(flag) = o.bag_option() {
         return Err(IoError::invalid(
@@ -265,7 +313,7 @@ pub fn dataset_info(path: &Path) -> Result<String, IoError> {
         #[cfg(feature = "rosbag")]
         return crate::rosbag::describe_bag(path);
         #[cfg(not(feature = "rosbag"))]
-        return open_bag(path, &DatasetOptions::default()).map(|(_, s)| s);
+        return open_bag(path, &DatasetOptions::default()).map(|o| o.description);
     }
     if path.is_dir() {
         let robots: Vec<u32> = (1..=5)

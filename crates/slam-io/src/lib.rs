@@ -51,7 +51,7 @@ pub mod tum;
 
 pub use dataset::{
     dataset_info, dataset_kind, dead_reckoning, odometry_trajectory, open_dataset,
-    open_dataset_with, Dataset, DatasetKind, DatasetOptions,
+    open_dataset_report, open_dataset_with, Dataset, DatasetKind, DatasetOptions, OpenedDataset,
 };
 pub use error::IoError;
 pub use report::Skipped;

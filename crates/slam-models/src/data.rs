@@ -212,6 +212,18 @@ pub struct TimedPose {
     pub pose: Pose2,
 }
 
+/// A yaw rate with its timestamp: the angular velocity about the vertical axis of the
+/// robot's base frame (a `sensor_msgs/Imu`'s `angular_velocity.z` in that frame),
+/// counter-clockwise positive, rad/s; the time in seconds, in the clock of the dataset it
+/// goes with.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct YawRate {
+    /// Time, seconds.
+    pub t: f64,
+    /// ω_z, rad/s.
+    pub rate: f64,
+}
+
 /// One step of a landmark dataset: the control that moves the robot from the previous step
 /// to this one, then the observations taken after that motion (Freiburg convention).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -59,7 +59,7 @@ pub mod sampling;
 pub use angle::normalize_angle;
 pub use data::{
     Control, LandmarkDataset, LandmarkId, LandmarkStep, LaserScan, OdometryControl, RangeBearing,
-    ScanDataset, ScanRecord, TimedPose, VelocityControl,
+    ScanDataset, ScanRecord, TimedPose, VelocityControl, YawRate,
 };
 pub use error::{ConfigError, ModelError};
 pub use filter::{

@@ -54,3 +54,30 @@ pub fn dataset(rel: &str) -> Option<PathBuf> {
     eprintln!("SKIPPED: dataset {} not found", p.display());
     None
 }
+
+/// A ROS bag fixture of slam-io (`crates/slam-io/tests/fixtures/rosbag/<name>`).
+pub fn bag_fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../slam-io/tests/fixtures/rosbag")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+/// A trajectory: time in µs → (x, y, yaw).
+pub type Trajectory = std::collections::BTreeMap<i64, (f64, f64, f64)>;
+
+/// TUM lines → time in µs → (x, y, yaw), the last line of each time.
+pub fn tum(path: &Path) -> Trajectory {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut m = Trajectory::new();
+    for l in text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+    {
+        let v: Vec<f64> = l.split_whitespace().map(|f| f.parse().unwrap()).collect();
+        let yaw = 2.0 * v[6].atan2(v[7]);
+        m.insert((v[0] * 1e6).round() as i64, (v[1], v[2], yaw));
+    }
+    m
+}

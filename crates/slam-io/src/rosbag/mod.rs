@@ -17,8 +17,13 @@
 //! Odometry is the one `nav_msgs/msg/Odometry` topic (or `odom_topic`); when the bag has
 //! none (or `odom_topic` is `/tf`) it is the `/tf` transform from the odometry frame
 //! (`odom`, REP 105) to the robot's base frame. Two candidates and no choice is an error that
-//! names them and the option to choose with; no odometry topic and no usable `/tf` is an
-//! error.
+//! names them and the option to choose with. A bag with neither an odometry topic nor `/tf`
+//! (or read with [`BagOptions::laser_only`]) gives the scans alone, every record's
+//! odometry the identity ([`OdometrySource::None`]): the caller makes the odometry from the
+//! scans (laser odometry). A `sensor_msgs/msg/Imu` topic named by
+//! [`BagOptions::imu_topic`] gives its yaw rates ([`RosBag::yaw_rates`]), the rotation
+//! prior of laser odometry; they are `angular_velocity.z` in the IMU's frame, taken as the
+//! base frame's yaw rate (an IMU mounted level; its mounting is not read).
 //!
 //! **Laser mounting.** The scan's `header.frame_id` is located in the robot's base frame
 //! (the odometry's child frame) by composing the `/tf_static` transforms from the base frame
@@ -63,7 +68,7 @@ pub use container::{BagFormat, TopicInfo};
 
 use crate::error::IoError;
 use msgs::{ScanMsg, StampedPose, LASER_SCAN, ODOMETRY};
-use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord};
+use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord, YawRate};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -93,6 +98,13 @@ pub struct BagOptions {
     /// transforms leave the odometry frame (e.g. `odom → base_footprint` and
     /// `odom → base_link`).
     pub base_frame: Option<String>,
+    /// Read the scans without odometry even when the bag has some (`--odometry none`):
+    /// every record's odometry is then the identity and [`RosBag::odometry`] is
+    /// [`OdometrySource::None`] (a bag without odometry is read so anyway).
+    pub laser_only: bool,
+    /// A `sensor_msgs/msg/Imu` topic whose `angular_velocity.z` is read into
+    /// [`RosBag::yaw_rates`] (`--imu-topic`).
+    pub imu_topic: Option<String>,
 }
 
 /// Where the odometry came from.
@@ -107,6 +119,12 @@ pub enum OdometrySource {
         /// The robot's base frame.
         child: String,
     },
+    /// None: the bag has no `nav_msgs/msg/Odometry` topic and no `/tf` topic, or
+    /// [`BagOptions::laser_only`] was asked for. Every record is a scan with the identity
+    /// as its odometry, and the base frame is the laser's (the laser is the robot, at
+    /// [`BagOptions::laser_pose`] if given); the caller makes the odometry (laser
+    /// odometry, `slam_grid::laser_odometry`).
+    None,
 }
 
 /// A ROS bag as read: the dataset and what the reader chose and left out.
@@ -137,6 +155,9 @@ pub struct RosBag {
     pub no_return_readings: usize,
     /// Readings NaN, `−∞` or < `range_min` (kept as no return).
     pub invalid_readings: usize,
+    /// The yaw rates of [`BagOptions::imu_topic`] (time in seconds as the records',
+    /// `angular_velocity.z` in rad/s), in time order; empty without that option.
+    pub yaw_rates: Vec<YawRate>,
 }
 
 impl RosBag {
@@ -157,6 +178,7 @@ impl RosBag {
         let odom = match &self.odometry {
             OdometrySource::Topic(t) => format!("odometry {t}"),
             OdometrySource::Tf { parent, child } => format!("odometry /tf {parent} → {child}"),
+            OdometrySource::None => "no odometry".into(),
         };
         let poses = self.odometry_poses;
         let (p, from) = self.laser_pose;
@@ -189,6 +211,9 @@ impl RosBag {
                 "; {} invalid reading(s) (NaN, -inf, < range_min) kept as no return",
                 self.invalid_readings
             ));
+        }
+        if !self.yaw_rates.is_empty() {
+            s.push_str(&format!("; {} IMU yaw rates", self.yaw_rates.len()));
         }
         s
     }
@@ -326,6 +351,13 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     let arrow = |(p, c): &(String, String)| format!("{} → {}", shorten(p), shorten(c));
     let transforms =
         |(p, c): &(String, String)| edges.get(&(false, p.clone(), c.clone())).map_or(0, |e| e.0);
+    for t in topics.iter().filter(|t| t.msg_type == msgs::IMU) {
+        let _ = writeln!(
+            s,
+            "imu {}: {} messages (its yaw rate is the rotation prior of laser odometry with --imu-topic {})",
+            t.topic, t.count, t.topic
+        );
+    }
     let mut odometry: Vec<String> = odom_frames
         .iter()
         .map(|(t, (p, c))| format!("{} ({} → {})", shorten(t), shorten(p), shorten(c)))
@@ -351,7 +383,8 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
         s,
         "odometry: {}",
         if odometry.is_empty() {
-            "none (no Odometry topic, no /tf odom → base transform)".into()
+            "none (no Odometry topic, no /tf odom → base transform): slam run makes it from the scans (laser odometry)"
+                .into()
         } else {
             odometry.join("; ")
         }
@@ -554,16 +587,23 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         Some(TF) => None,
         chosen => pick(path, &topics, ODOMETRY, chosen, "--odom-topic")?,
     };
-    if odom_topic.is_none() && tf_topic.is_none() {
+    if options.odom_topic.as_deref() == Some(TF) && tf_topic.is_none() {
         return Err(IoError::invalid(
             path,
-            format!("no odometry: no {ODOMETRY} topic and no {TF} topic (odom → base_link)"),
+            format!("--odom-topic {TF}: the bag has no {TF} topic"),
         ));
     }
+    // No odometry in the bag, or none wanted: the scans alone.
+    let laser_only = options.laser_only || (odom_topic.is_none() && tf_topic.is_none());
+    let imu_topic = match options.imu_topic.as_deref() {
+        Some(t) => pick(path, &topics, msgs::IMU, Some(t), "--imu-topic")?,
+        None => None,
+    };
     for t in &topics {
         let used = t.topic == scan_topic
-            || Some(&t.topic) == odom_topic.as_ref()
-            || (odom_topic.is_none() && t.topic == TF)
+            || Some(&t.topic) == imu_topic.as_ref()
+            || (!laser_only && Some(&t.topic) == odom_topic.as_ref())
+            || (!laser_only && odom_topic.is_none() && t.topic == TF)
             || (t.topic == TF_STATIC && msgs::is_tf_message(&t.msg_type));
         if used {
             check_encoding(path, t)?;
@@ -574,6 +614,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     let mut odom: Vec<StampedPose> = Vec::new();
     let mut tf: Vec<StampedPose> = Vec::new();
     let mut statics: Vec<StampedPose> = Vec::new();
+    let mut yaw_rates: Vec<(i64, f64)> = Vec::new();
     container::for_each_message(path, |file, m| {
         let fail = |e: wire::DecodeError| {
             bad(
@@ -589,6 +630,19 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         };
         if m.topic == scan_topic {
             scans.push(msgs::laser_scan(m.encoding, m.data).map_err(fail)?);
+        } else if Some(m.topic) == imu_topic.as_deref() {
+            let (stamp, rate) = msgs::imu_yaw_rate(m.encoding, m.data).map_err(fail)?;
+            if !rate.is_finite() {
+                return Err(bad(
+                    file,
+                    m.topic,
+                    m.index,
+                    "angular_velocity.z is not finite",
+                ));
+            }
+            yaw_rates.push((stamp, rate));
+        } else if laser_only {
+            // Odometry and /tf are not read.
         } else if Some(m.topic) == odom_topic.as_deref() {
             let p = msgs::odometry(m.encoding, m.data).map_err(fail)?;
             check_pose(file, m.topic, m.index, &p)?;
@@ -607,7 +661,16 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         Ok(())
     })?;
 
+    yaw_rates.sort_by_key(|r| r.0);
+    let yaw_rates = yaw_rates
+        .into_iter()
+        .map(|(t, rate)| YawRate {
+            t: t as f64 * 1e-9,
+            rate,
+        })
+        .collect();
     let (source, odom) = match odom_topic {
+        _ if laser_only => (OdometrySource::None, Vec::new()),
         Some(t) => (OdometrySource::Topic(t), odom),
         None => {
             let (parent, child) = tf_odometry_edge(path, &tf, options)?;
@@ -618,7 +681,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
             (OdometrySource::Tf { parent, child }, poses)
         }
     };
-    assemble(
+    let mut bag = assemble(
         path,
         (bag.format, topics),
         scan_topic,
@@ -627,7 +690,9 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         scans,
         &statics,
         options,
-    )
+    )?;
+    bag.yaw_rates = yaw_rates;
+    Ok(bag)
 }
 
 /// The `/tf` edges (parent, child) that may be the odometry: those from the odometry frame
@@ -750,8 +815,10 @@ fn assemble(
     let odom_name = match &source {
         OdometrySource::Topic(t) => t.clone(),
         OdometrySource::Tf { .. } => TF.to_string(),
+        OdometrySource::None => String::new(),
     };
-    if odom.is_empty() {
+    let laser_only = source == OdometrySource::None;
+    if odom.is_empty() && !laser_only {
         return Err(IoError::Bag {
             path: path.to_path_buf(),
             topic: odom_name,
@@ -759,8 +826,12 @@ fn assemble(
         });
     }
     odom.sort_by_key(|p| p.stamp_ns);
-    let (first, last) = (odom[0].stamp_ns, odom[odom.len() - 1].stamp_ns);
-    if last - first > MAX_TIME_SPAN_NS {
+    // Without odometry every scan is in its (unbounded) time span.
+    let (first, last) = match (odom.first(), odom.last()) {
+        (Some(a), Some(b)) => (a.stamp_ns, b.stamp_ns),
+        _ => (i64::MIN, i64::MAX),
+    };
+    if !laser_only && last - first > MAX_TIME_SPAN_NS {
         return Err(IoError::Bag {
             path: path.to_path_buf(),
             topic: odom_name,
@@ -773,11 +844,13 @@ fn assemble(
             ),
         });
     }
-    let base_frame = odom[0].child.clone();
     let laser_frame = scans
         .first()
         .map(|s| s.header.frame_id.clone())
         .unwrap_or_default();
+    let base_frame = odom
+        .first()
+        .map_or_else(|| laser_frame.clone(), |p| p.child.clone());
     let mut mounts: BTreeMap<String, (Pose2, &'static str)> = BTreeMap::new();
     let mut mount = |frame: &str| -> Result<(Pose2, &'static str), IoError> {
         if let Some(m) = mounts.get(frame) {
@@ -826,7 +899,11 @@ fn assemble(
             t,
             ScanRecord {
                 t: t as f64 * 1e-9,
-                odometry: interpolate(&odom, t),
+                odometry: if laser_only {
+                    Pose2::IDENTITY
+                } else {
+                    interpolate(&odom, t)
+                },
                 scan: Some(scan),
             },
         ));
@@ -878,6 +955,7 @@ fn assemble(
         scans_outside_odometry: outside,
         no_return_readings: no_return,
         invalid_readings: invalid,
+        yaw_rates: Vec::new(),
     })
 }
 

@@ -13,6 +13,8 @@ use slam_models::Pose2;
 pub(crate) const LASER_SCAN: &str = "sensor_msgs/msg/LaserScan";
 /// `nav_msgs/msg/Odometry`.
 pub(crate) const ODOMETRY: &str = "nav_msgs/msg/Odometry";
+/// `sensor_msgs/msg/Imu`.
+pub(crate) const IMU: &str = "sensor_msgs/msg/Imu";
 /// `tf2_msgs/msg/TFMessage`.
 pub(crate) const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
 /// ROS 1's older `tf/tfMessage`, the same fields as `tf2_msgs/TFMessage` (many ROS 1 bags
@@ -33,6 +35,7 @@ pub(crate) fn ros1_md5(msg_type: &str) -> Option<&'static str> {
     match msg_type {
         LASER_SCAN => Some("90c7ef2dc6895d81024acba2ac42f369"),
         ODOMETRY => Some("cd5e73d190d741a2f92e81eda573aca7"),
+        IMU => Some("6a62c6daae103f4ff57a132d6f95cec2"),
         TF_MESSAGE | TF_MESSAGE_ROS1 => Some("94810edda583a504dfda3829e70d7eec"),
         _ => None,
     }
@@ -182,4 +185,22 @@ fn tf_fields(c: &mut dyn Wire) -> Result<Vec<StampedPose>, DecodeError> {
         });
     }
     Ok(out)
+}
+
+/// The yaw rate of a `sensor_msgs/msg/Imu`: its stamp (ns) and `angular_velocity.z`
+/// (rad/s, about the IMU frame's z axis); the orientation, covariances and linear
+/// acceleration are read past.
+pub(crate) fn imu_yaw_rate(encoding: &str, data: &[u8]) -> Result<(i64, f64), DecodeError> {
+    decode(encoding, data, |c| {
+        let h = header(c)?;
+        c.skip_f64s(4, "orientation")?;
+        c.skip_f64s(9, "orientation_covariance")?;
+        c.f64("angular_velocity.x")?;
+        c.f64("angular_velocity.y")?;
+        let rate = c.f64("angular_velocity.z")?;
+        c.skip_f64s(9, "angular_velocity_covariance")?;
+        c.skip_f64s(3, "linear_acceleration")?;
+        c.skip_f64s(9, "linear_acceleration_covariance")?;
+        Ok((h.stamp_ns, rate))
+    })
 }
