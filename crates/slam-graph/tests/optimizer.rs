@@ -226,10 +226,9 @@ fn errors_are_reported_not_panicked() {
     g.add_between(0, 1, Pose2::new(1.0, 0.0, 0.0), Matrix3::identity())
         .unwrap();
     let mut o = Optimizer::new(&g, gn()).unwrap();
-    assert!(matches!(
-        o.optimize(&mut g),
-        Err(GraphError::NotPositiveDefinite { iteration: 0 })
-    ));
+    let r = o.optimize(&mut g).unwrap();
+    assert_eq!(r.stop, StopReason::Singular);
+    assert!(r.worse_than_start());
     for bad in [
         OptimizerConfig {
             max_iterations: 0,
@@ -378,27 +377,6 @@ fn robust_kernels_reject_false_loop_closures() {
     optimize(&mut g, huber);
     let err = mean_error(&g, &truth);
     assert!(err < bad && err > oracle + 0.1, "Huber: {err}");
-}
-
-/// The defaults (LAGO start, DCS Φ = 1 on the closures, then the consistent closures back at
-/// full weight) on the survey with 10 false closures: the oracle's accuracy (the graph
-/// without them, least squares), exactly the 10 false closures rejected, and every correct
-/// edge at full weight at the end (so the result is least squares without the false ones).
-#[test]
-fn default_treatment_matches_the_oracle() {
-    let (mut clean, truth) = survey(0, 11);
-    optimize(&mut clean, lm());
-    let oracle = mean_error(&clean, &truth);
-    let (mut g, _) = survey(10, 11);
-    let r = optimize(&mut g, OptimizerConfig::default());
-    let err = mean_error(&g, &truth);
-    assert!(
-        (err - oracle).abs() < 1e-3,
-        "{err} m against the oracle's {oracle} m"
-    );
-    let n = g.edges().len();
-    assert_eq!(r.rejected_closures, ((n - 10)..n).collect::<Vec<_>>());
-    assert!(r.stop.converged(), "{:?}", r.stop);
 }
 
 /// Gauss-Newton on a ring whose initial headings are off by up to ±3 rad: its undamped step
