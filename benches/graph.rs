@@ -26,7 +26,7 @@ fn m3500() -> Option<PathBuf> {
 
 fn bench(c: &mut Criterion) {
     let Some(path) = m3500() else { return };
-    let graph = slam_io::g2o::read_g2o(&path).expect("M3500 reads");
+    let graph = slam_eval::pose_graph::read_pose_graph(&path).expect("M3500 reads");
     let mut g = c.benchmark_group("graph_m3500_lm");
     g.sample_size(10);
     for (name, ordering, factorization) in [

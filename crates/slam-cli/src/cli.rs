@@ -66,7 +66,8 @@ pub struct InfoArgs {
 /// `slam optimize`.
 #[derive(Debug, Clone, Args)]
 pub struct OptimizeArgs {
-    /// The pose graph, g2o format (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX).
+    /// The pose graph, g2o format (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX) or TORO's
+    /// (VERTEX2, EDGE2, EQUIV); a file of edges only is initialised along its odometry.
     #[arg(value_name = "GRAPH.g2o")]
     pub graph: PathBuf,
 

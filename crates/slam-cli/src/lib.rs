@@ -99,6 +99,17 @@ pub enum Outcome {
     Completions,
 }
 
+impl Outcome {
+    /// The process exit status of a successful command: 0, except 3 for a `slam optimize`
+    /// whose result is worse than its start or that diverged or was singular.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Outcome::Optimized(r) if r.worse_than_start => 3,
+            _ => 0,
+        }
+    }
+}
+
 /// Parses `args` (the first item is the program name, as in `std::env::args_os()`), runs
 /// the command and writes its human-readable output to `out`.
 pub fn main_with_args<I, T>(args: I, out: &mut dyn Write) -> Result<Outcome, CliError>

@@ -34,7 +34,7 @@ fn main() -> ExitCode {
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     match slam_cli::main_with_args(std::env::args_os(), &mut out) {
-        Ok(_) => ExitCode::SUCCESS,
+        Ok(outcome) => ExitCode::from(outcome.exit_code()),
         Err(e) => {
             eprintln!("slam: error: {e}");
             ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(1))

@@ -1,15 +1,22 @@
-//! `slam optimize`: reads a g2o pose graph, optimises it with slam-graph and writes
-//! `optimized.g2o` (the graph with the optimised estimates), `result.json` ([`OptimizeOutput`]:
-//! χ² before and after and one entry per iteration), `graph.png` (before | after) and
-//! `config.toml` (the optimiser configuration used).
+//! `slam optimize`: reads a g2o or TORO pose graph, optimises it with slam-graph (by default
+//! from LAGO's global estimate when that is better, with false loop closures down-weighted:
+//! see `slam_graph::optimizer`) and writes `optimized.g2o` (the graph with the optimised
+//! estimates), `result.json` ([`OptimizeOutput`]: χ² before and after, how the run ended, the
+//! start used, the closures rejected and one entry per iteration), `graph.png` (before |
+//! after) and `config.toml` (the optimiser configuration used). It prints the wall time of
+//! each phase (read, set-up, initialise, optimise, write); the process exits with status 3
+//! when the result is worse than the start or the run diverged or was singular.
 
 use crate::cli::OptimizeArgs;
 use crate::config;
 use crate::error::CliError;
 use crate::outdir::{OutDir, Owner};
 use serde::Serialize;
-use slam_graph::{IterationInfo, Optimizer, OptimizerConfig, RobustKernel, StopReason};
+use slam_graph::{
+    InitReport, IterationInfo, Optimizer, OptimizerConfig, RobustKernel, Termination,
+};
 use std::io::Write;
+use std::time::Instant;
 
 /// What `slam optimize` wrote to `result.json`. Deterministic: the same input and
 /// configuration give the same bytes (no timings).
@@ -29,8 +36,18 @@ pub struct OptimizeOutput {
     pub initial_cost: f64,
     /// The robust cost at the result.
     pub final_cost: f64,
-    /// Why the optimiser stopped.
-    pub stop: StopReason,
+    /// How the run ended: converged by which test, iteration limit, λ limit, diverged or
+    /// singular.
+    pub stop: Termination,
+    /// Whether one of the convergence tests ended it.
+    pub converged: bool,
+    /// Whether the result is worse than the start (cost under the final kernels), or the run
+    /// diverged or was singular; the process then exits with status 3.
+    pub worse_than_start: bool,
+    /// The start used (input or LAGO) and the costs compared.
+    pub init: InitReport,
+    /// Loop closures left down-weighted as false (eᵀΩe above `closure-inlier-chi2`).
+    pub rejected_closures: usize,
     /// One entry per iteration.
     pub iterations: Vec<IterationInfo>,
 }
@@ -73,6 +90,19 @@ fn stopped(done: usize) -> Result<(), CliError> {
     Ok(())
 }
 
+/// How a run ended, in words.
+fn termination_words(t: Termination) -> &'static str {
+    match t {
+        Termination::CostBelowTolerance => "converged (cost below the absolute tolerance)",
+        Termination::AbsoluteDecrease => "converged (absolute decrease below tolerance)",
+        Termination::RelativeDecrease => "converged (relative decrease below tolerance)",
+        Termination::MaxIterations => "NOT converged: iteration limit reached",
+        Termination::LambdaLimit => "stopped: no step lowers the cost (damping at its limit)",
+        Termination::Diverged => "DIVERGED: a step raised the cost; the best iterate is kept",
+        Termination::Singular => "SINGULAR normal equations: an unconstrained variable?",
+    }
+}
+
 /// Runs `slam optimize` with `args`, printing a summary to `out`.
 pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutput, CliError> {
     let mut cfg: OptimizerConfig = config::load(args.config.as_deref())?.config;
@@ -87,12 +117,29 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     }
     let staging = OutDir::prepare(&args.out, Owner::Optimize, false, &inputs)?;
     let stage = staging.stage().to_path_buf();
-    let before = slam_io::g2o::read_g2o(&args.graph)?;
+    let t = Instant::now();
+    let before = slam_eval::pose_graph::read_pose_graph(&args.graph)?;
+    let read = t.elapsed();
     stopped(1)?;
     let mut graph = before.clone();
-    let report = Optimizer::new(&graph, cfg)?.optimize(&mut graph)?;
+    let t = Instant::now();
+    let mut opt = Optimizer::new(&graph, cfg)?;
+    let setup = t.elapsed();
+    let t = Instant::now();
+    let init = opt.initialise(&mut graph)?;
+    let initialise = t.elapsed();
+    let t = Instant::now();
+    let mut report = opt.refine(&mut graph)?;
+    let optimise = t.elapsed();
     stopped(2)?;
-    slam_io::g2o::write_g2o(&stage.join("optimized.g2o"), &graph)?;
+    let t = Instant::now();
+    // The start is the input, not the initialisation: χ² and cost there, under the final
+    // kernels (so that the two costs compare).
+    let (initial_chi2, initial_cost) = opt.cost(&before)?;
+    report.initial_chi2 = initial_chi2;
+    report.initial_cost = initial_cost;
+    report.init = init;
+    slam_eval::pose_graph::write_pose_graph(&stage.join("optimized.g2o"), &graph)?;
     slam_io::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
     let result = OptimizeOutput {
         input: args.graph.display().to_string(),
@@ -103,6 +150,10 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
         initial_cost: report.initial_cost,
         final_cost: report.final_cost,
         stop: report.stop,
+        converged: report.stop.converged(),
+        worse_than_start: report.worse_than_start(),
+        init: report.init,
+        rejected_closures: report.rejected_closures.len(),
         iterations: report.iterations,
     };
     let write = |name: &str, text: String| {
@@ -115,16 +166,37 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     write("config.toml", config::to_toml(&cfg))?;
     stopped(3)?;
     staging.commit(&["optimized.g2o", "graph.png", "config.toml", "result.json"])?;
+    let write_time = t.elapsed();
+    let lago = match result.init.lago_cost {
+        Some(c) => format!("LAGO cost {c:.6e}"),
+        None => "LAGO not applicable".to_string(),
+    };
     let _ = writeln!(
         out,
-        "{}: {} nodes, {} edges\n  χ² {:.6e} → {:.6e} in {} iterations ({:?})\n  wrote {}",
+        "{}: {} nodes, {} edges\n  start: {:?} (input cost {:.6e}, {lago})\n  \
+         χ² {:.6e} → {:.6e} in {} iterations: {}{}\n  {} loop closures rejected as false\n  \
+         time: read {:.3} s, set-up {:.3} s, initialise {:.3} s, optimise {:.3} s, write {:.3} s\n  \
+         wrote {}",
         args.graph.display(),
         result.nodes,
         result.edges,
+        result.init.start,
+        result.init.input_cost,
         result.initial_chi2,
         result.final_chi2,
         result.iterations.len(),
-        result.stop,
+        termination_words(result.stop),
+        if result.worse_than_start {
+            " — WORSE THAN THE START"
+        } else {
+            ""
+        },
+        result.rejected_closures,
+        read.as_secs_f64(),
+        setup.as_secs_f64(),
+        initialise.as_secs_f64(),
+        optimise.as_secs_f64(),
+        write_time.as_secs_f64(),
         args.out.display()
     );
     Ok(result)
@@ -202,7 +274,7 @@ mod tests {
         for f in ["optimized.g2o", "result.json", "graph.png", "config.toml"] {
             assert!(out.join(f).exists(), "{f}");
         }
-        let back = slam_io::g2o::read_g2o(&out.join("optimized.g2o")).unwrap();
+        let back = slam_eval::pose_graph::read_pose_graph(&out.join("optimized.g2o")).unwrap();
         let o = Optimizer::new(&back, OptimizerConfig::default()).unwrap();
         assert!((o.cost(&back).unwrap().0 - r.final_chi2).abs() < 1e-12);
         let json: serde_json::Value =

@@ -14,6 +14,8 @@
 //! * [`factory`]: a [`FilterConfig`] tagged by the filter's name (`filter = "ekf"`, …)
 //!   builds a `Box<dyn LandmarkSlam>` / `Box<dyn ScanSlam>`, so swapping the filter is a
 //!   config change; [`filters`](factory::filters) lists them.
+//! * [`pose_graph`]: g2o and TORO pose-graph files (slam-io's records) to a slam-graph
+//!   [`slam_graph::PoseGraph`] and back.
 //!
 //! Readers and writers stay in `slam-io` (formats only); filters never do I/O.
 
@@ -24,6 +26,7 @@ pub mod factory;
 pub mod input;
 pub mod metrics;
 pub mod metrics_json;
+pub mod pose_graph;
 pub mod run;
 
 pub use error::EvalError;

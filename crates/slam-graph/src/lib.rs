@@ -13,7 +13,10 @@
 //! * [`Optimizer`]: Gauss-Newton or Levenberg-Marquardt on the manifold, the normal equations
 //!   solved by faer's sparse Cholesky with an AMD ordering ([`linear`]), robust kernels
 //!   ([`RobustKernel`]: Huber, Cauchy, DCS) by IRLS, the gauge fixed at the first pose, an
-//!   [`IterationInfo`] per iteration and a documented stopping rule.
+//!   [`IterationInfo`] per iteration and a documented stopping rule ending in a
+//!   [`Termination`]; by default started from LAGO's global estimate ([`lago`]) when that is
+//!   better, and with loop closures under a two-stage robust treatment that survives false
+//!   closures (see [`optimizer`]).
 //!
 //! * [`landmark`]: the landmark front end, [`landmark::GraphLandmarkSlam`], full SLAM with
 //!   range-bearing landmark edges and the EKF's data association behind `LandmarkSlam`.
@@ -30,6 +33,7 @@ pub mod error;
 pub mod factor;
 pub mod graph;
 pub mod kernel;
+pub mod lago;
 pub mod landmark;
 pub mod laser;
 pub mod linear;
@@ -40,7 +44,8 @@ pub use graph::{BetweenEdge, Edge, Node, NodeValue, PointXyEdge, PoseGraph, Rang
 pub use kernel::RobustKernel;
 pub use linear::{Factorization, Ordering};
 pub use optimizer::{
-    IterationInfo, Method, OptimizeReport, Optimizer, OptimizerConfig, StopReason,
+    is_odometry, Damping, InitReport, Initialisation, IterationInfo, Method, OptimizeReport,
+    Optimizer, OptimizerConfig, Start, StopReason, Termination,
 };
 
 /// The `slam-models` vocabulary this crate's API speaks (poses and matrices of the graph,

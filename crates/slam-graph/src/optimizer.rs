@@ -12,17 +12,37 @@
 //! the same iteration (Marquardt 1963; the schedule of GTSAM's `LevenbergMarquardtOptimizer`
 //! with its defaults λ₀ = 1e-5, f = 10, λ_max = 1e5).
 //!
+//! With [`Damping::Marquardt`] the damping is λ·diag(H) instead of λI (Marquardt 1963: the
+//! step is invariant to the scale of each variable).
+//!
 //! # Stopping rule
 //! After an iteration that took F_before to F_after, optimisation stops when
 //! F_after ≤ `absolute_tolerance`, or F_before − F_after ≤ `absolute_tolerance`, or
-//! (F_before − F_after) / F_before ≤ `relative_tolerance`, or `max_iterations` iterations have
-//! run, or (LM) λ exceeded `lambda_max` without finding a step that lowers F. This is GTSAM's
-//! `checkConvergence` on F (GTSAM's own error is F/2, so its absolute tolerance is ours / 2).
+//! (F_before − F_after) / F_before ≤ `relative_tolerance` (each a [`Termination`] naming the
+//! test), or `max_iterations` iterations have run, or (LM) λ exceeded `lambda_max` without
+//! finding a step that lowers F. This is GTSAM's `checkConvergence` on F (GTSAM's own error is
+//! F/2, so its absolute tolerance is ours / 2). Gauss-Newton never takes a step that raises
+//! F: such a step ends the run as [`Termination::Diverged`], with the graph at the best
+//! iterate (the one before the step); a singular H ends it as [`Termination::Singular`].
+//!
+//! # Initialisation and loop closures (the defaults)
+//! [`Optimizer::optimize`] first initialises ([`Optimizer::initialise`]): with
+//! [`Initialisation::Auto`] a planar pose graph is also given LAGO's global estimate
+//! ([`crate::lago`]) and the start with the lower cost F is kept. It then refines
+//! ([`Optimizer::refine`]) in up to two stages. Edges are *odometry* (a pose-pose edge between
+//! node ids that differ by one) or *closures* (every other edge: loop closures, landmark
+//! observations). Stage 1 puts `closure_kernel` (default DCS, Φ = 1) on the closures; stage 2
+//! puts every closure whose eᵀΩe at the stage-1 result is at most `closure_inlier_chi2` back at
+//! full weight (ρ = `kernel`), keeps the kernel on the others and optimises again. So correct
+//! edges end at full weight and the result is the least-squares optimum of the edges
+//! accepted, while a false closure (eᵀΩe of thousands) keeps a weight below 1e-4. Odometry
+//! edges are never down-weighted (they carry `kernel`, default none).
 
 use crate::error::GraphError;
 use crate::factor::{linearize, retract, Linearized};
 use crate::graph::{Edge, NodeValue, PoseGraph};
 use crate::kernel::RobustKernel;
+use crate::lago;
 use crate::linear::{BlockPattern, Factorization, Ordering, SparseLlt};
 use serde::{Deserialize, Serialize};
 
@@ -37,14 +57,74 @@ pub enum Method {
     LevenbergMarquardt,
 }
 
-/// Optimiser settings; the defaults are GTSAM's `LevenbergMarquardtParams` defaults.
+/// The damping term D of Levenberg-Marquardt's (H + λD) δ = −g.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Damping {
+    /// D = I (Levenberg 1944; GTSAM's default).
+    #[default]
+    Identity,
+    /// D = diag(H), each entry at least 1e-9 (Marquardt 1963; GTSAM's `diagonalDamping`).
+    Marquardt,
+}
+
+/// Where refinement starts (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Initialisation {
+    /// LAGO's estimate when the graph is planar pose-only and LAGO's start has the lower cost
+    /// F; the input estimates otherwise (default).
+    #[default]
+    Auto,
+    /// The input estimates as given.
+    Input,
+    /// LAGO's estimate whenever the graph allows it (the input otherwise).
+    Lago,
+}
+
+/// The start refinement used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Start {
+    /// The input estimates.
+    Input,
+    /// LAGO's global estimate ([`crate::lago`]).
+    Lago,
+}
+
+/// What [`Optimizer::initialise`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InitReport {
+    /// The start kept.
+    pub start: Start,
+    /// Cost F (stage-1 kernels) of the input estimates.
+    pub input_cost: f64,
+    /// Cost F of LAGO's estimate, when computed.
+    pub lago_cost: Option<f64>,
+}
+
+/// Optimiser settings; the defaults are GTSAM's `LevenbergMarquardtParams` defaults, plus the
+/// initialisation and loop-closure treatment of the module documentation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", default, deny_unknown_fields)]
 pub struct OptimizerConfig {
     /// Gauss-Newton or Levenberg-Marquardt (default).
     pub method: Method,
-    /// Robust kernel applied to every edge (default none).
+    /// Robust kernel applied to every edge not under `closure_kernel` (default none).
     pub kernel: RobustKernel,
+    /// Kernel on the closures (non-odometry edges) in stage 1, and on the closures stage 2
+    /// rejects (default DCS, Φ = 1: Agarwal et al. 2013's value; a closure counts fully only
+    /// while eᵀΩe ≤ 1, so a false one pulls with at most 3Φ of cost from the first iteration).
+    /// `none` turns the two-stage treatment off.
+    pub closure_kernel: RobustKernel,
+    /// Stage 2: a closure whose eᵀΩe at the stage-1 result is at most this is an inlier and
+    /// returns to full weight (default 16.27, the χ²(3) 99.9 % quantile: one correct 3-DoF
+    /// edge in a thousand would exceed it).
+    pub closure_inlier_chi2: f64,
+    /// Start of the refinement (default auto: LAGO when it gives the lower cost).
+    pub initialisation: Initialisation,
+    /// LM damping term (default λI).
+    pub damping: Damping,
     /// Iteration limit (≥ 1; default 100).
     pub max_iterations: usize,
     /// Stop when the cost's relative decrease is at most this (≥ 0; default 1e-5).
@@ -69,6 +149,10 @@ impl Default for OptimizerConfig {
         Self {
             method: Method::LevenbergMarquardt,
             kernel: RobustKernel::None,
+            closure_kernel: RobustKernel::Dcs { phi: 1.0 },
+            closure_inlier_chi2: 16.27,
+            initialisation: Initialisation::Auto,
+            damping: Damping::Identity,
             max_iterations: 100,
             relative_tolerance: 1e-5,
             absolute_tolerance: 1e-5,
@@ -84,14 +168,14 @@ impl Default for OptimizerConfig {
 impl OptimizerConfig {
     /// The stopping rule of the module documentation (GTSAM's `checkConvergence` on the cost
     /// F) after an iteration took F from `before` to `after`: `Some(reason)` to stop.
-    pub fn converged(&self, before: f64, after: f64) -> Option<StopReason> {
+    pub fn converged(&self, before: f64, after: f64) -> Option<Termination> {
         let decrease = before - after;
         if after <= self.absolute_tolerance {
-            Some(StopReason::CostBelowTolerance)
+            Some(Termination::CostBelowTolerance)
         } else if decrease <= self.absolute_tolerance {
-            Some(StopReason::AbsoluteDecrease)
+            Some(Termination::AbsoluteDecrease)
         } else if decrease / before <= self.relative_tolerance {
-            Some(StopReason::RelativeDecrease)
+            Some(Termination::RelativeDecrease)
         } else {
             None
         }
@@ -127,10 +211,22 @@ impl OptimizerConfig {
         if !(self.lambda_max >= self.lambda_initial && self.lambda_max.is_finite()) {
             return bad("lambda_max", self.lambda_max, "finite and ≥ lambda_initial");
         }
-        if let Some(p) = self.kernel.parameter() {
-            if !(p > 0.0 && p.is_finite()) {
-                return bad("kernel parameter", p, "finite and > 0");
+        for (f, k) in [
+            ("kernel parameter", self.kernel),
+            ("closure_kernel parameter", self.closure_kernel),
+        ] {
+            if let Some(p) = k.parameter() {
+                if !(p > 0.0 && p.is_finite()) {
+                    return bad(f, p, "finite and > 0");
+                }
             }
+        }
+        if !(self.closure_inlier_chi2 > 0.0 && self.closure_inlier_chi2.is_finite()) {
+            return bad(
+                "closure_inlier_chi2",
+                self.closure_inlier_chi2,
+                "finite and > 0",
+            );
         }
         Ok(())
     }
@@ -159,20 +255,47 @@ pub struct IterationInfo {
     pub accepted: bool,
 }
 
-/// Why optimisation stopped.
+/// How optimisation ended: converged by one of three tests, or stopped for another reason.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum StopReason {
-    /// The cost fell to at most `absolute_tolerance`.
+pub enum Termination {
+    /// Converged: the cost fell to at most `absolute_tolerance`.
     CostBelowTolerance,
-    /// The cost's absolute decrease was at most `absolute_tolerance` (or it increased).
+    /// Converged: the cost's absolute decrease was at most `absolute_tolerance`.
     AbsoluteDecrease,
-    /// The cost's relative decrease was at most `relative_tolerance`.
+    /// Converged: the cost's relative decrease was at most `relative_tolerance`.
     RelativeDecrease,
-    /// `max_iterations` iterations ran.
+    /// Not converged: `max_iterations` iterations ran.
     MaxIterations,
-    /// LM: λ exceeded `lambda_max` with no step lowering the cost.
+    /// LM: λ exceeded `lambda_max` with no step lowering the cost (at a minimum to working
+    /// precision, or stuck).
     LambdaLimit,
+    /// Gauss-Newton: a step raised the cost; it was not taken and the graph holds the best
+    /// iterate.
+    Diverged,
+    /// Gauss-Newton: H was not positive definite (an unconstrained variable); the graph holds
+    /// the last iterate.
+    Singular,
+}
+
+/// The former name of [`Termination`].
+pub type StopReason = Termination;
+
+impl Termination {
+    /// Whether one of the three convergence tests ended the run.
+    pub fn converged(&self) -> bool {
+        matches!(
+            self,
+            Termination::CostBelowTolerance
+                | Termination::AbsoluteDecrease
+                | Termination::RelativeDecrease
+        )
+    }
+
+    /// Whether the run failed (diverged or singular): not a usable optimum.
+    pub fn failed(&self) -> bool {
+        matches!(self, Termination::Diverged | Termination::Singular)
+    }
 }
 
 /// The result of [`Optimizer::optimize`].
@@ -186,10 +309,24 @@ pub struct OptimizeReport {
     pub initial_cost: f64,
     /// F at the result.
     pub final_cost: f64,
-    /// One entry per iteration.
+    /// One entry per iteration (both stages).
     pub iterations: Vec<IterationInfo>,
-    /// Why it stopped.
-    pub stop: StopReason,
+    /// How the (last stage of the) run ended.
+    pub stop: Termination,
+    /// The initialisation (default when [`Optimizer::refine`] is called alone: the input).
+    pub init: InitReport,
+    /// Iterations of stage 1 (the rest are stage 2's).
+    pub stage1_iterations: usize,
+    /// Closures down-weighted at the end (indices into [`PoseGraph::edges`]).
+    pub rejected_closures: Vec<usize>,
+}
+
+impl OptimizeReport {
+    /// Whether the result is worse than the start (cost F under the final kernels higher
+    /// than at the input) or the run failed: `slam optimize` exits non-zero then.
+    pub fn worse_than_start(&self) -> bool {
+        self.final_cost > self.initial_cost || self.stop.failed()
+    }
 }
 
 /// A sparse least-squares optimiser bound to one graph structure (nodes, fixed flags and
@@ -214,6 +351,10 @@ pub struct Optimizer {
     lambda: f64,
     iteration: usize,
     n_edges: usize,
+    /// ρ of each edge in the current stage.
+    edge_kernel: Vec<RobustKernel>,
+    /// Whether each edge is a closure (see the module documentation).
+    closure: Vec<bool>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -285,6 +426,11 @@ impl Optimizer {
             })
             .collect();
         let llt = SparseLlt::analyse(&pattern, config.ordering, config.factorization)?;
+        let closure: Vec<bool> = graph
+            .edges()
+            .iter()
+            .map(|e| !is_odometry(graph, e))
+            .collect();
         let n = pattern.n();
         let nnz = pattern.nnz();
         Ok(Self {
@@ -302,6 +448,8 @@ impl Optimizer {
             lambda: config.lambda_initial,
             iteration: 0,
             n_edges: graph.edges().len(),
+            edge_kernel: closure.iter().map(|&c| stage1_kernel(&config, c)).collect(),
+            closure,
         })
     }
 
@@ -328,10 +476,10 @@ impl Optimizer {
 
     fn evaluate(&self, edges: &[Edge], x: &[NodeValue]) -> Result<(f64, f64), GraphError> {
         let (mut chi2, mut cost) = (0.0, 0.0);
-        for (k, e) in edges.iter().enumerate() {
+        for (k, (e, kernel)) in edges.iter().zip(&self.edge_kernel).enumerate() {
             let s = linearize(e, x).ok_or_else(|| degenerate(k))?.chi2();
             chi2 += s;
-            cost += self.config.kernel.robustify(s).0;
+            cost += kernel.robustify(s).0;
         }
         Ok((chi2, cost))
     }
@@ -346,10 +494,15 @@ impl Optimizer {
             h: &mut self.h,
             g: &mut self.g,
         };
-        for (k, (edge, slot)) in edges.iter().zip(&self.slots).enumerate() {
+        for (k, ((edge, slot), kernel)) in edges
+            .iter()
+            .zip(&self.slots)
+            .zip(&self.edge_kernel)
+            .enumerate()
+        {
             let lin = linearize(edge, x).ok_or_else(|| degenerate(k))?;
             let s = lin.chi2();
-            let (rho, w) = self.config.kernel.robustify(s);
+            let (rho, w) = kernel.robustify(s);
             chi2 += s;
             cost += rho;
             match lin {
@@ -368,8 +521,17 @@ impl Optimizer {
     fn solve(&mut self, lambda: f64) -> bool {
         self.damped.copy_from_slice(&self.h);
         if lambda > 0.0 {
-            for &d in &self.diag {
-                self.damped[d] += lambda;
+            match self.config.damping {
+                Damping::Identity => {
+                    for &d in &self.diag {
+                        self.damped[d] += lambda;
+                    }
+                }
+                Damping::Marquardt => {
+                    for &d in &self.diag {
+                        self.damped[d] += lambda * self.h[d].max(1e-9);
+                    }
+                }
             }
         }
         if !self.llt.factorize(&self.pattern, &self.damped) {
@@ -392,8 +554,9 @@ impl Optimizer {
     }
 
     /// One iteration (see the module documentation); the graph's estimates are updated when
-    /// a step is accepted. Errors when the graph's structure differs from the one this
-    /// optimiser was built for, on a degenerate edge, or (Gauss-Newton) when H is singular.
+    /// a step is accepted (never one that raises the cost F). Errors when the graph's
+    /// structure differs from the one this optimiser was built for, on a degenerate edge, or
+    /// (Gauss-Newton) when H is singular.
     pub fn iterate(&mut self, graph: &mut PoseGraph) -> Result<IterationInfo, GraphError> {
         if graph.edges().len() != self.n_edges || graph.nodes().len() != self.block_of.len() {
             return Err(GraphError::Empty(
@@ -423,9 +586,12 @@ impl Optimizer {
                 }
                 self.retract_all(&x, &mut trial);
                 let (chi2, cost) = self.evaluate(graph.edges(), &trial)?;
-                info.chi2_after = chi2;
-                info.cost_after = cost;
-                info.accepted = true;
+                // A step that raises the cost (or makes it non-finite) is not taken.
+                if cost <= cost_before {
+                    info.chi2_after = chi2;
+                    info.cost_after = cost;
+                    info.accepted = true;
+                }
             }
             Method::LevenbergMarquardt => loop {
                 info.lambda = self.lambda;
@@ -456,25 +622,92 @@ impl Optimizer {
         Ok(info)
     }
 
-    /// Iterates until the stopping rule of the module documentation holds.
+    /// Initialises ([`Optimizer::initialise`]) then refines ([`Optimizer::refine`]): the
+    /// whole pipeline of the module documentation.
     pub fn optimize(&mut self, graph: &mut PoseGraph) -> Result<OptimizeReport, GraphError> {
-        let (initial_chi2, initial_cost) = self.cost(graph)?;
-        let mut iterations = Vec::new();
-        let c = self.config;
-        let stop = loop {
-            if iterations.len() >= c.max_iterations {
-                break StopReason::MaxIterations;
-            }
-            let info = self.iterate(graph)?;
-            iterations.push(info);
-            if !info.accepted {
-                break StopReason::LambdaLimit;
-            }
-            if let Some(reason) = c.converged(info.cost_before, info.cost_after) {
-                break reason;
-            }
+        let initial: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+        let init = self.initialise(graph)?;
+        let mut report = self.refine(graph)?;
+        report.init = init;
+        // The start of the report is the input, not the initialisation.
+        let (chi2, cost) = self.evaluate(graph.edges(), &initial)?;
+        report.initial_chi2 = chi2;
+        report.initial_cost = cost;
+        Ok(report)
+    }
+
+    /// Sets the graph's estimates to the start chosen by `initialisation`: LAGO's estimate
+    /// ([`crate::lago::estimate`], planar pose graphs only) replaces the input when asked
+    /// for, or (auto) when its cost F under the stage-1 kernels is lower.
+    pub fn initialise(&mut self, graph: &mut PoseGraph) -> Result<InitReport, GraphError> {
+        self.set_stage1();
+        let (_, input_cost) = self.cost(graph)?;
+        let mut report = InitReport {
+            start: Start::Input,
+            input_cost,
+            lago_cost: None,
         };
+        if self.config.initialisation == Initialisation::Input {
+            return Ok(report);
+        }
+        let fixed = fixed_nodes(graph);
+        let Some(x) = lago::estimate(graph, &fixed)? else {
+            return Ok(report);
+        };
+        let (_, lago_cost) = self.evaluate(graph.edges(), &x)?;
+        report.lago_cost = Some(lago_cost);
+        if self.config.initialisation == Initialisation::Lago || lago_cost < input_cost {
+            for (i, v) in x.into_iter().enumerate() {
+                graph.set_value(i, v);
+            }
+            report.start = Start::Lago;
+        }
+        Ok(report)
+    }
+
+    fn set_stage1(&mut self) {
+        let c = self.config;
+        for (k, &closure) in self.edge_kernel.iter_mut().zip(&self.closure) {
+            *k = stage1_kernel(&c, closure);
+        }
+    }
+
+    /// Iterates from the graph's current estimates until the stopping rule of the module
+    /// documentation holds, in one stage (no closure kernel) or two (see the module
+    /// documentation). The report's `init` says "input".
+    pub fn refine(&mut self, graph: &mut PoseGraph) -> Result<OptimizeReport, GraphError> {
+        self.set_stage1();
+        let start: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+        let mut iterations = Vec::new();
+        let mut stop = self.run(graph, &mut iterations)?;
+        let stage1_iterations = iterations.len();
+        let mut rejected_closures = Vec::new();
+        if self.config.closure_kernel != RobustKernel::None && !stop.failed() {
+            let x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+            let mut changed = false;
+            for (k, e) in graph.edges().iter().enumerate() {
+                if !self.closure[k] {
+                    continue;
+                }
+                let s = linearize(e, &x).ok_or_else(|| degenerate(k))?.chi2();
+                if s <= self.config.closure_inlier_chi2 {
+                    changed |= self.edge_kernel[k] != self.config.kernel;
+                    self.edge_kernel[k] = self.config.kernel;
+                } else {
+                    rejected_closures.push(k);
+                }
+            }
+            if changed {
+                self.lambda = self.config.lambda_initial;
+                let budget = self.config.max_iterations.saturating_sub(stage1_iterations);
+                if budget > 0 {
+                    stop = self.run_limited(graph, &mut iterations, budget)?;
+                }
+            }
+        }
         let (final_chi2, final_cost) = self.cost(graph)?;
+        // The start's cost under the final kernels, so that the two costs compare.
+        let (initial_chi2, initial_cost) = self.evaluate(graph.edges(), &start)?;
         Ok(OptimizeReport {
             initial_chi2,
             final_chi2,
@@ -482,7 +715,69 @@ impl Optimizer {
             final_cost,
             iterations,
             stop,
+            init: InitReport {
+                start: Start::Input,
+                input_cost: initial_cost,
+                lago_cost: None,
+            },
+            stage1_iterations,
+            rejected_closures,
         })
+    }
+
+    fn run(
+        &mut self,
+        graph: &mut PoseGraph,
+        iterations: &mut Vec<IterationInfo>,
+    ) -> Result<Termination, GraphError> {
+        self.run_limited(graph, iterations, self.config.max_iterations)
+    }
+
+    /// Iterations until a stopping test holds or `budget` more have run.
+    fn run_limited(
+        &mut self,
+        graph: &mut PoseGraph,
+        iterations: &mut Vec<IterationInfo>,
+        budget: usize,
+    ) -> Result<Termination, GraphError> {
+        let c = self.config;
+        for _ in 0..budget {
+            let info = match self.iterate(graph) {
+                Ok(info) => info,
+                Err(GraphError::NotPositiveDefinite { .. }) if c.method == Method::GaussNewton => {
+                    return Ok(Termination::Singular)
+                }
+                Err(e) => return Err(e),
+            };
+            iterations.push(info);
+            if !info.accepted {
+                return Ok(match c.method {
+                    Method::GaussNewton => Termination::Diverged,
+                    Method::LevenbergMarquardt => Termination::LambdaLimit,
+                });
+            }
+            if let Some(reason) = c.converged(info.cost_before, info.cost_after) {
+                return Ok(reason);
+            }
+        }
+        Ok(Termination::MaxIterations)
+    }
+}
+
+/// Whether `e` is odometry: a pose-pose edge between node ids that differ by one.
+pub fn is_odometry(graph: &PoseGraph, e: &Edge) -> bool {
+    match e {
+        Edge::Between(b) => graph.nodes()[b.from].id.abs_diff(graph.nodes()[b.to].id) == 1,
+        _ => false,
+    }
+}
+
+/// ρ of an edge in stage 1.
+fn stage1_kernel(c: &OptimizerConfig, closure: bool) -> RobustKernel {
+    if closure && c.closure_kernel != RobustKernel::None {
+        c.closure_kernel
+    } else {
+        c.kernel
     }
 }
 

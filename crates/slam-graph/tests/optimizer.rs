@@ -15,12 +15,23 @@ fn optimize(g: &mut PoseGraph, config: OptimizerConfig) -> OptimizeReport {
 }
 
 /// Levenberg-Marquardt run to full convergence: it stops only when no step lowers χ² (the
-/// defaults stop at a relative decrease of 1e-5, too early for checks at 1e-10).
+/// defaults stop at a relative decrease of 1e-5, too early for checks at 1e-10); from the
+/// input, every edge plain least squares (no LAGO, no closure treatment: the core alone).
 fn lm() -> OptimizerConfig {
     OptimizerConfig {
         relative_tolerance: 0.0,
         absolute_tolerance: 0.0,
+        initialisation: slam_graph::Initialisation::Input,
+        closure_kernel: RobustKernel::None,
         ..OptimizerConfig::default()
+    }
+}
+
+/// [`lm`] with Marquardt's λ·diag(H) damping.
+fn marquardt() -> OptimizerConfig {
+    OptimizerConfig {
+        damping: slam_graph::Damping::Marquardt,
+        ..lm()
     }
 }
 
@@ -39,7 +50,12 @@ fn gn() -> OptimizerConfig {
 /// and θ = 0 are stationary (every lateral and angular residual vanishes there).
 #[test]
 fn hand_solved_chain_with_a_loop() {
-    for config in [lm(), gn()] {
+    let defaults = OptimizerConfig {
+        relative_tolerance: 0.0,
+        absolute_tolerance: 0.0,
+        ..OptimizerConfig::default()
+    };
+    for config in [lm(), gn(), marquardt(), defaults] {
         let mut g = PoseGraph::new();
         g.add_pose(0, Pose2::IDENTITY).unwrap();
         g.add_pose(1, Pose2::new(0.8, 0.2, 0.1)).unwrap();
@@ -210,10 +226,9 @@ fn errors_are_reported_not_panicked() {
     g.add_between(0, 1, Pose2::new(1.0, 0.0, 0.0), Matrix3::identity())
         .unwrap();
     let mut o = Optimizer::new(&g, gn()).unwrap();
-    assert!(matches!(
-        o.optimize(&mut g),
-        Err(GraphError::NotPositiveDefinite { iteration: 0 })
-    ));
+    let r = o.optimize(&mut g).unwrap();
+    assert_eq!(r.stop, StopReason::Singular);
+    assert!(r.worse_than_start());
     for bad in [
         OptimizerConfig {
             max_iterations: 0,
@@ -362,4 +377,43 @@ fn robust_kernels_reject_false_loop_closures() {
     optimize(&mut g, huber);
     let err = mean_error(&g, &truth);
     assert!(err < bad && err > oracle + 0.1, "Huber: {err}");
+}
+
+/// Gauss-Newton on a ring whose initial headings are off by up to ±3 rad: its undamped step
+/// raises χ², which ends the run as diverged with the graph at the best iterate (never
+/// above the start); Levenberg-Marquardt from the same start does not diverge.
+#[test]
+fn gauss_newton_divergence_is_reported() {
+    let truth = true_path(40);
+    let mut g = PoseGraph::new();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+    for (i, p) in truth.iter().enumerate() {
+        let t = if i == 0 {
+            0.0
+        } else {
+            rng.random_range(-3.0..3.0)
+        };
+        g.add_pose(i as u64, Pose2::new(p.x, p.y, p.theta + t))
+            .unwrap();
+    }
+    let info = Matrix3::from_diagonal(&slam_models::Vector3::new(100.0, 100.0, 1000.0));
+    for i in 0..truth.len() {
+        let j = (i + 1) % truth.len();
+        g.add_between(i as u64, j as u64, truth[i].between(&truth[j]), info)
+            .unwrap();
+    }
+    let start = Optimizer::new(&g, gn()).unwrap().cost(&g).unwrap().0;
+    let mut h = g.clone();
+    let r = optimize(&mut g, gn());
+    assert_eq!(r.stop, StopReason::Diverged, "{:?}", r.iterations);
+    assert!(r.worse_than_start());
+    assert!(r.final_chi2 <= start);
+    let best = r
+        .iterations
+        .iter()
+        .map(|i| i.chi2_after)
+        .fold(start, f64::min);
+    assert_eq!(r.final_chi2, best);
+    let r = optimize(&mut h, lm());
+    assert!(!r.stop.failed() && r.final_chi2 < start, "{:?}", r.stop);
 }

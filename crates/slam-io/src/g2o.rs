@@ -1,180 +1,319 @@
-//! g2o graph files, 2-D subset (Kümmerle et al., "g2o: A general framework for graph
-//! optimization", ICRA 2011; the text format of g2o's `types_slam2d`).
+//! 2-D pose-graph files: g2o's text format (Kümmerle et al., "g2o: A general framework for
+//! graph optimization", ICRA 2011; the format of g2o's `types_slam2d`) and TORO's (Grisetti,
+//! Stachniss and Burgard, RSS 2007; the format of the classic benchmarks CSAIL, FR079,
+//! M3500a–c, w10000), read into plain records. This module knows no graph type: turning the
+//! records into an optimisable graph (resolving ids, merging `EQUIV` vertices, initialising
+//! vertices of an edges-only file) is the caller's (`slam_eval::pose_graph`).
 //!
 //! One element per line, whitespace-separated; `#` starts a comment line:
 //!
-//! * `VERTEX_SE2 id x y θ`: a pose (metres, radians);
+//! * `VERTEX_SE2 id x y θ` (g2o) or `VERTEX2 id x y θ` (TORO): a pose (metres, radians);
 //! * `VERTEX_XY id x y`: a point;
 //! * `EDGE_SE2 i j dx dy dθ I11 I12 I13 I22 I23 I33`: pose j measured in pose i's frame, and
 //!   the upper triangle of the 3×3 information matrix, row by row (g2o's write order);
+//! * `EDGE2 i j dx dy dθ I11 I12 I22 I33 I13 I23`: the same in TORO's order of the
+//!   information entries (TORO's `treeoptimizer2` reader);
 //! * `EDGE_SE2_XY i j x y I11 I12 I22`: point j measured in pose i's frame;
-//! * `FIX id ...`: nodes held fixed by the optimiser.
+//! * `FIX id ...`: nodes held fixed by the optimiser;
+//! * `EQUIV i j`: vertices i and j are one (TORO; w10000).
 //!
-//! Any other tag is an error naming the file and line (silently skipping an edge type would
-//! change the problem). Ids are g2o's `int`, 0 ..= 2³¹ − 1; a vertex must be declared before
-//! an edge uses it; information matrices must be symmetric positive definite.
+//! Any other tag is an error naming the file, line and tag (silently skipping an edge type
+//! would change the problem). Ids are g2o's `int`, 0 ..= 2³¹ − 1. Numbers must be finite;
+//! coordinates are not otherwise bounded here. An information matrix must be positive
+//! definite (a Cholesky factor exists) — the only bound on its entries, so the very large
+//! but finite values of some published graphs (Carlone's INTEL: 2.69e12) read.
 
 use crate::error::IoError;
 use crate::text::{read_text, write_text, Line, TextFile};
-use slam_graph::{Edge, GraphError, NodeValue, PoseGraph};
 use slam_models::{Matrix2, Matrix3, Point2, Pose2};
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Largest id g2o can hold (its ids are C `int`).
-const MAX_ID: u64 = i32::MAX as u64;
+pub const MAX_ID: u64 = i32::MAX as u64;
 
-/// Reads a g2o file into a pose graph. Errors (each with file and line): an unknown tag, a
-/// malformed or non-finite field, an id above 2³¹ − 1, a duplicate vertex, an edge or FIX
-/// naming an undeclared vertex or joining the wrong kinds, an information matrix that is not
-/// positive definite, or a file without vertices.
-pub fn read_g2o(path: &Path) -> Result<PoseGraph, IoError> {
-    parse_g2o(&read_text(path)?)
+/// One element of a pose-graph file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GraphRecord {
+    /// A pose vertex (`VERTEX_SE2`, `VERTEX2`): world frame, metres and radians (θ
+    /// normalised to (−π, π] by [`Pose2::new`]).
+    Pose {
+        /// Vertex id.
+        id: u64,
+        /// The initial estimate.
+        pose: Pose2,
+    },
+    /// A point vertex (`VERTEX_XY`), world frame, metres.
+    Point {
+        /// Vertex id.
+        id: u64,
+        /// The initial estimate.
+        point: Point2,
+    },
+    /// A relative-pose edge (`EDGE_SE2`, `EDGE2`): pose `to` in the frame of pose `from`,
+    /// with its information matrix Ω in the order (x, y, θ), symmetric positive definite.
+    PoseEdge {
+        /// First vertex id.
+        from: u64,
+        /// Second vertex id.
+        to: u64,
+        /// The measurement Z = X_from⁻¹ X_to.
+        measurement: Pose2,
+        /// Ω (x, y, θ), whatever the file's order of entries.
+        information: Matrix3,
+    },
+    /// A pose-to-point edge (`EDGE_SE2_XY`): the point in the pose's frame.
+    PointEdge {
+        /// Pose vertex id.
+        pose: u64,
+        /// Point vertex id.
+        point: u64,
+        /// The point in the pose's frame, metres.
+        measurement: Point2,
+        /// Ω, 2×2, symmetric positive definite.
+        information: Matrix2,
+    },
+    /// `FIX`: vertices held at their values (at least one id).
+    Fix {
+        /// The ids.
+        ids: Vec<u64>,
+    },
+    /// `EQUIV`: the two vertices are the same one.
+    Equiv {
+        /// First id.
+        a: u64,
+        /// Second id.
+        b: u64,
+    },
 }
 
-fn id(l: &mut Line<'_>, what: &str) -> Result<u64, IoError> {
-    let v = l.u64(what)?;
-    if v > MAX_ID {
+/// A record and the 1-based line it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineRecord {
+    /// 1-based line number in the file.
+    pub line: usize,
+    /// The element.
+    pub record: GraphRecord,
+}
+
+/// A pose-graph file read into records, in file order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GraphFile {
+    /// The file read.
+    pub path: PathBuf,
+    /// Its elements.
+    pub records: Vec<LineRecord>,
+}
+
+impl GraphFile {
+    /// An error at `line` of this file: `expected` in words, `found` what was there.
+    pub fn error(
+        &self,
+        line: usize,
+        expected: impl Into<String>,
+        found: impl Into<String>,
+    ) -> IoError {
+        IoError::Parse {
+            path: self.path.clone(),
+            line,
+            expected: expected.into(),
+            found: found.into(),
+        }
+    }
+}
+
+/// Reads a g2o or TORO file (the two may be mixed) into records. Errors (each with file and
+/// line, naming the tag or field): an unknown tag, a missing, extra, malformed or non-finite
+/// field, an id above 2³¹ − 1, an information matrix that is not positive definite, an
+/// empty `FIX`, or a file without any element. Graph consistency (unknown or duplicate ids)
+/// is the converter's to check.
+pub fn read_graph_file(path: &Path) -> Result<GraphFile, IoError> {
+    parse(&read_text(path)?)
+}
+
+fn id(l: &mut Line<'_>, tag: &str, what: &str) -> Result<u64, IoError> {
+    let w = l.word(&format!("{tag} {what} (an integer 0 … {MAX_ID})"))?;
+    match w.parse::<u64>() {
+        Ok(v) if v <= MAX_ID => Ok(v),
+        Ok(_) => Err(l.error(format!("{tag} {what} ≤ {MAX_ID} (g2o ids are int)"), w)),
+        Err(_) => Err(l.error(format!("{tag} {what} (a non-negative integer)"), w)),
+    }
+}
+
+/// A finite number (no magnitude bound: the information entries of published graphs reach
+/// 1e12 and more, and their bound is positive-definiteness).
+fn num(l: &mut Line<'_>, tag: &str, what: &str) -> Result<f64, IoError> {
+    let w = l.word(&format!("{tag} {what} (a number)"))?;
+    match w.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(l.error(format!("{tag} {what} (a finite number)"), w)),
+        Err(_) => Err(l.error(format!("{tag} {what} (a number)"), w)),
+    }
+}
+
+fn nums<const N: usize>(
+    l: &mut Line<'_>,
+    tag: &str,
+    names: [&str; N],
+) -> Result<[f64; N], IoError> {
+    let mut out = [0.0; N];
+    for (o, name) in out.iter_mut().zip(names) {
+        *o = num(l, tag, name)?;
+    }
+    Ok(out)
+}
+
+/// Positive definite (a Cholesky factor exists); the matrix is symmetric by construction.
+fn positive_definite<const N: usize>(
+    l: &Line<'_>,
+    tag: &str,
+    m: nalgebra::SMatrix<f64, N, N>,
+) -> Result<nalgebra::SMatrix<f64, N, N>, IoError> {
+    if nalgebra::Cholesky::new(m).is_none() {
         return Err(l.error(
-            format!("{what} ≤ {MAX_ID} (g2o ids are int)"),
-            &v.to_string(),
+            format!("{tag} information matrix positive definite"),
+            &format!("{:?}", m.as_slice()),
         ));
     }
-    Ok(v)
+    Ok(m)
 }
 
-/// The graph's error, placed at this line.
-fn at(l: &Line<'_>, e: GraphError) -> IoError {
-    IoError::Parse {
-        path: l.path.to_path_buf(),
-        line: l.no,
-        expected: "a consistent graph element".into(),
-        found: e.to_string(),
-    }
-}
+const TAGS: &str = "a known tag (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX, and TORO's VERTEX2, EDGE2, EQUIV)";
 
-pub(crate) fn parse_g2o(f: &TextFile) -> Result<PoseGraph, IoError> {
-    f.ensure_not_empty("g2o lines (VERTEX_SE2, EDGE_SE2, ...)")?;
-    let mut g = PoseGraph::new();
-    let mut fixes: Vec<(usize, u64)> = Vec::new();
+fn parse(f: &TextFile) -> Result<GraphFile, IoError> {
+    f.ensure_not_empty("pose-graph lines (VERTEX_SE2, EDGE_SE2, VERTEX2, EDGE2, ...)")?;
+    let mut records = Vec::new();
     for mut l in f.data_lines() {
         let tag = l.word("a tag")?;
-        match tag {
-            "VERTEX_SE2" => {
-                let i = id(&mut l, "vertex id")?;
-                let p = Pose2::new(l.f64("x")?, l.f64("y")?, l.f64("theta")?);
-                l.end("VERTEX_SE2 id x y theta")?;
-                g.add_pose(i, p).map_err(|e| at(&l, e))?;
+        let record = match tag {
+            "VERTEX_SE2" | "VERTEX2" => {
+                let i = id(&mut l, tag, "vertex id")?;
+                let [x, y, t] = nums(&mut l, tag, ["x", "y", "theta"])?;
+                l.end(&format!("{tag} id x y theta"))?;
+                GraphRecord::Pose {
+                    id: i,
+                    pose: Pose2::new(x, y, t),
+                }
             }
             "VERTEX_XY" => {
-                let i = id(&mut l, "vertex id")?;
-                let p = Point2::new(l.f64("x")?, l.f64("y")?);
+                let i = id(&mut l, tag, "vertex id")?;
+                let [x, y] = nums(&mut l, tag, ["x", "y"])?;
                 l.end("VERTEX_XY id x y")?;
-                g.add_point(i, p).map_err(|e| at(&l, e))?;
-            }
-            "EDGE_SE2" => {
-                let a = id(&mut l, "first vertex id")?;
-                let b = id(&mut l, "second vertex id")?;
-                let z = Pose2::new(l.f64("dx")?, l.f64("dy")?, l.f64("dtheta")?);
-                let mut u = [0.0; 6];
-                for (k, name) in ["I11", "I12", "I13", "I22", "I23", "I33"]
-                    .iter()
-                    .enumerate()
-                {
-                    u[k] = l.f64(name)?;
+                GraphRecord::Point {
+                    id: i,
+                    point: Point2::new(x, y),
                 }
-                l.end("EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33")?;
-                let info = Matrix3::new(u[0], u[1], u[2], u[1], u[3], u[4], u[2], u[4], u[5]);
-                g.add_between(a, b, z, info).map_err(|e| at(&l, e))?;
+            }
+            "EDGE_SE2" | "EDGE2" => {
+                let from = id(&mut l, tag, "first vertex id")?;
+                let to = id(&mut l, tag, "second vertex id")?;
+                let [dx, dy, dt] = nums(&mut l, tag, ["dx", "dy", "dtheta"])?;
+                let (i11, i12, i13, i22, i23, i33) = if tag == "EDGE_SE2" {
+                    let u = nums(&mut l, tag, ["I11", "I12", "I13", "I22", "I23", "I33"])?;
+                    l.end("EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33")?;
+                    (u[0], u[1], u[2], u[3], u[4], u[5])
+                } else {
+                    let u = nums(&mut l, tag, ["I11", "I12", "I22", "I33", "I13", "I23"])?;
+                    l.end("EDGE2 i j dx dy dtheta I11 I12 I22 I33 I13 I23")?;
+                    (u[0], u[1], u[4], u[2], u[5], u[3])
+                };
+                let info = Matrix3::new(i11, i12, i13, i12, i22, i23, i13, i23, i33);
+                GraphRecord::PoseEdge {
+                    from,
+                    to,
+                    measurement: Pose2::new(dx, dy, dt),
+                    information: positive_definite(&l, tag, info)?,
+                }
             }
             "EDGE_SE2_XY" => {
-                let a = id(&mut l, "pose vertex id")?;
-                let b = id(&mut l, "point vertex id")?;
-                let z = Point2::new(l.f64("x")?, l.f64("y")?);
-                let (i11, i12, i22) = (l.f64("I11")?, l.f64("I12")?, l.f64("I22")?);
+                let pose = id(&mut l, tag, "pose vertex id")?;
+                let point = id(&mut l, tag, "point vertex id")?;
+                let [x, y, i11, i12, i22] = nums(&mut l, tag, ["x", "y", "I11", "I12", "I22"])?;
                 l.end("EDGE_SE2_XY i j x y I11 I12 I22")?;
                 let info = Matrix2::new(i11, i12, i12, i22);
-                g.add_point_xy(a, b, z, info).map_err(|e| at(&l, e))?;
+                GraphRecord::PointEdge {
+                    pose,
+                    point,
+                    measurement: Point2::new(x, y),
+                    information: positive_definite(&l, tag, info)?,
+                }
             }
             "FIX" => {
-                let mut any = false;
+                let mut ids = Vec::new();
                 while let Ok(w) = l.word("a vertex id") {
                     let v: u64 = w
                         .parse()
                         .ok()
                         .filter(|&v| v <= MAX_ID)
-                        .ok_or_else(|| l.error(format!("a vertex id ≤ {MAX_ID}"), w))?;
-                    fixes.push((l.no, v));
-                    any = true;
+                        .ok_or_else(|| l.error(format!("FIX a vertex id ≤ {MAX_ID}"), w))?;
+                    ids.push(v);
                 }
-                if !any {
+                if ids.is_empty() {
                     return Err(l.error("FIX followed by vertex ids", l.text.trim()));
                 }
+                GraphRecord::Fix { ids }
             }
-            other => {
-                return Err(l.error(
-                    "a known tag (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX)",
-                    other,
-                ))
+            "EQUIV" => {
+                let a = id(&mut l, tag, "first vertex id")?;
+                let b = id(&mut l, tag, "second vertex id")?;
+                l.end("EQUIV i j")?;
+                GraphRecord::Equiv { a, b }
             }
-        }
+            other => return Err(l.error(TAGS, other)),
+        };
+        records.push(LineRecord { line: l.no, record });
     }
-    for (line, v) in fixes {
-        g.fix(v).map_err(|e| IoError::Parse {
-            path: f.path.clone(),
-            line,
-            expected: "FIX of a declared vertex".into(),
-            found: e.to_string(),
-        })?;
-    }
-    if g.nodes().is_empty() {
-        return Err(IoError::Empty {
-            path: f.path.clone(),
-            expected: "at least one VERTEX_SE2 or VERTEX_XY".into(),
-        });
-    }
-    Ok(g)
+    Ok(GraphFile {
+        path: f.path.clone(),
+        records,
+    })
 }
 
-/// Writes a graph in g2o format: vertices in node order, then edges in edge order, then one
-/// `FIX` line with the fixed nodes; numbers in shortest round-trip form, so reading the file
-/// back gives the same graph bit for bit. Range-bearing edges have no g2o 2-D tag and are an
-/// error, as are non-finite values.
-pub fn write_g2o(path: &Path, g: &PoseGraph) -> Result<(), IoError> {
-    write_text(path, &g2o_string(path, g)?)
+/// Writes records in g2o format (TORO's tags written as g2o's; `EQUIV` as is), numbers in
+/// shortest round-trip form, so reading the file back gives the same records bit for bit
+/// (line numbers aside). Errors on a non-finite value or an id above 2³¹ − 1.
+pub fn write_graph_file(path: &Path, records: &[GraphRecord]) -> Result<(), IoError> {
+    write_text(path, &to_string(path, records)?)
 }
 
-fn g2o_string(path: &Path, g: &PoseGraph) -> Result<String, IoError> {
-    let mut s = String::with_capacity(64 * (g.nodes().len() + 2 * g.edges().len()));
-    let finite = |vals: &[f64], what: &str| {
-        if vals.iter().all(|v| v.is_finite()) {
-            Ok(())
+fn to_string(path: &Path, records: &[GraphRecord]) -> Result<String, IoError> {
+    let mut s = String::with_capacity(64 * records.len());
+    let check = |ids: &[u64], vals: &[f64], k: usize| {
+        if ids.iter().any(|&i| i > MAX_ID) {
+            Err(IoError::invalid(
+                path,
+                format!("record {k}: an id above {MAX_ID}"),
+            ))
+        } else if vals.iter().any(|v| !v.is_finite()) {
+            Err(IoError::invalid(
+                path,
+                format!("record {k}: a value is not finite"),
+            ))
         } else {
-            Err(IoError::invalid(path, format!("{what} is not finite")))
+            Ok(())
         }
     };
-    for n in g.nodes() {
-        match n.value {
-            NodeValue::Pose(p) => {
-                finite(&[p.x, p.y, p.theta], &format!("vertex {}", n.id))?;
-                let _ = writeln!(s, "VERTEX_SE2 {} {} {} {}", n.id, p.x, p.y, p.theta);
+    for (k, r) in records.iter().enumerate() {
+        match r {
+            GraphRecord::Pose { id, pose: p } => {
+                check(&[*id], &[p.x, p.y, p.theta], k)?;
+                let _ = writeln!(s, "VERTEX_SE2 {id} {} {} {}", p.x, p.y, p.theta);
             }
-            NodeValue::Point(p) => {
-                finite(&[p.x, p.y], &format!("vertex {}", n.id))?;
-                let _ = writeln!(s, "VERTEX_XY {} {} {}", n.id, p.x, p.y);
+            GraphRecord::Point { id, point: p } => {
+                check(&[*id], &[p.x, p.y], k)?;
+                let _ = writeln!(s, "VERTEX_XY {id} {} {}", p.x, p.y);
             }
-        }
-    }
-    let id = |i: usize| g.nodes()[i].id;
-    for (k, e) in g.edges().iter().enumerate() {
-        match e {
-            Edge::Between(e) => {
-                let (z, m) = (e.measurement, e.information);
+            GraphRecord::PoseEdge {
+                from,
+                to,
+                measurement: z,
+                information: m,
+            } => {
+                check(&[*from, *to], &[z.x, z.y, z.theta], k)?;
+                check(&[], m.as_slice(), k)?;
                 let _ = writeln!(
                     s,
-                    "EDGE_SE2 {} {} {} {} {} {} {} {} {} {} {}",
-                    id(e.from),
-                    id(e.to),
+                    "EDGE_SE2 {from} {to} {} {} {} {} {} {} {} {} {}",
                     z.x,
                     z.y,
                     z.theta,
@@ -186,13 +325,17 @@ fn g2o_string(path: &Path, g: &PoseGraph) -> Result<String, IoError> {
                     m[(2, 2)]
                 );
             }
-            Edge::PointXy(e) => {
-                let (z, m) = (e.measurement, e.information);
+            GraphRecord::PointEdge {
+                pose,
+                point,
+                measurement: z,
+                information: m,
+            } => {
+                check(&[*pose, *point], &[z.x, z.y], k)?;
+                check(&[], m.as_slice(), k)?;
                 let _ = writeln!(
                     s,
-                    "EDGE_SE2_XY {} {} {} {} {} {} {}",
-                    id(e.pose),
-                    id(e.point),
+                    "EDGE_SE2_XY {pose} {point} {} {} {} {} {}",
                     z.x,
                     z.y,
                     m[(0, 0)],
@@ -200,22 +343,18 @@ fn g2o_string(path: &Path, g: &PoseGraph) -> Result<String, IoError> {
                     m[(1, 1)]
                 );
             }
-            Edge::RangeBearing(_) => {
-                return Err(IoError::invalid(
-                    path,
-                    format!("edge {k} is range-bearing, which g2o's 2-D format cannot hold"),
-                ))
+            GraphRecord::Fix { ids } => {
+                check(ids, &[], k)?;
+                if !ids.is_empty() {
+                    let list: Vec<String> = ids.iter().map(u64::to_string).collect();
+                    let _ = writeln!(s, "FIX {}", list.join(" "));
+                }
+            }
+            GraphRecord::Equiv { a, b } => {
+                check(&[*a, *b], &[], k)?;
+                let _ = writeln!(s, "EQUIV {a} {b}");
             }
         }
-    }
-    let fixed: Vec<String> = g
-        .nodes()
-        .iter()
-        .filter(|n| n.fixed)
-        .map(|n| n.id.to_string())
-        .collect();
-    if !fixed.is_empty() {
-        let _ = writeln!(s, "FIX {}", fixed.join(" "));
     }
     Ok(s)
 }
@@ -233,62 +372,107 @@ mod tests {
         EDGE_SE2_XY 1 7 0.5 0.5 4 0.5 5\n\
         FIX 0\n";
 
-    #[test]
-    fn reads_every_tag_and_the_upper_triangle_order() {
-        let g = parse_g2o(&from_str("s.g2o", SMALL)).unwrap();
-        assert_eq!(g.nodes().len(), 3);
-        assert!(g.nodes()[0].fixed && !g.nodes()[1].fixed);
-        assert_eq!(g.point(7), Some(Point2::new(2.0, 3.0)));
-        let Edge::Between(e) = g.edges()[0] else {
-            panic!("{:?}", g.edges()[0])
-        };
-        // I11 I12 I13 I22 I23 I33 row by row.
-        let want = Matrix3::new(10.0, 1.0, 2.0, 1.0, 20.0, 3.0, 2.0, 3.0, 30.0);
-        assert_eq!(e.information, want);
-        assert_eq!(e.measurement, Pose2::new(1.5, -0.25, 3.0));
-        let Edge::PointXy(e) = g.edges()[1] else {
-            panic!("{:?}", g.edges()[1])
-        };
-        assert_eq!(e.information, Matrix2::new(4.0, 0.5, 0.5, 5.0));
+    fn records(text: &str) -> Vec<GraphRecord> {
+        parse(&from_str("s.g2o", text))
+            .unwrap()
+            .records
+            .into_iter()
+            .map(|r| r.record)
+            .collect()
     }
 
     #[test]
-    fn errors_name_file_and_line() {
+    fn reads_every_tag_and_the_upper_triangle_order() {
+        let f = parse(&from_str("s.g2o", SMALL)).unwrap();
+        assert_eq!(f.records.len(), 6);
+        assert_eq!(f.records[0].line, 2);
+        assert_eq!(f.records[5].record, GraphRecord::Fix { ids: vec![0] });
+        assert_eq!(
+            f.records[2].record,
+            GraphRecord::Point {
+                id: 7,
+                point: Point2::new(2.0, 3.0)
+            }
+        );
+        let GraphRecord::PoseEdge {
+            information,
+            measurement,
+            ..
+        } = f.records[3].record
+        else {
+            panic!("{:?}", f.records[3])
+        };
+        // I11 I12 I13 I22 I23 I33 row by row.
+        let want = Matrix3::new(10.0, 1.0, 2.0, 1.0, 20.0, 3.0, 2.0, 3.0, 30.0);
+        assert_eq!(information, want);
+        assert_eq!(measurement, Pose2::new(1.5, -0.25, 3.0));
+        let GraphRecord::PointEdge { information, .. } = f.records[4].record else {
+            panic!("{:?}", f.records[4])
+        };
+        assert_eq!(information, Matrix2::new(4.0, 0.5, 0.5, 5.0));
+    }
+
+    /// TORO's `EDGE2 i j dx dy dθ I11 I12 I22 I33 I13 I23` (the order of TORO's
+    /// `treeoptimizer2` reader and of its published files, e.g. M3500a's
+    /// `EDGE2 0 1 ... 50 0 50 100 0 0`): the same matrix as the g2o line with the entries
+    /// reordered, and `VERTEX2` a pose.
+    #[test]
+    fn toro_order_and_tags() {
+        let toro = records(
+            "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 10 1 20 30 2 3\nEQUIV 0 1\n",
+        );
+        let g2o =
+            records("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 10 1 2 20 3 30\n");
+        assert_eq!(toro[..3], g2o[..]);
+        assert_eq!(toro[3], GraphRecord::Equiv { a: 0, b: 1 });
+    }
+
+    /// Large but finite information (Carlone's INTEL graph has I11 = 2.69e12) reads; its bound
+    /// is positive-definiteness.
+    #[test]
+    fn large_finite_information_reads() {
+        let r = records("EDGE_SE2 0 1 1 0 0 2.69e12 0 0 2.69e12 0 1e15\n");
+        let GraphRecord::PoseEdge { information, .. } = r[0] else {
+            panic!()
+        };
+        assert_eq!(information[(0, 0)], 2.69e12);
+        assert_eq!(information[(2, 2)], 1e15);
+    }
+
+    #[test]
+    fn errors_name_file_line_and_tag() {
         for (text, line, want) in [
             ("", 0, "empty"),
             ("# c\n", 0, "empty"),
             ("VERTEX_SE2 0 0 0 0\nEDGE_SE3 0 1\n", 2, "known tag"),
-            ("VERTEX_SE2 0 0 0\n", 1, "line ended early"),
+            ("VERTEX_SE2 0 0 0 0\nEDGE_SE3 0 1\n", 2, "EDGE_SE3"),
+            ("VERTEX_SE2 0 0 0\n", 1, "VERTEX_SE2 theta"),
             ("VERTEX_SE2 0 0 0 0 9\n", 1, "end of line"),
             ("VERTEX_SE2 -1 0 0 0\n", 1, "non-negative integer"),
-            ("VERTEX_SE2 2147483648 0 0 0\n", 1, "g2o ids are int"),
-            ("VERTEX_SE2 0 0 nan 0\n", 1, "not finite"),
+            ("VERTEX2 2147483648 0 0 0\n", 1, "g2o ids are int"),
             (
-                "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n",
-                2,
-                "already exists",
+                "VERTEX_SE2 0 0 nan 0\n",
+                1,
+                "VERTEX_SE2 y (a finite number)",
+            ),
+            ("VERTEX_SE2 0 0 1e999 0\n", 1, "finite"),
+            (
+                "EDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n",
+                1,
+                "EDGE_SE2 information matrix positive definite",
             ),
             (
-                "VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 1 0 1\n",
-                2,
-                "unknown node 1",
+                "EDGE2 0 1 1 0 0 1 0 1 1 5 0\n",
+                1,
+                "EDGE2 information matrix positive definite",
             ),
-            (
-                "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n",
-                3,
-                "positive definite",
-            ),
-            (
-                "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2_XY 0 1 1 0 1 0 1\n",
-                3,
-                "a pose then a point",
-            ),
+            ("EDGE2 0 1 1 0 0 1 0 1 1 0\n", 1, "EDGE2 I23"),
+            ("EDGE_SE2_XY 0 1 1 0 1 2 1\n", 1, "positive definite"),
+            ("EQUIV 0\n", 1, "EQUIV second vertex id"),
             ("VERTEX_SE2 0 0 0 0\nFIX\n", 2, "FIX followed by"),
             ("VERTEX_SE2 0 0 0 0\nFIX 0 x\n", 2, "vertex id"),
-            ("VERTEX_SE2 0 0 0 0\nFIX 3\n", 2, "unknown node 3"),
-            ("FIX 3\n", 1, "unknown node 3"),
         ] {
-            let e = parse_g2o(&from_str("g.g2o", text)).unwrap_err().to_string();
+            let e = parse(&from_str("g.g2o", text)).unwrap_err().to_string();
             let place = if line > 0 {
                 format!("g.g2o:{line}:")
             } else {
@@ -303,27 +487,33 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("slam-io-g2o-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join("g.g2o");
-        let mut g = parse_g2o(&from_str("s.g2o", SMALL)).unwrap();
+        let mut r = records(SMALL);
         // Awkward values: many digits, tiny and large magnitudes, heading at π.
-        g.add_pose(12, Pose2::new(0.1 + 0.2, -1e-300, std::f64::consts::PI))
-            .unwrap();
-        g.add_between(
-            1,
-            12,
-            Pose2::new(1.0 / 3.0, 2e10, -2.0),
-            Matrix3::new(1e6, 0.1, 0.0, 0.1, 1e-3, 0.0, 0.0, 0.0, 7.0),
-        )
-        .unwrap();
-        g.fix(12).unwrap();
-        write_g2o(&p, &g).unwrap();
-        let back = read_g2o(&p).unwrap();
-        assert_eq!(back.nodes(), g.nodes());
-        assert_eq!(back.edges(), g.edges());
-        // Range-bearing edges cannot be written.
-        g.add_range_bearing(1, 7, 1.0, 0.5, Matrix2::identity())
-            .unwrap();
-        let e = write_g2o(&p, &g).unwrap_err().to_string();
-        assert!(e.contains("range-bearing"), "{e}");
+        r.push(GraphRecord::Pose {
+            id: 12,
+            pose: Pose2::new(0.1 + 0.2, -1e-300, std::f64::consts::PI),
+        });
+        r.push(GraphRecord::PoseEdge {
+            from: 1,
+            to: 12,
+            measurement: Pose2::new(1.0 / 3.0, 2e10, -2.0),
+            information: Matrix3::new(1e13, 0.1, 0.0, 0.1, 1e-3, 0.0, 0.0, 0.0, 7.0),
+        });
+        r.push(GraphRecord::Equiv { a: 12, b: 7 });
+        write_graph_file(&p, &r).unwrap();
+        let back: Vec<GraphRecord> = read_graph_file(&p)
+            .unwrap()
+            .records
+            .into_iter()
+            .map(|l| l.record)
+            .collect();
+        assert_eq!(back, r);
+        r.push(GraphRecord::Pose {
+            id: 3,
+            pose: Pose2::new(f64::NAN, 0.0, 0.0),
+        });
+        let e = write_graph_file(&p, &r).unwrap_err().to_string();
+        assert!(e.contains("not finite"), "{e}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -3,14 +3,15 @@
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
 //!   gzip), [`relations`] (Kümmerle et al. 2009 benchmark relations), [`tum`] (TUM
-//!   trajectories), [`g2o`] (2-D pose graphs, read and written), `rosbag` (ROS bags:
+//!   trajectories), [`g2o`] (2-D pose graphs in g2o and TORO format, as plain records, read and
+//!   written), `rosbag` (ROS bags:
 //!   ROS 2 MCAP and sqlite3 files and rosbag2 folders, ROS 1 bags; features `rosbag`,
 //!   `rosbag-sqlite`, `rosbag1`, on by default); [`open_dataset`]
 //!   picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
 //!   [`carmen::write_carmen`], [`picture`] (PNG, feature `png`, on by default),
-//!   [`g2o::write_g2o`], [`graph_picture`] (a pose graph before and after optimisation),
+//!   [`g2o::write_graph_file`], [`graph_picture`] (a pose graph before and after optimisation),
 //!   `mcap_out` (a run as an MCAP file of ROS 2 messages for Foxglove and `ros2 bag play`,
 //!   feature `rosbag`).
 //!

@@ -2,7 +2,7 @@
 
 use crate::error::GraphError;
 use crate::kernel::RobustKernel;
-use crate::optimizer::OptimizerConfig;
+use crate::optimizer::{Initialisation, OptimizerConfig};
 use serde::{Deserialize, Serialize};
 use slam_grid::{InverseSensorModel, LikelihoodParams, RefinedCorrelativeMatcher};
 use slam_models::OdometryJumpLimit;
@@ -169,9 +169,10 @@ pub struct LaserGraphConfig {
     /// front end's memory beyond its keyframes is about this many submaps. Default 6.
     pub loop_pyramid_cache: usize,
     /// The optimiser (slam-graph's Levenberg-Marquardt), run after every keyframe that
-    /// added a loop closure and once more over every record for the trajectory. Default:
-    /// LM with Dynamic Covariance Scaling Φ = 5 against false closures, at most 20
-    /// iterations.
+    /// added a loop closure. Default: the optimiser's default treatment of loop closures
+    /// (DCS Φ = 1 on them, then the consistent ones back at full weight; odometry untouched:
+    /// see `slam_graph::optimizer`), warm-started from the current keyframe poses (no LAGO
+    /// initialisation), at most 20 iterations.
     pub optimizer: OptimizerConfig,
     /// The optimiser of the trajectory graph (one node per record). Default: LM without a
     /// robust kernel, at most 20 iterations: a kernel on every edge would down-weight the
@@ -220,11 +221,13 @@ impl Default for LaserGraphConfig {
             loop_max_candidates: 3,
             loop_pyramid_cache: 6,
             optimizer: OptimizerConfig {
-                kernel: RobustKernel::Dcs { phi: 5.0 },
+                initialisation: Initialisation::Input,
                 max_iterations: 20,
                 ..OptimizerConfig::default()
             },
             smoother: OptimizerConfig {
+                initialisation: Initialisation::Input,
+                closure_kernel: RobustKernel::None,
                 max_iterations: 20,
                 ..OptimizerConfig::default()
             },
