@@ -83,6 +83,9 @@ pub enum CliError {
     /// Reading a dataset or writing an output failed in slam-io.
     #[error(transparent)]
     Io(#[from] slam_io::IoError),
+    /// A picture could not be drawn or written (slam-viz).
+    #[error(transparent)]
+    Viz(#[from] slam_viz::VizError),
     /// A metric could not be computed (slam-eval).
     #[error(transparent)]
     Eval(#[from] slam_eval::EvalError),

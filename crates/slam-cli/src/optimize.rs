@@ -76,7 +76,7 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     let mut graph = before.clone();
     let report = Optimizer::new(&graph, cfg)?.optimize(&mut graph)?;
     slam_io::g2o::write_g2o(&stage.join("optimized.g2o"), &graph)?;
-    slam_io::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
+    slam_viz::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
     let result = OptimizeOutput {
         input: args.graph.display().to_string(),
         nodes: graph.nodes().len(),

@@ -500,7 +500,7 @@ fn run_landmark(
     slam_io::landmarks_csv::write_landmarks_csv(&p, &run.landmarks)?;
     files.push(p);
     let pic = pictures::landmark_run_picture(
-        title,
+        &title,
         filter.as_ref(),
         &run,
         ground_truth.map(Vec::as_slice),
@@ -606,7 +606,7 @@ fn run_scan(
         particle_count.map(|_| ctx.args.seed),
     );
     let pic = pictures::laser_picture(
-        title,
+        &title,
         &run.map,
         &poses,
         gt_poses.as_deref().map(|g| {

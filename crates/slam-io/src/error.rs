@@ -108,22 +108,6 @@ pub enum IoError {
         /// What was wrong and what was expected, in words.
         what: String,
     },
-    /// A picture could not be drawn (nothing finite to draw).
-    #[error("picture: {0}")]
-    Picture(String),
-    /// A point of a picture lies beyond the drawable extent (a diverged estimate, a glitched
-    /// log): at such coordinates an f64 cannot resolve the metre grid of the axes.
-    #[error("picture: {layer} has a point at ({x:e}, {y:e}) m, beyond the drawable ±{bound:e} m")]
-    PictureExtent {
-        /// The layer holding the point (e.g. "ground truth", "trajectory `estimate`").
-        layer: String,
-        /// The point's x, metres.
-        x: f64,
-        /// The point's y, metres.
-        y: f64,
-        /// The bound on |x| and |y|, metres (`picture::MAX_COORDINATE_M`).
-        bound: f64,
-    },
 }
 
 impl IoError {
