@@ -3,6 +3,34 @@
 use std::path::PathBuf;
 use thiserror::Error;
 
+/// An option of [`crate::DatasetOptions`] (or of `rosbag::BagOptions`) named in an
+/// [`IoError::DatasetOption`], so that a program can name it in its own terms (the `slam`
+/// program: its `--robot`, `--scan-topic`, `--odom-topic`, `--laser-pose` flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DatasetOption {
+    /// `robot`: the MRCLAM robot number.
+    Robot,
+    /// `scan_topic`: a ROS bag's `sensor_msgs/msg/LaserScan` topic.
+    ScanTopic,
+    /// `odom_topic`: a ROS bag's `nav_msgs/msg/Odometry` topic, or `/tf`.
+    OdomTopic,
+    /// `laser_pose`: the laser's pose in the robot's base frame.
+    LaserPose,
+}
+
+impl std::fmt::Display for DatasetOption {
+    /// "option `robot`" (the field's name in [`crate::DatasetOptions`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = match self {
+            DatasetOption::Robot => "robot",
+            DatasetOption::ScanTopic => "scan_topic",
+            DatasetOption::OdomTopic => "odom_topic",
+            DatasetOption::LaserPose => "laser_pose",
+        };
+        write!(f, "option `{name}`")
+    }
+}
+
 /// What went wrong while reading or writing. File errors always name the file,
 /// and parse errors the 1-based line number and what was expected there.
 #[derive(Debug, Error)]
@@ -97,6 +125,22 @@ pub enum IoError {
         /// Why, in words.
         reason: String,
     },
+    /// A dataset option does not apply to the dataset found (a robot number for a ROS bag),
+    /// names what the dataset does not have (a topic of another type), or is needed (two
+    /// candidate topics, no static transform to the laser). The message starts with the
+    /// option, which a program may name as it calls it: `{path}: [topic {topic}: ]{option}
+    /// {what}`.
+    #[error("{path}: {}{option} {what}", topic.as_ref().map(|t| format!("topic {t}: ")).unwrap_or_default())]
+    DatasetOption {
+        /// The dataset.
+        path: PathBuf,
+        /// The ROS bag topic concerned, if any.
+        topic: Option<String>,
+        /// The option.
+        option: DatasetOption,
+        /// What is wrong, a sentence continuing after the option's name.
+        what: String,
+    },
     /// A ROS bag's topic or message is not what the reader expects (a message that does not
     /// decode, a value out of bounds, a missing transform).
     #[error("{path}: topic {topic}: {what}")]
@@ -115,6 +159,20 @@ impl IoError {
         IoError::Io {
             path: path.into(),
             source,
+        }
+    }
+
+    pub(crate) fn option(
+        path: impl Into<PathBuf>,
+        topic: Option<&str>,
+        option: DatasetOption,
+        what: impl Into<String>,
+    ) -> Self {
+        IoError::DatasetOption {
+            path: path.into(),
+            topic: topic.map(str::to_string),
+            option,
+            what: what.into(),
         }
     }
 

@@ -48,7 +48,7 @@ pub use dataset::{
     dataset_info, dataset_kind, dead_reckoning, odometry_trajectory, open_dataset,
     open_dataset_with, Dataset, DatasetKind, DatasetOptions,
 };
-pub use error::IoError;
+pub use error::{DatasetOption, IoError};
 pub use report::Skipped;
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
