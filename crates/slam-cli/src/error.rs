@@ -22,14 +22,6 @@ pub enum CliError {
         /// The known names, comma-separated.
         known: String,
     },
-    /// The filter exists but is not built into this program yet.
-    #[error("filter `{name}` is not available in this build: {reason}")]
-    FilterUnavailable {
-        /// The filter's name.
-        name: String,
-        /// Why, in words.
-        reason: String,
-    },
     /// The filter works on the other kind of data (landmark vs laser).
     #[error("filter `{filter}` needs {needs} data, but {input} is {found} data (filters for it: {suggest})")]
     WrongDataKind {

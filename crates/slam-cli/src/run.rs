@@ -71,12 +71,6 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     // A name that serves both kinds of data (`graph`): the kind-specific checks run once
     // the data has picked the filter.
     let both = slam_eval::factory::serves_both_kinds(&args.filter);
-    if let Some(why) = info.unavailable {
-        return Err(CliError::FilterUnavailable {
-            name: info.name.to_string(),
-            reason: why.to_string(),
-        });
-    }
     if args.frames.is_some() && info.kind != DataKind::Landmark && !both {
         return Err(CliError::InvalidArgument(format!(
             "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
