@@ -15,9 +15,9 @@
 
 use slam_ekf::{EkfConfig, EkfSlam};
 use slam_eval::metrics::chi2_band;
-use slam_io::picture::{plot_series, Series, BLUE};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
+use slam_viz::picture::{plot_series, Series, BLUE};
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -15,9 +15,9 @@
 //! the anchored curves on log–log axes (improved in orange, odometry in blue).
 
 use slam_gridfast::{GridFastConfig, GridFastSlam, Pose2, Proposal, ProposalConfig};
-use slam_io::picture::{plot_series_with, Axes, Rgb, Scale, Series};
 use slam_sim::scenario::{generate, ScenarioOptions};
 use slam_sim::SimOutput;
+use slam_viz::picture::{plot_series_with, Axes, Rgb, Scale, Series};
 use std::path::PathBuf;
 
 const PARTICLES: [usize; 6] = [1, 5, 15, 30, 100, 300];

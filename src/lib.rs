@@ -15,10 +15,12 @@
 //! | [`graph`] | `slam-graph` | pose graphs and their sparse least-squares optimiser |
 //! | [`sim`] | `slam-sim` | simulators and scenarios |
 //! | [`io`] | `slam-io` | dataset readers and writers |
+//! | `viz` | `slam-viz` | PNG pictures of runs and pose graphs (feature `png`, on by default) |
 //! | [`eval`] | `slam-eval` | running a filter over a dataset, metrics, filters from a config |
 //!
 //! Dependencies point one way: `models` at the bottom; `ekf`, `fastslam`, `grid`, `sim`, `io`
-//! on it; `gridfast` on `grid`; `graph` on `models` (and `io` on `graph` for g2o files); the `slam` command-line program (`slam-cli`) on top.
+//! on it; `gridfast` on `grid`; `graph` on `models` (and `io` on `graph` for g2o files); `viz`
+//! on `models` and `graph`; the `slam` command-line program (`slam-cli`) on top.
 
 pub use faer;
 pub use nalgebra;
@@ -34,6 +36,8 @@ pub use slam_io as io;
 pub use slam_mcl as mcl;
 pub use slam_models as models;
 pub use slam_sim as sim;
+#[cfg(feature = "png")]
+pub use slam_viz as viz;
 
 /// The filter and model traits, for glob import: `use slam::prelude::*;`.
 pub mod prelude {

@@ -274,7 +274,8 @@ fn known_poses_map_is_clean(rel: &str, name: &str) {
     let map = grid.to_grid_map();
     let dir = std::env::temp_dir().join(format!("slam-grid-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
-    slam::io::picture::Picture::new()
+    #[cfg(feature = "png")]
+    slam::viz::picture::Picture::new()
         .map(&map)
         .save_png(&dir.join("map.png"))
         .expect("write png");

@@ -315,8 +315,9 @@ fn relations_metric_reproduces_intel_figures() {
 /// Pictures and writers on real data: the files land in cargo's per-test temp folder
 /// (`CARGO_TARGET_TMPDIR/io-pictures`) to be looked at.
 #[test]
+#[cfg(feature = "png")]
 fn pictures_and_writers_on_real_data() {
-    use slam::io::picture::{self, Picture, Series};
+    use slam::viz::picture::{self, Picture, Series};
     use slam_models::{GridMap, LandmarkEstimate, Matrix2, Point2, WeightedPose};
     let out = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("io-pictures");
     std::fs::create_dir_all(&out).unwrap();

@@ -39,7 +39,7 @@ pub enum Command {
     Optimize(OptimizeArgs),
     /// Localize a log on a saved map (Monte Carlo localization); write trajectory, picture and metrics.
     Localize(crate::localize::LocalizeArgs),
-    /// List the filters and scenarios, and whether each is available in this build.
+    /// List the filters and scenarios.
     List,
     /// Say what a dataset holds (a ROS bag's topics, counts, laser and odometry; a log's records).
     Info(InfoArgs),
@@ -306,9 +306,8 @@ fn positive_metres(s: &str) -> Result<f64, String> {
     }
 }
 
-/// `--filter`: one of the factory's filter names (available in this build or not; `slam run`
-/// says why an unavailable one cannot run), so clap lists them, suggests the nearest for a
-/// typo and completes them.
+/// `--filter`: one of the factory's filter names, so clap lists them, suggests the nearest
+/// for a typo and completes them.
 fn filter_names() -> PossibleValuesParser {
     // One name may serve both kinds of data (`graph`): list it once.
     let mut names: Vec<&'static str> = Vec::new();

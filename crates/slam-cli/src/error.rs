@@ -22,14 +22,6 @@ pub enum CliError {
         /// The known names, comma-separated.
         known: String,
     },
-    /// The filter exists but is not built into this program yet.
-    #[error("filter `{name}` is not available in this build: {reason}")]
-    FilterUnavailable {
-        /// The filter's name.
-        name: String,
-        /// Why, in words.
-        reason: String,
-    },
     /// The filter works on the other kind of data (landmark vs laser).
     #[error("filter `{filter}` needs {needs} data, but {input} is {found} data (filters for it: {suggest})")]
     WrongDataKind {
@@ -82,10 +74,13 @@ pub enum CliError {
     },
     /// Reading a dataset or writing an output failed in slam-io.
     #[error(transparent)]
-    Io(#[from] slam_io::IoError),
+    Io(slam_io::IoError),
     /// Monte Carlo localization failed (configuration, map, record).
     #[error(transparent)]
     Localize(#[from] slam_mcl::MclError),
+    /// A picture could not be drawn or written (slam-viz).
+    #[error(transparent)]
+    Viz(#[from] slam_viz::VizError),
     /// A metric could not be computed (slam-eval).
     #[error(transparent)]
     Eval(#[from] slam_eval::EvalError),
@@ -129,13 +124,43 @@ pub enum CliError {
     },
 }
 
+impl From<slam_io::IoError> for CliError {
+    /// A slam-io error as the program reports it: a dataset option the data does not take
+    /// (or needs) is named by its flag (`--robot`, `--scan-topic`, `--odom-topic`,
+    /// `--laser-pose`); every other error unchanged.
+    fn from(e: slam_io::IoError) -> Self {
+        use slam_io::DatasetOption;
+        match e {
+            slam_io::IoError::DatasetOption {
+                path,
+                topic,
+                option,
+                what,
+            } => {
+                let flag = match option {
+                    DatasetOption::Robot => "--robot",
+                    DatasetOption::ScanTopic => "--scan-topic",
+                    DatasetOption::OdomTopic => "--odom-topic",
+                    DatasetOption::LaserPose => "--laser-pose",
+                    DatasetOption::OdomFrame => "--odom-frame",
+                    DatasetOption::BaseFrame => "--base-frame",
+                    DatasetOption::ImuTopic => "--imu-topic",
+                };
+                let topic = topic.map(|t| format!("topic {t}: ")).unwrap_or_default();
+                CliError::InvalidArgument(format!("{}: {topic}{flag} {what}", path.display()))
+            }
+            e => CliError::Io(e),
+        }
+    }
+}
+
 impl From<slam_eval::InputError> for CliError {
     /// An input error as the program reports it: a scenario too short for `--steps` names
     /// the option.
     fn from(e: slam_eval::InputError) -> Self {
         use slam_eval::InputError;
         match e {
-            InputError::Io(e) => CliError::Io(e),
+            InputError::Io(e) => e.into(),
             InputError::Sim(e) => CliError::Sim(e),
             e @ InputError::LaserOdometry(_) => CliError::LaserOdometry(e.to_string()),
             InputError::TooFewSteps {
@@ -171,5 +196,40 @@ impl CliError {
             CliError::Interrupted { .. } => 130,
             _ => 1,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// slam-io names the option by its field, the program by its flag: `--robot` given for
+    /// a Freiburg folder (only MRCLAM folders have robots).
+    #[test]
+    fn dataset_options_are_named_by_their_flags() {
+        let dir = std::env::temp_dir().join(format!("slam-cli-robot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("sensor_data.dat"), "").unwrap();
+        let options = slam_io::DatasetOptions {
+            robot: Some(2),
+            ..Default::default()
+        };
+        let e = slam_io::open_dataset_with(&dir, &options).unwrap_err();
+        let library = e.to_string();
+        assert!(
+            library
+                .ends_with(": option `robot` applies to MRCLAM folders; this is a Freiburg folder"),
+            "{library}"
+        );
+        assert!(!library.contains("--"), "{library}");
+        let cli = CliError::from(e).to_string();
+        assert_eq!(
+            cli,
+            format!(
+                "{}: --robot applies to MRCLAM folders; this is a Freiburg folder",
+                dir.display()
+            )
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -97,12 +97,6 @@ fn configure(
             info.name
         )));
     }
-    if let Some(reason) = info.unavailable {
-        return Err(CliError::FilterUnavailable {
-            name: info.name.to_string(),
-            reason: reason.to_string(),
-        });
-    }
     let mut parsed = match setup.config_path {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|e| CliError::Read {
@@ -260,7 +254,7 @@ mod tests {
 
     #[test]
     fn example_configs_match_the_defaults() {
-        for f in filters().iter().filter(|f| f.unavailable.is_none()) {
+        for f in filters().iter() {
             match f.name {
                 "fastslam1" | "fastslam2" => {
                     example_is_complete_and_default::<slam_fastslam::FastSlamConfig>(f.name, |c| {

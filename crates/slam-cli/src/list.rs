@@ -1,4 +1,4 @@
-//! `slam list`: the filters (with availability) and the scenarios.
+//! `slam list`: the filters and the scenarios.
 
 use crate::filters::filters;
 use slam_sim::scenario::{self, ScenarioKind};
@@ -8,13 +8,9 @@ use std::io::Write;
 pub(crate) fn list(out: &mut dyn Write) {
     let _ = writeln!(out, "Filters (slam run --filter NAME):");
     for f in filters() {
-        let (status, why) = match f.unavailable {
-            None => ("available", String::new()),
-            Some(why) => ("NOT AVAILABLE", format!(" [{why}]")),
-        };
         let _ = writeln!(
             out,
-            "  {:<10} {:<8} {status:<13} {}{why}",
+            "  {:<10} {:<8} {}",
             f.name,
             f.kind.as_str(),
             f.description

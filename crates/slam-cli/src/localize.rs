@@ -5,9 +5,9 @@ use crate::outdir::{OutDir, Owner};
 use clap::Args;
 use serde::Serialize;
 use slam_eval::input::InputData;
-use slam_io::picture::{Picture, Rgb};
 use slam_mcl::{InitialBelief, Mcl, MclConfig, MclMap, StepInfo};
 use slam_models::{Pose2, TimedPose, WeightedPose};
+use slam_viz::picture::{Picture, Rgb};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

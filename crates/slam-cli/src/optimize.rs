@@ -140,7 +140,7 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     report.initial_cost = initial_cost;
     report.init = init;
     slam_eval::pose_graph::write_pose_graph(&stage.join("optimized.g2o"), &graph)?;
-    slam_io::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
+    slam_viz::graph_picture::save_before_after(&before, &graph, &stage.join("graph.png"))?;
     let result = OptimizeOutput {
         input: args.graph.display().to_string(),
         nodes: graph.nodes().len(),

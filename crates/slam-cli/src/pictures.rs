@@ -1,85 +1,15 @@
-//! What `slam run`'s pictures show: `map.png` for landmark and laser filters, and the
-//! `--frames` animation frames of a landmark run. The drawing itself is
-//! [`slam_io::picture::Picture`]; this module picks the layers, their legend labels and the
-//! title (filter, data, particle count, seed).
+//! `slam run`'s pictures: `map.png` of a landmark run and the `--frames` animation frames,
+//! gathered from the filter and the run and written here; which layers they show, their
+//! labels and the title, and the drawing itself, are slam-viz's ([`slam_viz::run_picture`]).
 
 use crate::error::CliError;
-use slam_io::picture::{Picture, RED};
-use slam_models::{
-    GridMap, LandmarkEstimate, LandmarkId, LandmarkSlam, Point2, Pose2, TimedPose, WeightedPose,
+use slam_models::{LandmarkId, LandmarkSlam, Point2, Pose2, TimedPose};
+pub(crate) use slam_viz::run_picture::{laser_picture, title};
+use slam_viz::{
+    picture::Picture,
+    run_picture::{landmark_picture, LandmarkLayers},
 };
 use std::path::{Path, PathBuf};
-
-/// The title of a picture: "fastslam2 on loop, 100 particles, seed 0" (the particle count
-/// only for particle filters, the seed only where it changes the result: a simulated
-/// scenario or a particle filter).
-pub(crate) fn title(
-    filter: &str,
-    data: &str,
-    particles: Option<usize>,
-    seed: Option<u64>,
-) -> String {
-    let mut t = format!("{filter} on {data}");
-    if let Some(n) = particles {
-        t += &format!(", {n} particle{}", if n == 1 { "" } else { "s" });
-    }
-    if let Some(s) = seed {
-        t += &format!(", seed {s}");
-    }
-    t
-}
-
-/// The layers of a landmark filter's picture, as plain data.
-pub(crate) struct LandmarkLayers<'a> {
-    /// The picture's title.
-    pub title: String,
-    /// The estimated path: the EKF's estimate, or FastSLAM's best particle's path.
-    pub estimate: &'a [Pose2],
-    /// Its legend label.
-    pub estimate_label: &'a str,
-    /// Every particle's path x₀:ₜ (FastSLAM's full-SLAM hypotheses); empty when the filter
-    /// does not provide them.
-    pub particle_paths: &'a [Vec<Pose2>],
-    /// Every particle's landmark means; empty when the filter does not provide them.
-    pub particle_landmarks: &'a [Point2],
-    /// The map drawn with 95 % ellipses: the EKF's, or the best particle's.
-    pub landmarks: &'a [LandmarkEstimate],
-    /// The particle cloud now (particle filters).
-    pub particles: Option<&'a [WeightedPose]>,
-    /// Ground truth path, when known.
-    pub ground_truth: Option<&'a [Pose2]>,
-    /// True landmarks, when known.
-    pub true_landmarks: Option<&'a [(LandmarkId, Point2)]>,
-}
-
-/// The picture of a landmark filter's run: for FastSLAM as the Freiburg course exercise
-/// draws it (every particle's path grey, the best particle's path red with an arrow on its
-/// final pose, each particle's landmark means as dots, the best particle's 95 % ellipses,
-/// true landmarks as crosses, ground truth green); for the EKF its estimate, its landmarks'
-/// ellipses and the truth.
-pub(crate) fn landmark_picture(l: &LandmarkLayers<'_>) -> Picture {
-    let particle_filter = l.particles.is_some();
-    let mut pic = Picture::new().title(l.title.clone());
-    pic = pic
-        .particle_paths(l.particle_paths)
-        .particle_landmarks(l.particle_landmarks);
-    if let Some(gt) = l.ground_truth {
-        pic = pic.ground_truth(gt);
-    }
-    if let Some(t) = l.true_landmarks {
-        pic = pic.true_landmarks(t);
-    }
-    let label = if particle_filter {
-        "best particle's landmarks, 95 %"
-    } else {
-        "landmarks, 95 % ellipses"
-    };
-    pic = pic.landmarks(l.landmarks, label);
-    if let Some(p) = l.particles {
-        pic = pic.particles(p);
-    }
-    pic.trajectory(l.estimate, RED, l.estimate_label)
-}
 
 /// `map.png` of a landmark run ([`landmark_picture`]): the run's trajectory (the path
 /// written to `trajectory.tum`) and map, and for particle filters every particle's path
@@ -87,7 +17,7 @@ pub(crate) fn landmark_picture(l: &LandmarkLayers<'_>) -> Picture {
 /// only while they fit a bounded number of poses (shared history is repeated once per
 /// particle when flattened); otherwise a line in `notes` says so.
 pub(crate) fn landmark_run_picture(
-    title: String,
+    title: &str,
     filter: &dyn LandmarkSlam,
     run: &slam_eval::LandmarkRun,
     ground_truth: Option<&[TimedPose]>,
@@ -132,27 +62,6 @@ pub(crate) fn landmark_run_picture(
         ground_truth: gt_poses.as_deref(),
         true_landmarks,
     })
-}
-
-/// The picture of a laser filter's run: the map, the estimated trajectory (red, an arrow on
-/// its final pose), the ground truth with its legend label (green; a `--ground-truth` file
-/// for the bench logs is GMapping's trajectory, a reference rather than the truth) and the
-/// particles, if any.
-pub(crate) fn laser_picture(
-    title: String,
-    map: &GridMap,
-    trajectory: &[Pose2],
-    ground_truth: Option<(&[Pose2], &str)>,
-    particles: Option<&[WeightedPose]>,
-) -> Picture {
-    let mut pic = Picture::new().title(title).map(map);
-    if let Some((gt, label)) = ground_truth {
-        pic = pic.ground_truth(gt).ground_truth_label(label);
-    }
-    if let Some(p) = particles {
-        pic = pic.particles(p);
-    }
-    pic.trajectory(trajectory, RED, "estimate")
 }
 
 /// The file that marks a `--frames` folder as partial while its run is not complete.
@@ -263,8 +172,9 @@ impl Frames {
         } else {
             "estimate"
         };
+        let title = format!("{title}, step {} of {steps}", k + 1);
         let mut pic = landmark_picture(&LandmarkLayers {
-            title: format!("{title}, step {} of {steps}", k + 1),
+            title: &title,
             estimate: &estimate,
             estimate_label: label,
             particle_paths: &[],
@@ -301,18 +211,5 @@ mod tests {
         frames.finish().unwrap();
         assert!(std::fs::read_dir(&dir).unwrap().next().is_none());
         std::fs::remove_dir_all(&dir).ok();
-    }
-
-    #[test]
-    fn titles_name_filter_data_particles_and_seed() {
-        assert_eq!(title("ekf", "loop", None, None), "ekf on loop");
-        assert_eq!(
-            title("fastslam2", "loop", Some(100), Some(0)),
-            "fastslam2 on loop, 100 particles, seed 0"
-        );
-        assert_eq!(
-            title("gridfast", "intel", Some(1), None),
-            "gridfast on intel, 1 particle"
-        );
     }
 }

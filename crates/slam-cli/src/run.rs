@@ -71,12 +71,6 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     // A name that serves both kinds of data (`graph`): the kind-specific checks run once
     // the data has picked the filter.
     let both = slam_eval::factory::serves_both_kinds(&args.filter);
-    if let Some(why) = info.unavailable {
-        return Err(CliError::FilterUnavailable {
-            name: info.name.to_string(),
-            reason: why.to_string(),
-        });
-    }
     if args.frames.is_some() && info.kind != DataKind::Landmark && !both {
         return Err(CliError::InvalidArgument(format!(
             "--frames applies to landmark filters (ekf, fastslam1, fastslam2); `{}` maps a grid",
@@ -500,7 +494,7 @@ fn run_landmark(
     slam_io::landmarks_csv::write_landmarks_csv(&p, &run.landmarks)?;
     files.push(p);
     let pic = pictures::landmark_run_picture(
-        title,
+        &title,
         filter.as_ref(),
         &run,
         ground_truth.map(Vec::as_slice),
@@ -613,7 +607,7 @@ fn run_scan(
         particle_count.map(|_| ctx.args.seed),
     );
     let pic = pictures::laser_picture(
-        title,
+        &title,
         &run.map,
         &poses,
         gt_poses.as_deref().map(|g| {

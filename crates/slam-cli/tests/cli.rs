@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 fn available(kind: filters::DataKind) -> Vec<&'static str> {
     filters::filters()
         .into_iter()
-        .filter(|f| f.kind == kind && f.unavailable.is_none())
+        .filter(|f| f.kind == kind)
         .map(|f| f.name)
         .collect()
 }
@@ -83,14 +83,10 @@ fn list_names_every_filter_and_scenario() {
         assert!(out.contains(s), "{s} missing from:\n{out}");
     }
     for f in filters::filters() {
-        let line = out
-            .lines()
-            .find(|l| l.trim_start().starts_with(f.name))
-            .unwrap();
-        assert_eq!(
-            line.contains("NOT AVAILABLE"),
-            f.unavailable.is_some(),
-            "{line}"
+        assert!(
+            out.contains(f.description),
+            "{} missing from:\n{out}",
+            f.description
         );
     }
 }
@@ -386,11 +382,7 @@ fn every_laser_filter_runs_on_the_simulated_office() {
 
 #[test]
 fn unknown_config_key_is_an_error_naming_it() {
-    let Some(name) = filters::filters()
-        .into_iter()
-        .find(|f| f.unavailable.is_none())
-        .map(|f| f.name)
-    else {
+    let Some(name) = filters::filters().into_iter().next().map(|f| f.name) else {
         eprintln!("SKIPPED: no filter available yet");
         return;
     };
@@ -441,9 +433,7 @@ fn bad_dataset_path_is_one_clear_line_and_nonzero() {
     assert_eq!(lines.len(), 1, "{stderr}");
     assert!(lines[0].starts_with("slam: error: "), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
-    if filters::find("ekf").unwrap().unavailable.is_none() {
-        assert!(stderr.contains("/nonexistent/slam/data"), "{stderr}");
-    }
+    assert!(stderr.contains("/nonexistent/slam/data"), "{stderr}");
 }
 
 #[test]
@@ -550,19 +540,6 @@ fn unknown_filter_and_scenario_are_clear_errors() {
     let (r, _) = slam(&["run", "--filter", name, "--sim", "office", "--steps", "3"]);
     let msg = r.err().unwrap().to_string();
     assert!(msg.contains("laser") && msg.contains("landmark"), "{msg}");
-}
-
-#[test]
-fn unavailable_filters_say_so() {
-    for f in filters::filters()
-        .iter()
-        .filter(|f| f.unavailable.is_some())
-    {
-        let (r, _) = slam(&["run", "--filter", f.name, "--sim", "loop"]);
-        let e = r.err().unwrap();
-        assert!(matches!(e, CliError::FilterUnavailable { .. }), "{e}");
-        assert!(e.to_string().contains("not available"), "{e}");
-    }
 }
 
 /// `slam sim` writes Freiburg files with ground truth; `slam run --dataset` on them gives the
@@ -882,13 +859,7 @@ fn eval_plan_lines_are_valid() {
         let slam_cli::cli::Command::Run(run) = parsed.command else {
             panic!("eval.txt line {}: not a `run`", i + 1)
         };
-        let info = filters::find(&run.filter).unwrap();
-        assert!(
-            info.unavailable.is_none(),
-            "line {}: {} unavailable",
-            i + 1,
-            info.name
-        );
+        let info = filters::find(&run.filter).unwrap_or_else(|e| panic!("line {}: {e}", i + 1));
         assert!(
             run.out.is_some() && run.quiet,
             "line {}: --out and --quiet",

@@ -63,8 +63,6 @@ pub struct FilterInfo {
     pub description: &'static str,
     /// True for particle filters (a particle count applies).
     pub particle_filter: bool,
-    /// `None` when built into this library; otherwise why not.
-    pub unavailable: Option<&'static str>,
 }
 
 /// Every filter, in a fixed order.
@@ -76,7 +74,6 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "EKF-SLAM (PR ch. 10), dense covariance, known or unknown data association",
             particle_filter: false,
-            unavailable: None,
         },
         FilterInfo {
             name: "fastslam1",
@@ -84,7 +81,6 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "FastSLAM 1.0 (Montemerlo et al. 2002, PR ch. 13), a landmark EKF per particle",
             particle_filter: true,
-            unavailable: None,
         },
         FilterInfo {
             name: "fastslam2",
@@ -92,7 +88,6 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "FastSLAM 2.0 (Montemerlo et al. 2003), proposal using the current observations",
             particle_filter: true,
-            unavailable: None,
         },
         FilterInfo {
             name: "graph",
@@ -100,29 +95,25 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "graph-based full SLAM (pose graph + LM), range-bearing edges, the EKF's data association",
             particle_filter: false,
-            unavailable: None,
         },
         FilterInfo {
             name: "scanmatch",
             kind: DataKind::Laser,
             description: "scan-matching odometry against an occupancy grid (no loop closure)",
             particle_filter: false,
-            unavailable: None,
         },
         FilterInfo {
             name: "known-poses",
             kind: DataKind::Laser,
             description:
-                "mapping with known poses: each scan written at the log's own pose (or --poses)",
+                "mapping with known poses: each scan written at the log's own pose",
             particle_filter: false,
-            unavailable: None,
         },
         FilterInfo {
             name: "gridfast",
             kind: DataKind::Laser,
             description: "grid-based FastSLAM with scan-matched proposals (GMapping family)",
             particle_filter: true,
-            unavailable: None,
         },
         FilterInfo {
             name: "graph",
@@ -130,7 +121,6 @@ pub fn filters() -> Vec<FilterInfo> {
             description:
                 "pose-graph SLAM: submap matching, branch-and-bound loop closures, smoothed odometry",
             particle_filter: false,
-            unavailable: None,
         },
     ]
 }

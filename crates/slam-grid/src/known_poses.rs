@@ -1,7 +1,7 @@
 //! Mapping with known poses (Probabilistic Robotics §9.2, table 9.1): every scan written
 //! into one occupancy grid at the pose the log gives, nothing estimated. The first half of
 //! the mapping-then-localization workflow, for logs whose poses are already right (a
-//! corrected log, a motion-capture run, poses from a `--poses` file).
+//! corrected log, a motion-capture run written as a log).
 
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;

@@ -1,6 +1,6 @@
 //! Opening a dataset by path, whatever its format.
 
-use crate::error::IoError;
+use crate::error::{DatasetOption, IoError};
 use slam_models::{LandmarkDataset, Pose2, ScanDataset, TimedPose};
 use std::path::Path;
 
@@ -30,19 +30,19 @@ pub struct DatasetOptions {
 }
 
 impl DatasetOptions {
-    fn bag_option(&self) -> Option<&'static str> {
+    fn bag_option(&self) -> Option<DatasetOption> {
         if self.scan_topic.is_some() {
-            Some("--scan-topic")
+            Some(DatasetOption::ScanTopic)
         } else if self.odom_topic.is_some() {
-            Some("--odom-topic")
+            Some(DatasetOption::OdomTopic)
         } else if self.laser_pose.is_some() {
-            Some("--laser-pose")
+            Some(DatasetOption::LaserPose)
         } else if self.odom_frame.is_some() {
-            Some("--odom-frame")
+            Some(DatasetOption::OdomFrame)
         } else if self.base_frame.is_some() {
-            Some("--base-frame")
+            Some(DatasetOption::BaseFrame)
         } else if self.imu_topic.is_some() {
-            Some("--imu-topic")
+            Some(DatasetOption::ImuTopic)
         } else {
             None
         }
@@ -211,29 +211,32 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
     let robot = o.robot;
     if is_bag(path) {
         if robot.is_some() {
-            return Err(IoError::invalid(
+            return Err(IoError::option(
                 path,
-                "--robot applies to MRCLAM folders; this is a ROS bag",
+                None,
+                DatasetOption::Robot,
+                "applies to MRCLAM folders; this is a ROS bag",
             ));
         }
         let opened = open_bag(path, o)?;
         return Ok((opened.dataset, opened.description));
     }
-    if let Some(flag) = o.bag_option() {
-        return Err(IoError::invalid(
+    if let Some(option) = o.bag_option() {
+        return Err(IoError::option(
             path,
-            format!(
-                "{flag} applies to ROS bags (MCAP, .db3 or ROS 1 .bag files, or folders with \
-                 metadata.yaml)"
-            ),
+            None,
+            option,
+            "applies to ROS bags (MCAP, .db3 or ROS 1 .bag files, or folders with metadata.yaml)",
         ));
     }
     if path.is_dir() {
         if path.join("sensor_data.dat").is_file() {
             if robot.is_some() {
-                return Err(IoError::invalid(
+                return Err(IoError::option(
                     path,
-                    "--robot applies to MRCLAM folders; this is a Freiburg folder",
+                    None,
+                    DatasetOption::Robot,
+                    "applies to MRCLAM folders; this is a Freiburg folder",
                 ));
             }
             let r = crate::freiburg::read_freiburg_report(path)?;
@@ -293,9 +296,11 @@ pub fn open_dataset_with(path: &Path, o: &DatasetOptions) -> Result<(Dataset, St
         });
     }
     if robot.is_some() {
-        return Err(IoError::invalid(
+        return Err(IoError::option(
             path,
-            "--robot applies to MRCLAM folders only",
+            None,
+            DatasetOption::Robot,
+            "applies to MRCLAM folders only",
         ));
     }
     let log = crate::carmen::read_carmen(path)?;

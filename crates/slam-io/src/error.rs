@@ -3,6 +3,43 @@
 use std::path::PathBuf;
 use thiserror::Error;
 
+/// An option of [`crate::DatasetOptions`] (or of `rosbag::BagOptions`) named in an
+/// [`IoError::DatasetOption`], so that a program can name it in its own terms (the `slam`
+/// program: its `--robot`, `--scan-topic`, `--odom-topic`, `--laser-pose` flags).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DatasetOption {
+    /// `robot`: the MRCLAM robot number.
+    Robot,
+    /// `scan_topic`: a ROS bag's `sensor_msgs/msg/LaserScan` topic.
+    ScanTopic,
+    /// `odom_topic`: a ROS bag's `nav_msgs/msg/Odometry` topic, or `/tf`.
+    OdomTopic,
+    /// `laser_pose`: the laser's pose in the robot's base frame.
+    LaserPose,
+    /// `odom_frame`: the odometry frame of a ROS bag's `/tf` odometry chain.
+    OdomFrame,
+    /// `base_frame`: the base frame of a ROS bag's `/tf` odometry chain.
+    BaseFrame,
+    /// `imu_topic`: a ROS bag's `sensor_msgs/msg/Imu` topic.
+    ImuTopic,
+}
+
+impl std::fmt::Display for DatasetOption {
+    /// "option `robot`" (the field's name in [`crate::DatasetOptions`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = match self {
+            DatasetOption::Robot => "robot",
+            DatasetOption::ScanTopic => "scan_topic",
+            DatasetOption::OdomTopic => "odom_topic",
+            DatasetOption::LaserPose => "laser_pose",
+            DatasetOption::OdomFrame => "odom_frame",
+            DatasetOption::BaseFrame => "base_frame",
+            DatasetOption::ImuTopic => "imu_topic",
+        };
+        write!(f, "option `{name}`")
+    }
+}
+
 /// What went wrong while reading or writing. File errors always name the file,
 /// and parse errors the 1-based line number and what was expected there.
 #[derive(Debug, Error)]
@@ -97,6 +134,22 @@ pub enum IoError {
         /// Why, in words.
         reason: String,
     },
+    /// A dataset option does not apply to the dataset found (a robot number for a ROS bag),
+    /// names what the dataset does not have (a topic of another type), or is needed (two
+    /// candidate topics, no static transform to the laser). The message starts with the
+    /// option, which a program may name as it calls it: `{path}: [topic {topic}: ]{option}
+    /// {what}`.
+    #[error("{path}: {}{option} {what}", topic.as_ref().map(|t| format!("topic {t}: ")).unwrap_or_default())]
+    DatasetOption {
+        /// The dataset.
+        path: PathBuf,
+        /// The ROS bag topic concerned, if any.
+        topic: Option<String>,
+        /// The option.
+        option: DatasetOption,
+        /// What is wrong, a sentence continuing after the option's name.
+        what: String,
+    },
     /// A ROS bag's topic or message is not what the reader expects (a message that does not
     /// decode, a value out of bounds, a missing transform).
     #[error("{path}: topic {topic}: {what}")]
@@ -108,22 +161,6 @@ pub enum IoError {
         /// What was wrong and what was expected, in words.
         what: String,
     },
-    /// A picture could not be drawn (nothing finite to draw).
-    #[error("picture: {0}")]
-    Picture(String),
-    /// A point of a picture lies beyond the drawable extent (a diverged estimate, a glitched
-    /// log): at such coordinates an f64 cannot resolve the metre grid of the axes.
-    #[error("picture: {layer} has a point at ({x:e}, {y:e}) m, beyond the drawable ±{bound:e} m")]
-    PictureExtent {
-        /// The layer holding the point (e.g. "ground truth", "trajectory `estimate`").
-        layer: String,
-        /// The point's x, metres.
-        x: f64,
-        /// The point's y, metres.
-        y: f64,
-        /// The bound on |x| and |y|, metres (`picture::MAX_COORDINATE_M`).
-        bound: f64,
-    },
 }
 
 impl IoError {
@@ -131,6 +168,20 @@ impl IoError {
         IoError::Io {
             path: path.into(),
             source,
+        }
+    }
+
+    pub(crate) fn option(
+        path: impl Into<PathBuf>,
+        topic: Option<&str>,
+        option: DatasetOption,
+        what: impl Into<String>,
+    ) -> Self {
+        IoError::DatasetOption {
+            path: path.into(),
+            topic: topic.map(str::to_string),
+            option,
+            what: what.into(),
         }
     }
 

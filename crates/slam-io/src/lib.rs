@@ -1,4 +1,4 @@
-//! # slam-io: datasets in, trajectories, maps and pictures out
+//! # slam-io: datasets in, trajectories and maps out
 //!
 //! * Readers, each tested on the real files of `../shared/datasets`: [`freiburg`] (course
 //!   landmark data), [`mrclam`] (UTIAS MRCLAM), [`carmen`] (CARMEN laser logs, plain or
@@ -10,12 +10,13 @@
 //!   picks the reader for a path.
 //! * Writers: [`tum`], [`ros_map`] (map_server PGM + YAML), [`landmarks_csv`],
 //!   [`estimates_csv`] (per-step pose, covariance and NEES), [`freiburg::write_freiburg`],
-//!   [`carmen::write_carmen`], [`picture`] (PNG, feature `png`, on by default),
-//!   [`g2o::write_graph_file`], [`graph_picture`] (a pose graph before and after optimisation),
-//!   `mcap_out` (a run as an MCAP file of ROS 2 messages for Foxglove and `ros2 bag play`,
-//!   feature `rosbag`).
+//!   [`carmen::write_carmen`], [`g2o::write_graph_file`], `mcap_out` (a run as an MCAP file of
+//!   ROS 2 messages for Foxglove and `ros2 bag play`, feature `rosbag`).
 //!
-//! Metrics computed from these (ATE, RPE, the relations metric, NEES) live in `slam-eval`.
+//! Metrics computed from these (ATE, RPE, the relations metric, NEES) live in `slam-eval`,
+//! and the PNG pictures of results in `slam-viz`: this crate reads and writes formats only
+//! (its one image dependency, behind the `png` feature, off by default, decodes the PNG
+//! images of map_server maps).
 //!
 //! Bad input is an [`IoError`] naming the file, the 1-based line and what was expected;
 //! NaN/∞ values and empty files are errors; nothing panics on user data. Data a reader
@@ -30,18 +31,12 @@ pub mod carmen;
 mod dataset;
 pub mod error;
 pub mod estimates_csv;
-#[cfg(feature = "png")]
-mod font;
 pub mod freiburg;
 pub mod g2o;
-#[cfg(feature = "png")]
-pub mod graph_picture;
 pub mod landmarks_csv;
 #[cfg(feature = "rosbag")]
 pub mod mcap_out;
 pub mod mrclam;
-#[cfg(feature = "png")]
-pub mod picture;
 pub mod relations;
 pub mod report;
 pub mod ros_map;
@@ -54,7 +49,7 @@ pub use dataset::{
     dataset_info, dataset_kind, dead_reckoning, odometry_trajectory, open_dataset,
     open_dataset_report, open_dataset_with, Dataset, DatasetKind, DatasetOptions, OpenedDataset,
 };
-pub use error::IoError;
+pub use error::{DatasetOption, IoError};
 pub use report::Skipped;
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of

@@ -135,7 +135,7 @@ fn odometry_bag_gives_the_carmen_scans_and_poses() {
     let e = read_rosbag(&fixture("intel-odom.mcap"), &BagOptions::default()).unwrap_err();
     let msg = e.to_string();
     assert!(
-        msg.contains("/tf_static") && msg.contains("--laser-pose"),
+        msg.contains("/tf_static") && msg.contains("option `laser_pose` is needed"),
         "{msg}"
     );
     let Some(carmen) = source() else { return };
@@ -311,7 +311,7 @@ fn ambiguous_missing_and_broken_topics_are_errors_that_say_so() {
     let d = BagOptions::default();
     let m = err("bad-two-scans.mcap", &d);
     assert!(
-        m.contains("/scan, /scan_rear") && m.contains("--scan-topic"),
+        m.contains("/scan, /scan_rear") && m.contains("option `scan_topic` must choose"),
         "{m}"
     );
     let o = BagOptions {
@@ -544,7 +544,7 @@ fn sqlite_and_ros1_mistakes_are_errors_that_say_so() {
     for name in ["bad-two-scans.db3", "bad-two-scans.bag"] {
         let m = err(name, &d);
         assert!(
-            m.contains("/scan, /scan_rear") && m.contains("--scan-topic"),
+            m.contains("/scan, /scan_rear") && m.contains("option `scan_topic` must choose"),
             "{m}"
         );
         let o = BagOptions {

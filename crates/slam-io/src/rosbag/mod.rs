@@ -66,7 +66,7 @@ pub(crate) mod wire;
 
 pub use container::{BagFormat, TopicInfo};
 
-use crate::error::IoError;
+use crate::error::{DatasetOption, IoError};
 use msgs::{ScanMsg, StampedPose, LASER_SCAN, ODOMETRY};
 use slam_models::{normalize_angle, LaserScan, Pose2, ScanDataset, ScanRecord, YawRate};
 use std::collections::BTreeMap;
@@ -457,34 +457,38 @@ fn pick(
     topics: &[TopicInfo],
     msg_type: &str,
     chosen: Option<&str>,
-    flag: &str,
+    option: DatasetOption,
 ) -> Result<Option<String>, IoError> {
     let candidates: Vec<&TopicInfo> = topics.iter().filter(|t| t.msg_type == msg_type).collect();
     if let Some(c) = chosen {
         return match topics.iter().find(|t| t.topic == c) {
             Some(t) if t.msg_type == msg_type => Ok(Some(c.to_string())),
-            Some(t) => Err(IoError::Bag {
-                path: path.to_path_buf(),
-                topic: c.to_string(),
-                what: format!("{flag} names a {} topic, expected {msg_type}", t.msg_type),
-            }),
-            None => Err(IoError::Bag {
-                path: path.to_path_buf(),
-                topic: c.to_string(),
-                what: format!(
-                    "{flag} names a topic the bag does not have; {msg_type} topics: {}",
+            Some(t) => Err(IoError::option(
+                path,
+                Some(c),
+                option,
+                format!("names a {} topic, expected {msg_type}", t.msg_type),
+            )),
+            None => Err(IoError::option(
+                path,
+                Some(c),
+                option,
+                format!(
+                    "names a topic the bag does not have; {msg_type} topics: {}",
                     names(&candidates)
                 ),
-            }),
+            )),
         };
     }
     match candidates.as_slice() {
         [] => Ok(None),
         [one] => Ok(Some(one.topic.clone())),
-        many => Err(IoError::invalid(
+        many => Err(IoError::option(
             path,
+            None,
+            option,
             format!(
-                "{} {msg_type} topics ({}); choose one with {flag}",
+                "must choose one of the {} {msg_type} topics ({})",
                 many.len(),
                 names(many)
             ),
@@ -569,7 +573,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         &topics,
         LASER_SCAN,
         options.scan_topic.as_deref(),
-        "--scan-topic",
+        DatasetOption::ScanTopic,
     )?
     .ok_or_else(|| {
         IoError::invalid(
@@ -585,7 +589,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         .find(|t| t.topic == TF && msgs::is_tf_message(&t.msg_type));
     let odom_topic = match options.odom_topic.as_deref() {
         Some(TF) => None,
-        chosen => pick(path, &topics, ODOMETRY, chosen, "--odom-topic")?,
+        chosen => pick(path, &topics, ODOMETRY, chosen, DatasetOption::OdomTopic)?,
     };
     if options.odom_topic.as_deref() == Some(TF) && tf_topic.is_none() {
         return Err(IoError::invalid(
@@ -596,7 +600,7 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
     // No odometry in the bag, or none wanted: the scans alone.
     let laser_only = options.laser_only || (odom_topic.is_none() && tf_topic.is_none());
     let imu_topic = match options.imu_topic.as_deref() {
-        Some(t) => pick(path, &topics, msgs::IMU, Some(t), "--imu-topic")?,
+        Some(t) => pick(path, &topics, msgs::IMU, Some(t), DatasetOption::ImuTopic)?,
         None => None,
     };
     for t in &topics {
@@ -862,15 +866,16 @@ fn assemble(
             None => match static_chain(statics, &base_frame, frame) {
                 Some(p) => (p, "/tf_static"),
                 None => {
-                    return Err(IoError::Bag {
-                        path: path.to_path_buf(),
-                        topic: TF_STATIC.into(),
-                        what: format!(
-                            "no static transform chain from the base frame {base_frame:?} to the \
-                             laser frame {frame:?}; give the laser's mounting with \
-                             --laser-pose x,y,theta"
+                    return Err(IoError::option(
+                        path,
+                        Some(TF_STATIC),
+                        DatasetOption::LaserPose,
+                        format!(
+                            "is needed: no static transform chain from the base frame \
+                             {base_frame:?} to the laser frame {frame:?} (give the laser's \
+                             mounting x, y, theta in the base frame)"
                         ),
-                    })
+                    ))
                 }
             },
         };

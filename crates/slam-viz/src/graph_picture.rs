@@ -3,7 +3,7 @@
 //! pose ids, dark; other pose-pose edges, the loop closures, red; pose-point edges green).
 //! Kept apart from [`crate::picture`] on purpose: it draws nothing but straight lines.
 
-use crate::error::IoError;
+use crate::error::VizError;
 use image::{Rgb, RgbImage};
 use slam_graph::{Edge, NodeValue, PoseGraph};
 use std::path::Path;
@@ -26,7 +26,7 @@ pub fn save_before_after(
     before: &PoseGraph,
     after: &PoseGraph,
     path: &Path,
-) -> Result<(), IoError> {
+) -> Result<(), VizError> {
     let (mut lo, mut hi) = (
         (f64::INFINITY, f64::INFINITY),
         (f64::NEG_INFINITY, f64::NEG_INFINITY),
@@ -39,7 +39,7 @@ pub fn save_before_after(
         }
     }
     if lo.0 > hi.0 {
-        return Err(IoError::Picture("no finite node position to draw".into()));
+        return Err(VizError::Draw("no finite node position to draw".into()));
     }
     let span = (hi.0 - lo.0).max(hi.1 - lo.1).max(1e-9);
     let scale = (PANEL as f64 - 2.0 * MARGIN) / span;
@@ -73,8 +73,7 @@ pub fn save_before_after(
     for y in 0..PANEL {
         img.put_pixel(PANEL, y, Rgb([0, 0, 0]));
     }
-    img.save(path)
-        .map_err(|e| IoError::invalid(path, format!("cannot write PNG: {e}")))
+    img.save(path).map_err(|e| VizError::write(path, e))
 }
 
 /// A straight line by uniform steps along its longer axis (DDA), clipped to the image.
@@ -115,7 +114,7 @@ mod tests {
         }
         g.add_between(0, 3, Pose2::new(3.0, 0.0, 0.0), Matrix3::identity())
             .unwrap();
-        let dir = std::env::temp_dir().join(format!("slam-io-gp-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("slam-viz-gp-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join("g.png");
         save_before_after(&g, &g, &p).unwrap();

@@ -23,10 +23,10 @@
 //! | estimated trajectories | the caller's colour, 2 px, a disc at the start and an arrow along the final heading | the caller's label |
 //! | particles | teal dots | particles, now |
 //!
-//! Coordinates beyond ±[`MAX_COORDINATE_M`] are an error ([`IoError::PictureExtent`]):
+//! Coordinates beyond ±[`MAX_COORDINATE_M`] are an error ([`VizError::Extent`]):
 //! there an f64 cannot resolve the axes' metre grid. Non-finite points are skipped.
 
-use crate::error::IoError;
+use crate::error::VizError;
 use crate::font::{self, draw_text, text_size};
 use image::RgbImage;
 use slam_models::{GridMap, LandmarkEstimate, LandmarkId, Point2, Pose2, WeightedPose};
@@ -138,7 +138,7 @@ struct Track {
 /// # Example
 ///
 /// ```
-/// use slam_io::picture::{Picture, RED};
+/// use slam_viz::picture::{Picture, RED};
 /// use slam_models::Pose2;
 /// let path: Vec<Pose2> = (0..50).map(|i| Pose2::new(0.1 * i as f64, (0.1 * i as f64).sin(), 0.0)).collect();
 /// let img = Picture::new()
@@ -149,7 +149,7 @@ struct Track {
 ///     .render()?;
 /// // The plot is 200 px on its longer side, plus margins for the axes and the title.
 /// assert!(img.width() > 200);
-/// # Ok::<(), slam_io::IoError>(())
+/// # Ok::<(), slam_viz::VizError>(())
 /// ```
 #[derive(Debug, Clone)]
 pub struct Picture {
@@ -384,7 +384,7 @@ impl Picture {
 
     /// The world window shown, as (min x, min y, max x, max y), after checking every point
     /// against [`MAX_COORDINATE_M`].
-    fn window(&self) -> Result<(f64, f64, f64, f64), IoError> {
+    fn window(&self) -> Result<(f64, f64, f64, f64), VizError> {
         let points = self.points();
         let fitted = self
             .fit
@@ -393,7 +393,7 @@ impl Picture {
             .map(|p| ("window".to_string(), *p));
         for (layer, p) in points.iter().cloned().chain(fitted) {
             if p.x.abs() > MAX_COORDINATE_M || p.y.abs() > MAX_COORDINATE_M {
-                return Err(IoError::PictureExtent {
+                return Err(VizError::Extent {
                     layer,
                     x: p.x,
                     y: p.y,
@@ -410,7 +410,7 @@ impl Picture {
             None => points.into_iter().map(|(_, p)| p).collect(),
         };
         let Some(first) = framed.first() else {
-            return Err(IoError::Picture(
+            return Err(VizError::Draw(
                 "nothing to draw (all layers empty or non-finite)".into(),
             ));
         };
@@ -430,7 +430,7 @@ impl Picture {
     }
 
     /// Where the plot lies in the picture [`render`](Self::render) makes, and its scale.
-    pub fn layout(&self) -> Result<Layout, IoError> {
+    pub fn layout(&self) -> Result<Layout, VizError> {
         let (x0, y0, x1, y1) = self.window()?;
         let scale = self.max_size as f64 / (x1 - x0).max(y1 - y0);
         let w = (((x1 - x0) * scale).round() as u32).clamp(1, self.max_size);
@@ -451,7 +451,7 @@ impl Picture {
     }
 
     /// Renders the picture to an image.
-    pub fn render(&self) -> Result<RgbImage, IoError> {
+    pub fn render(&self) -> Result<RgbImage, VizError> {
         let layout = self.layout()?;
         let view = View {
             min_x: layout.min_x,
@@ -482,7 +482,7 @@ impl Picture {
             buf.extend_from_slice(&WHITE.0);
         }
         let mut plot = RgbImage::from_raw(w, h, buf)
-            .ok_or_else(|| IoError::Picture(format!("no {w} × {h} px plot")))?;
+            .ok_or_else(|| VizError::Draw(format!("no {w} × {h} px plot")))?;
         match &self.map {
             Some(m) => draw_map(&mut plot, &view, m),
             None => draw_grid(&mut plot, &view, &xticks, &yticks),
@@ -564,10 +564,10 @@ impl Picture {
     }
 
     /// Renders and writes a PNG.
-    pub fn save_png(&self, path: &Path) -> Result<(), IoError> {
+    pub fn save_png(&self, path: &Path) -> Result<(), VizError> {
         let img = self.render()?;
         img.save_with_format(path, image::ImageFormat::Png)
-            .map_err(|e| IoError::invalid(path, format!("cannot write PNG: {e}")))
+            .map_err(|e| VizError::write(path, e))
     }
 
     /// The legend's entries: one per layer drawn.
@@ -1093,7 +1093,7 @@ pub fn plot_series(
     x: &[f64],
     series: &[Series<'_>],
     band: Option<(f64, f64)>,
-) -> Result<(), IoError> {
+) -> Result<(), VizError> {
     plot_series_with(path, x, series, band, Axes::default())
 }
 
@@ -1132,13 +1132,13 @@ pub fn plot_series_with(
     series: &[Series<'_>],
     band: Option<(f64, f64)>,
     axes: Axes,
-) -> Result<(), IoError> {
+) -> Result<(), VizError> {
     let (w, h, m) = (900u32, 450u32, 20.0);
     // Room on the left for the y labels, below for the x labels.
     let (ml, mb) = (56.0, 30.0);
     for s in series {
         if s.y.len() != x.len() {
-            return Err(IoError::invalid(
+            return Err(VizError::invalid(
                 path,
                 format!("series of {} values for {} x values", s.y.len(), x.len()),
             ));
@@ -1167,7 +1167,7 @@ pub fn plot_series_with(
         ys.extend([lo, hi].into_iter().filter(|v| v.is_finite()));
     }
     if xs.is_empty() || ys.is_empty() {
-        return Err(IoError::invalid(path, "nothing finite to plot"));
+        return Err(VizError::invalid(path, "nothing finite to plot"));
     }
     let (x0, x1) = xs
         .iter()
@@ -1259,7 +1259,7 @@ pub fn plot_series_with(
         }
     }
     img.save_with_format(path, image::ImageFormat::Png)
-        .map_err(|e| IoError::invalid(path, format!("cannot write PNG: {e}")))
+        .map_err(|e| VizError::write(path, e))
 }
 
 #[cfg(test)]
@@ -1610,7 +1610,7 @@ mod tests {
         assert_eq!(*img.get_pixel(l.left + 20, mid), WHITE);
         assert_eq!(img.get_pixel(l.left + l.width - 20, mid).0, [0, 0, 0]);
         assert!(Picture::new().render().is_err());
-        let p = std::env::temp_dir().join(format!("slam-io-plot-{}.png", std::process::id()));
+        let p = std::env::temp_dir().join(format!("slam-viz-plot-{}.png", std::process::id()));
         assert!(plot_series(
             &p,
             &[0.0, 1.0],
@@ -1669,7 +1669,7 @@ mod tests {
             .recv_timeout(std::time::Duration::from_secs(60))
             .expect("drawing a 1e16 m trajectory did not finish within 60 s");
         let e = r.expect_err("1e16 m is beyond the drawable extent");
-        assert!(matches!(e, IoError::PictureExtent { .. }), "{e}");
+        assert!(matches!(e, VizError::Extent { .. }), "{e}");
         assert!(e.to_string().contains("trajectory `far`"), "{e}");
         // Just inside the bound, a 10 m trajectory is drawn with its ticks.
         let near: Vec<Pose2> = (0..10)
@@ -1697,7 +1697,7 @@ mod tests {
         // middle column lies halfway between the red pixels of the first and last columns.
         let x: Vec<f64> = (0..=20).map(|k| 10f64.powf(k as f64 / 10.0)).collect();
         let y: Vec<f64> = x.iter().map(|v| 1.0 / v).collect();
-        let p = std::env::temp_dir().join(format!("slam-io-loglog-{}.png", std::process::id()));
+        let p = std::env::temp_dir().join(format!("slam-viz-loglog-{}.png", std::process::id()));
         let axes = Axes {
             x: Scale::Log10,
             y: Scale::Log10,
