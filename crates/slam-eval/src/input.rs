@@ -370,7 +370,7 @@ pub enum NoOdometry {
 }
 
 /// Replaces the odometry of a laser input by laser odometry
-/// ([`slam_grid::laser_odometry`], default configuration): each scan matched against the
+/// ([`slam_grid::laser_odometry()`], default configuration): each scan matched against the
 /// map of the scans before it, from a constant-velocity prediction, with `yaw_rates` (an
 /// IMU's, time order) as the rotation prior when given; every laser filter then takes it
 /// as wheel odometry. Records without a scan get the time interpolation of the scan poses

@@ -864,7 +864,7 @@ fn imu_yaw_rates_are_read_from_mcap_and_ros1() {
         },
     );
     assert!(
-        m.contains("--imu-topic") && m.contains("sensor_msgs/msg/Imu"),
+        m.contains("option `imu_topic`") && m.contains("sensor_msgs/msg/Imu"),
         "{m}"
     );
 
