@@ -59,16 +59,17 @@ def run_gtsam(path):
     params.setRelativeErrorTol(1e-5)
     params.setAbsoluteErrorTol(0.5e-5)
     params.setMaxIterations(100)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     opt = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
     result = opt.optimize()
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     return {
         "chi2_initial": 2.0 * edges_only.error(initial),
         "chi2_final_gtsam_error": 2.0 * edges_only.error(result),
         "chi2_final_g2o_error": g2o_chi2(path, result),
         "iterations": opt.iterations(),
         "seconds_total": seconds,
+        "cpu_seconds_total": cpu,
     }
 
 
@@ -77,16 +78,36 @@ def run_ours(binary, path):
     return json.loads(out)
 
 
+def run_slam_process(slam, path, out_dir):
+    """The whole `slam optimize` process (read, set-up, initialise, optimise, write): wall
+    seconds and the child's user + system CPU seconds (getrusage of the reaped child)."""
+    import resource
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([slam, "optimize", path, "--out", out_dir], check=True,
+                   capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall": wall, "cpu": cpu}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("g2o")
     ap.add_argument("--ours", required=True, help="path of the graph_optimize example binary")
     ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--slam", help="path of the `slam` binary: also time the whole "
+                    "`slam optimize` process against GTSAM's optimise call alone")
     a = ap.parse_args()
-    g, o = [], []
+    import tempfile
+    scratch = tempfile.mkdtemp(prefix="gtsam-compare-")
+    g, o, p = [], [], []
     for _ in range(a.rounds):
         g.append(run_gtsam(a.g2o))
         o.append(run_ours(a.ours, a.g2o))
+        if a.slam:
+            p.append(run_slam_process(a.slam, a.g2o, scratch))
     med = statistics.median
     gt_total = med(r["seconds_total"] for r in g)
     gt_iter = med(r["seconds_total"] / r["iterations"] for r in g)
@@ -102,7 +123,14 @@ def main():
            "seconds_setup_median": med(r["seconds_setup"] for r in o)},
         "ratio_total_ours_over_gtsam": our_total / gt_total,
         "ratio_per_iteration_ours_over_gtsam": our_iter / gt_iter,
-    }, indent=2))
+    } | ({
+        "slam_optimize_process_wall_median": med(r["wall"] for r in p),
+        "slam_optimize_process_cpu_median": med(r["cpu"] for r in p),
+        "ratio_process_wall_over_gtsam_optimize": med(r["wall"] for r in p) / gt_total,
+        "gtsam_optimize_cpu_median": med(r["cpu_seconds_total"] for r in g),
+        "ratio_process_cpu_over_gtsam_optimize_cpu":
+            med(r["cpu"] for r in p) / med(r["cpu_seconds_total"] for r in g),
+    } if p else {}), indent=2))
 
 
 if __name__ == "__main__":
