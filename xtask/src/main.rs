@@ -45,13 +45,14 @@ fn main() -> ExitCode {
         Some("bench") => bench(args.get(1).map(String::as_str)),
         Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("mcap") => mcap_check(),
+        Some("eval") if args.get(1).map(String::as_str) == Some("ros2") => ros2_check(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("speed") => {
             speed::speed(&args[2..])
         }
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed|ros2]>"
             );
             return ExitCode::from(2);
         }
@@ -540,6 +541,92 @@ fn eval(extra: &[String]) -> Result<(), String> {
         cmd.args(line.split_whitespace()).args(extra);
         run(&format!("eval line {}: slam {line}", i + 1), &mut cmd)?;
     }
+    Ok(())
+}
+
+/// `cargo xtask eval ros2 [SCANS]`: the ROS 2 node and the Foxglove live view against
+/// software we did not write. Makes a Python venv (`$ROS2_VENV`, default
+/// `/tmp/slam-ros2-venv`) with Eclipse Cyclone DDS (`cyclonedds`, one of ROS 2's middlewares)
+/// and `websockets`, builds `slam`, then runs, one at a time:
+///
+/// 1. `scripts/ros2_interop.py` at real time: Cyclone publishes the first SCANS (default 300)
+///    scans and odometry of `bench/intel.log` to `slam ros2`, receives `/map` and `/tf`, and
+///    checks them against the node's files and an offline `slam run` on the scans it
+///    processed;
+/// 2. the same data at 10× real time (`--rate 10`): skipped scans, memory and latency are
+///    reported (the comparison is again against the scans processed);
+/// 3. `scripts/foxglove_check.py`: `slam run --live` on the ROS 2 bag fixture, read by the
+///    `websockets` client with Cyclone's CDR decoder (every channel decodes; map and
+///    trajectory against the run's files).
+///
+/// Everything runs on loopback on a private DDS domain; each script starts and stops its
+/// processes. Outputs in `slam-out/ros2/`.
+fn ros2_check(extra: &[String]) -> Result<(), String> {
+    let scans = extra.first().map(String::as_str).unwrap_or("300");
+    let venv = std::env::var_os("ROS2_VENV")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("/tmp/slam-ros2-venv"));
+    let python = venv.join("bin").join("python");
+    if !python.exists() {
+        run(
+            "make the Python venv",
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+        )?;
+        run(
+            "install cyclonedds, websockets",
+            Command::new(&python).args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "cyclonedds==11.0.1",
+                "websockets==17.4",
+            ]),
+        )?;
+    }
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"));
+    let exe = std::env::current_dir()
+        .map_err(|e| format!("current folder: {e}"))?
+        .join(target.join("release").join("slam"));
+    let log = "../shared/datasets/bench/intel.log";
+    if !std::path::Path::new(log).is_file() {
+        return Err(format!(
+            "{log}: missing (../shared/datasets, see its README)"
+        ));
+    }
+    for (name, rate, compare) in [("realtime", "1", true), ("replay10x", "10", true)] {
+        let out = format!("slam-out/ros2/{name}");
+        let mut cmd = Command::new(&python);
+        cmd.arg("scripts/ros2_interop.py")
+            .arg("--slam")
+            .arg(&exe)
+            .args([
+                "--log", log, "--scans", scans, "--rate", rate, "--out", &out,
+            ]);
+        if !compare {
+            cmd.arg("--no-compare");
+        }
+        run(&format!("ROS 2 node with Cyclone DDS, {name}"), &mut cmd)?;
+    }
+    run(
+        "Foxglove live view, independent client",
+        Command::new(&python)
+            .arg("scripts/foxglove_check.py")
+            .arg("--slam")
+            .arg(&exe)
+            .args([
+                "--dataset",
+                "crates/slam-io/tests/fixtures/rosbag/intel-tf",
+                "--out",
+                "slam-out/ros2/live",
+            ]),
+    )?;
     Ok(())
 }
 
