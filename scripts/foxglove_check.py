@@ -69,49 +69,8 @@ def main():
                 if time.time() - t0 > 60 or run.poll() is not None:
                     sys.exit(f"could not connect to {addr} (slam exit {run.poll()})")
                 time.sleep(0.05)
-        if ws.subprotocol != "foxglove.websocket.v1":
-            failures.append(f"subprotocol {ws.subprotocol!r}")
-        info = json.loads(ws.recv(timeout=10))
-        adv = json.loads(ws.recv(timeout=10))
-        if info.get("op") != "serverInfo" or adv.get("op") != "advertise":
-            failures.append(f"first messages {info.get('op')}, {adv.get('op')}")
-        channels = {c["id"]: c for c in adv["channels"]}
-        for c in channels.values():
-            if c["encoding"] != "cdr" or c["schemaEncoding"] != "ros2msg" or not c["schema"]:
-                failures.append(f"channel {c['topic']}: {c['encoding']}/{c['schemaEncoding']}")
-        subs = {i: cid for i, cid in enumerate(channels)}
-        ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-            {"id": i, "channelId": cid} for i, cid in subs.items()]}))
-        counts = {c["topic"]: 0 for c in channels.values()}
-        last = {}
-        done_at = None
-        while True:
-            if done_at is None and os.path.exists(os.path.join(a.out, "metrics.json")):
-                done_at = time.time()
-            if done_at is not None and time.time() - done_at > 1.5:
-                break
-            if time.time() - t0 > 600:
-                failures.append("the run did not finish within 600 s")
-                break
-            try:
-                msg = ws.recv(timeout=0.2)
-            except TimeoutError:
-                continue
-            if isinstance(msg, str):
-                continue
-            op, sub, ts = struct.unpack_from("<BIQ", msg, 0)
-            if op != 1:
-                continue
-            ch = channels[subs[sub]]
-            payload = msg[13:]
-            try:
-                value = m.BY_ROS_NAME[ch["schemaName"]].deserialize(payload)
-            except Exception as e:  # noqa: BLE001 - any decoding failure is a finding
-                failures.append(f"{ch['topic']}: message did not decode: {e}")
-                continue
-            counts[ch["topic"]] += 1
-            last[ch["topic"]] = value
-        ws.close()
+        with ws:
+            check_stream(a, ws, run, t0, failures, figures := {})
     finally:
         run.send_signal(signal.SIGINT)
         try:
@@ -121,10 +80,58 @@ def main():
             out = ""
     if run.returncode != 0:
         failures.append(f"slam run exited {run.returncode}: {out[-500:]}")
-    for topic, n in counts.items():
-        if n == 0:
-            failures.append(f"{topic}: no message")
-    figures = {"messages": counts}
+    figures["failures"] = failures
+    print(json.dumps(figures))
+    sys.exit(1 if failures else 0)
+
+
+def check_stream(a, ws, run, t0, failures, figures):
+    if ws.subprotocol != "foxglove.websocket.v1":
+        failures.append(f"subprotocol {ws.subprotocol!r}")
+    info = json.loads(ws.recv(timeout=10))
+    adv = json.loads(ws.recv(timeout=10))
+    if info.get("op") != "serverInfo" or adv.get("op") != "advertise":
+        failures.append(f"first messages {info.get('op')}, {adv.get('op')}")
+    channels = {c["id"]: c for c in adv["channels"]}
+    for c in channels.values():
+        if c["encoding"] != "cdr" or c["schemaEncoding"] != "ros2msg" or not c["schema"]:
+            failures.append(f"channel {c['topic']}: {c['encoding']}/{c['schemaEncoding']}")
+    subs = {i: cid for i, cid in enumerate(channels)}
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+        {"id": i, "channelId": cid} for i, cid in subs.items()]}))
+    counts = {c["topic"]: 0 for c in channels.values()}
+    last = {}
+    # The run is over when its outputs are in place (metrics.json is written last); the
+    # stream is drained when nothing has come for 2 s after that (the server holds the
+    # last state and sends nothing new).
+    quiet_since = time.time()
+    while True:
+        done = os.path.exists(os.path.join(a.out, "metrics.json"))
+        if done and time.time() - quiet_since > 2.0:
+            break
+        if time.time() - t0 > 600:
+            failures.append("the run did not finish within 600 s")
+            break
+        try:
+            msg = ws.recv(timeout=0.2)
+        except TimeoutError:
+            continue
+        quiet_since = time.time()
+        if isinstance(msg, str):
+            continue
+        op, sub, ts = struct.unpack_from("<BIQ", msg, 0)
+        if op != 1:
+            continue
+        ch = channels[subs[sub]]
+        payload = msg[13:]
+        try:
+            value = m.BY_ROS_NAME[ch["schemaName"]].deserialize(payload)
+        except Exception as e:  # noqa: BLE001 - any decoding failure is a finding
+            failures.append(f"{ch['topic']}: message did not decode: {e}")
+            continue
+        counts[ch["topic"]] += 1
+        last[ch["topic"]] = value
+    figures["messages"] = counts
     g = last.get("/map")
     if g is not None:
         res, origin = read_map_yaml(os.path.join(a.out, "map.yaml"))
@@ -158,9 +165,6 @@ def main():
             figures["trajectory_max_difference_m"] = worst
             if worst > 1e-6 or worst_t > 1e-5:
                 failures.append(f"/trajectory differs from trajectory.tum by {worst} m, {worst_t} s")
-    figures["failures"] = failures
-    print(json.dumps(figures))
-    sys.exit(1 if failures else 0)
 
 
 if __name__ == "__main__":

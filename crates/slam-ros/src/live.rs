@@ -18,7 +18,8 @@
 //! A new subscription first receives the channel's latest message (so the map and the
 //! trajectory appear at once). Each client has a bounded queue ([`CLIENT_QUEUE`] frames): a
 //! client that reads too slowly loses frames (counted in [`LiveServer::dropped`]) and never
-//! slows the filter down.
+//! slows the filter down. The map and the trajectory are not queued: a client is sent their
+//! latest message whenever it is free, so the last ones always arrive.
 
 use crate::error::RosError;
 use crate::outputs::Out;
@@ -49,7 +50,16 @@ struct Client {
     /// Channel id → subscription id.
     subs: Arc<Mutex<HashMap<u32, u32>>>,
     tx: SyncSender<Frame>,
+    /// Latched channels with a message the client has not been sent yet.
+    dirty: Arc<Mutex<Vec<u32>>>,
     gone: Arc<AtomicBool>,
+}
+
+/// The channels whose latest message alone matters (the map and the trajectory): they are
+/// never queued nor dropped; the client is sent the latest when it is free, so the final
+/// map and trajectory always arrive.
+fn latched(out: Out) -> bool {
+    matches!(out, Out::Map | Out::Trajectory)
 }
 
 struct Shared {
@@ -117,6 +127,7 @@ impl LiveServer {
         let Some(&(id, _, _)) = self.shared.channels.iter().find(|(_, o, _)| *o == out) else {
             return;
         };
+        let latched = latched(out);
         let message = Arc::new(message);
         if let Ok(mut latest) = self.shared.latest.lock() {
             latest.insert(id, (log_time_ns, Arc::clone(&message)));
@@ -127,6 +138,14 @@ impl LiveServer {
         clients.retain(|c| !c.gone.load(Ordering::Relaxed));
         for c in clients.iter() {
             let sub = c.subs.lock().ok().and_then(|s| s.get(&id).copied());
+            if latched {
+                if let (Some(_), Ok(mut d)) = (sub, c.dirty.lock()) {
+                    if !d.contains(&id) {
+                        d.push(id);
+                    }
+                }
+                continue;
+            }
             if let Some(sub) = sub {
                 match c.tx.try_send((sub, log_time_ns, Arc::clone(&message))) {
                     Ok(()) => {}
@@ -175,11 +194,13 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
             Ok((stream, _)) => {
                 let (tx, rx) = sync_channel(CLIENT_QUEUE);
                 let subs = Arc::new(Mutex::new(HashMap::new()));
+                let dirty = Arc::new(Mutex::new(Vec::new()));
                 let gone = Arc::new(AtomicBool::new(false));
                 if let Ok(mut clients) = shared.clients.lock() {
                     clients.push(Client {
                         subs: Arc::clone(&subs),
                         tx,
+                        dirty: Arc::clone(&dirty),
                         gone: Arc::clone(&gone),
                     });
                 }
@@ -188,7 +209,7 @@ fn accept_loop(listener: TcpListener, shared: Arc<Shared>) {
                     .name("live-client".into())
                     .spawn(move || {
                         // A client that breaks the protocol or hangs up is only dropped.
-                        let _ = serve_client(stream, &s, &subs, rx);
+                        let _ = serve_client(stream, &s, &subs, &dirty, rx);
                         gone.store(true, Ordering::Relaxed);
                     })
                 {
@@ -248,6 +269,7 @@ fn serve_client(
     stream: TcpStream,
     shared: &Shared,
     subs: &Mutex<HashMap<u32, u32>>,
+    dirty: &Mutex<Vec<u32>>,
     rx: Receiver<Frame>,
 ) -> Result<(), Box<dyn std::error::Error>> {
     stream.set_nonblocking(false)?;
@@ -288,15 +310,7 @@ fn serve_client(
                 let catch_up = handle_request(t.as_str(), subs);
                 // A new subscription starts with its channel's latest message.
                 for (channel, sub) in catch_up {
-                    let latest = shared
-                        .latest
-                        .lock()
-                        .ok()
-                        .and_then(|l| l.get(&channel).cloned());
-                    if let Some((ts, msg)) = latest {
-                        ws.write(Message::binary(data_frame(sub, ts, &msg)))?;
-                        shared.sent.fetch_add(1, Ordering::Relaxed);
-                    }
+                    send_latest(&mut ws, shared, channel, sub)?;
                 }
             }
             Ok(Message::Close(_)) => return Ok(()),
@@ -304,6 +318,13 @@ fn serve_client(
             Err(tungstenite::Error::Io(e))
                 if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
             Err(e) => return Err(e.into()),
+        }
+        let due: Vec<u32> = dirty.lock().map(|mut d| std::mem::take(&mut *d)).unwrap_or_default();
+        for channel in due {
+            let sub = subs.lock().ok().and_then(|s| s.get(&channel).copied());
+            if let Some(sub) = sub {
+                send_latest(&mut ws, shared, channel, sub)?;
+            }
         }
         while let Ok((sub, ts, msg)) = rx.try_recv() {
             // The client may have unsubscribed since the frame was queued.
@@ -323,6 +344,25 @@ fn serve_client(
             Err(e) => return Err(e.into()),
         }
     }
+}
+
+/// Writes `channel`'s latest message, if any, for subscription `sub`.
+fn send_latest(
+    ws: &mut WebSocket<TcpStream>,
+    shared: &Shared,
+    channel: u32,
+    sub: u32,
+) -> Result<(), tungstenite::Error> {
+    let latest = shared
+        .latest
+        .lock()
+        .ok()
+        .and_then(|l| l.get(&channel).cloned());
+    if let Some((ts, msg)) = latest {
+        ws.write(Message::binary(data_frame(sub, ts, &msg)))?;
+        shared.sent.fetch_add(1, Ordering::Relaxed);
+    }
+    Ok(())
 }
 
 /// Applies a client's `subscribe` / `unsubscribe`; returns the new (channel, subscription)
