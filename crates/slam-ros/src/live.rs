@@ -44,6 +44,8 @@ pub const CLIENT_QUEUE: usize = 256;
 
 /// One frame on its way to a client: subscription id, log time (ns), message.
 type Frame = (u32, u64, Arc<Vec<u8>>);
+/// A channel's latest message: log time (ns) and bytes.
+type Latest = (u64, Arc<Vec<u8>>);
 
 /// One connected client, as the publishing side sees it.
 struct Client {
@@ -67,7 +69,7 @@ struct Shared {
     channels: Vec<(u32, Out, String)>,
     clients: Mutex<Vec<Client>>,
     /// The latest message of each channel: log time and bytes.
-    latest: Mutex<HashMap<u32, (u64, Arc<Vec<u8>>)>>,
+    latest: Mutex<HashMap<u32, Latest>>,
     stop: AtomicBool,
     dropped: AtomicU64,
     sent: AtomicU64,
@@ -274,6 +276,8 @@ fn serve_client(
 ) -> Result<(), Box<dyn std::error::Error>> {
     stream.set_nonblocking(false)?;
     stream.set_read_timeout(Some(Duration::from_secs(5)))?;
+    // tungstenite's callback type fixes the error type (an HTTP response).
+    #[allow(clippy::result_large_err)]
     let callback = |req: &Request, mut resp: Response| -> Result<Response, ErrorResponse> {
         let offered = req
             .headers()
@@ -401,35 +405,6 @@ fn handle_request(text: &str, subs: &Mutex<HashMap<u32, u32>>) -> Vec<(u32, u32)
     added
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn data_frames_follow_the_protocol_layout() {
-        let f = data_frame(7, 0x0102_0304_0506_0708, &[0xAA, 0xBB]);
-        assert_eq!(f, vec![1, 7, 0, 0, 0, 8, 7, 6, 5, 4, 3, 2, 1, 0xAA, 0xBB]);
-    }
-
-    #[test]
-    fn subscriptions_are_added_and_removed() {
-        let subs = Mutex::new(HashMap::new());
-        let added = handle_request(
-            r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":3},{"id":1,"channelId":1}]}"#,
-            &subs,
-        );
-        assert_eq!(added, vec![(3, 0), (1, 1)]);
-        handle_request(r#"{"op":"unsubscribe","subscriptionIds":[0]}"#, &subs);
-        assert_eq!(subs.lock().unwrap().len(), 1);
-        assert!(handle_request("not json", &subs).is_empty());
-        assert!(handle_request(
-            r#"{"op":"subscribe","subscriptions":[{"id":-1,"channelId":1}]}"#,
-            &subs
-        )
-        .is_empty());
-    }
-}
-
 /// The live view of a run over a file (`slam run --live`): after each record, the step's
 /// outputs ([`crate::outputs::step_messages`] with `odom → base` and the scan), the map at
 /// most once per [`RunView::MAP_EVERY`] of wall time and the trajectory at most once per
@@ -493,5 +468,34 @@ impl RunView {
         {
             self.server.publish(out, stamp.ns(), bytes);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn data_frames_follow_the_protocol_layout() {
+        let f = data_frame(7, 0x0102_0304_0506_0708, &[0xAA, 0xBB]);
+        assert_eq!(f, vec![1, 7, 0, 0, 0, 8, 7, 6, 5, 4, 3, 2, 1, 0xAA, 0xBB]);
+    }
+
+    #[test]
+    fn subscriptions_are_added_and_removed() {
+        let subs = Mutex::new(HashMap::new());
+        let added = handle_request(
+            r#"{"op":"subscribe","subscriptions":[{"id":0,"channelId":3},{"id":1,"channelId":1}]}"#,
+            &subs,
+        );
+        assert_eq!(added, vec![(3, 0), (1, 1)]);
+        handle_request(r#"{"op":"unsubscribe","subscriptionIds":[0]}"#, &subs);
+        assert_eq!(subs.lock().unwrap().len(), 1);
+        assert!(handle_request("not json", &subs).is_empty());
+        assert!(handle_request(
+            r#"{"op":"subscribe","subscriptions":[{"id":-1,"channelId":1}]}"#,
+            &subs
+        )
+        .is_empty());
     }
 }
