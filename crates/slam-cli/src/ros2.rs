@@ -150,3 +150,46 @@ pub fn ros2(a: &Ros2Args, out: &mut dyn Write) -> Result<NodeReport, CliError> {
     slam_ros::run_node(&opts, built.filter, &crate::STOP, live.as_ref(), &mut log)
         .map_err(|e| CliError::Ros(Box::new(e)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        a: Ros2Args,
+    }
+
+    fn parse(args: &[&str]) -> Ros2Args {
+        Wrap::try_parse_from(std::iter::once("ros2").chain(args.iter().copied()))
+            .unwrap()
+            .a
+    }
+
+    #[test]
+    fn defaults_follow_the_ros_conventions() {
+        let o = options(&parse(&[])).unwrap();
+        assert_eq!(o.scan_topic, "/scan");
+        assert_eq!(o.odometry, OdomSource::Topic("/odom".into()));
+        assert_eq!(o.map_topic, "/map");
+        assert_eq!(o.frames, Frames::default());
+        assert!(!o.use_sim_time);
+    }
+
+    #[test]
+    fn topics_and_odometry_sources_are_parameters() {
+        let o = options(&parse(&["--topic", "map=/slam/map", "--odom-topic", "/tf"])).unwrap();
+        assert_eq!(
+            (o.map_topic.as_str(), o.odometry),
+            ("/slam/map", OdomSource::Tf)
+        );
+        let o = options(&parse(&["--odom-topic", "none"])).unwrap();
+        assert_eq!(o.odometry, OdomSource::None);
+        let e = options(&parse(&["--topic", "mapp=/x"])).unwrap_err();
+        assert!(e.to_string().contains("NAME is one of"), "{e}");
+        assert!(options(&parse(&["--topic", "nothing"])).is_err());
+        assert!(options(&parse(&["--map-interval", "0"])).is_err());
+    }
+}

@@ -323,7 +323,10 @@ fn serve_client(
                 if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
             Err(e) => return Err(e.into()),
         }
-        let due: Vec<u32> = dirty.lock().map(|mut d| std::mem::take(&mut *d)).unwrap_or_default();
+        let due: Vec<u32> = dirty
+            .lock()
+            .map(|mut d| std::mem::take(&mut *d))
+            .unwrap_or_default();
         for channel in due {
             let sub = subs.lock().ok().and_then(|s| s.get(&channel).copied());
             if let Some(sub) = sub {
@@ -467,6 +470,66 @@ impl RunView {
             crate::outputs::step_messages(stamp, filter, &record.odometry, &self.frames, include)
         {
             self.server.publish(out, stamp.ns(), bytes);
+        }
+    }
+}
+
+impl RunView {
+    /// Publishes a localization step (`slam localize --live`): `pose` and `cloud` in the
+    /// map frame after `record`, with `map → odom`, `odom → base` and the scan; `map` (the
+    /// fixed map localized on) goes out once, with the first step.
+    pub fn localize_step(
+        &mut self,
+        record: &slam_models::ScanRecord,
+        pose: slam_models::Pose2,
+        cloud: &[slam_models::WeightedPose],
+        map: &slam_models::GridMap,
+    ) {
+        use slam_io::ros_msg::{self, Transform};
+        let stamp = ros_msg::stamp(record.t).unwrap_or(ros_msg::Stamp { sec: 0, nanosec: 0 });
+        let f = &self.frames;
+        let mut out = Vec::new();
+        if self.last_map.is_none() {
+            self.last_map = Some(std::time::Instant::now());
+            out.push((Out::Map, ros_msg::encode_occupancy_grid(stamp, &f.map, map)));
+        }
+        let tf = [
+            Transform {
+                stamp,
+                parent: &f.map,
+                child: &f.odom,
+                pose: crate::outputs::map_to_odom(&pose, &record.odometry),
+            },
+            Transform {
+                stamp,
+                parent: &f.odom,
+                child: &f.base,
+                pose: record.odometry,
+            },
+        ];
+        out.push((Out::Tf, ros_msg::encode_tf_message(&tf)));
+        let cov = crate::convert::cloud_covariance(cloud).unwrap_or([[0.0; 3]; 3]);
+        out.push((
+            Out::Pose,
+            ros_msg::encode_pose_with_covariance(stamp, &f.map, &pose, &cov),
+        ));
+        let poses: Vec<slam_models::Pose2> = cloud.iter().map(|p| p.pose).collect();
+        out.push((
+            Out::Particles,
+            ros_msg::encode_pose_array(stamp, &f.map, &poses),
+        ));
+        if let Some(scan) = &record.scan {
+            let mount = [Transform {
+                stamp,
+                parent: &f.base,
+                child: &f.laser,
+                pose: scan.sensor_pose,
+            }];
+            out.push((Out::TfStatic, ros_msg::encode_tf_message(&mount)));
+            out.push((Out::Scan, ros_msg::encode_laser_scan(stamp, &f.laser, scan)));
+        }
+        for (o, bytes) in out {
+            self.server.publish(o, stamp.ns(), bytes);
         }
     }
 }
