@@ -544,6 +544,32 @@ fn eval(extra: &[String]) -> Result<(), String> {
     Ok(())
 }
 
+/// The Python of a throwaway venv (`$ENV_VAR`, default `default`), made with `packages`
+/// (pinned) on first use.
+fn python_venv(
+    env_var: &str,
+    default: &str,
+    packages: &[&str],
+) -> Result<std::path::PathBuf, String> {
+    let venv = std::env::var_os(env_var)
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from(default));
+    let python = venv.join("bin").join("python");
+    if !python.exists() {
+        run(
+            "make the Python venv",
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+        )?;
+        run(
+            &format!("install {}", packages.join(", ")),
+            Command::new(&python)
+                .args(["-m", "pip", "install", "--quiet"])
+                .args(packages),
+        )?;
+    }
+    Ok(python)
+}
+
 /// `cargo xtask eval ros2 [SCANS]`: the ROS 2 node and the Foxglove live view against
 /// software we did not write. Makes a Python venv (`$ROS2_VENV`, default
 /// `/tmp/slam-ros2-venv`) with Eclipse Cyclone DDS (`cyclonedds`, one of ROS 2's middlewares)
@@ -563,27 +589,11 @@ fn eval(extra: &[String]) -> Result<(), String> {
 /// processes. Outputs in `slam-out/ros2/`.
 fn ros2_check(extra: &[String]) -> Result<(), String> {
     let scans = extra.first().map(String::as_str).unwrap_or("300");
-    let venv = std::env::var_os("ROS2_VENV")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("/tmp/slam-ros2-venv"));
-    let python = venv.join("bin").join("python");
-    if !python.exists() {
-        run(
-            "make the Python venv",
-            Command::new("python3").args(["-m", "venv"]).arg(&venv),
-        )?;
-        run(
-            "install cyclonedds, websockets",
-            Command::new(&python).args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "cyclonedds==11.0.1",
-                "websockets==17.4",
-            ]),
-        )?;
-    }
+    let python = python_venv(
+        "ROS2_VENV",
+        "/tmp/slam-ros2-venv",
+        &["cyclonedds==11.0.1", "websockets==17.4"],
+    )?;
     run(
         "build slam",
         cargo().args(["build", "--release", "-p", "slam-cli"]),
@@ -648,28 +658,11 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
 /// `target/mcap-check-node`). With `$MCAP_CLI` naming an `mcap` executable (the official
 /// CLI, built by hand: no registry has it), also `mcap doctor --strict-message-order`.
 fn mcap_check() -> Result<(), String> {
-    let venv = std::env::var_os("MCAP_VENV")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("/tmp/slam-mcap-venv"));
-    let python = venv.join("bin").join("python");
-    if !python.exists() {
-        run(
-            "make the Python venv",
-            Command::new("python3").args(["-m", "venv"]).arg(&venv),
-        )?;
-        run(
-            "install mcap, mcap-ros2-support, rosbags",
-            Command::new(&python).args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "mcap==1.6.0",
-                "mcap-ros2-support==0.6.0",
-                "rosbags==0.11.9",
-            ]),
-        )?;
-    }
+    let python = python_venv(
+        "MCAP_VENV",
+        "/tmp/slam-mcap-venv",
+        &["mcap==1.6.0", "mcap-ros2-support==0.6.0", "rosbags==0.11.9"],
+    )?;
     run(
         "build slam",
         cargo().args(["build", "--release", "-p", "slam-cli"]),
