@@ -45,13 +45,14 @@ fn main() -> ExitCode {
         Some("bench") => bench(args.get(1).map(String::as_str)),
         Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("mcap") => mcap_check(),
+        Some("eval") if args.get(1).map(String::as_str) == Some("ros2") => ros2_check(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("speed") => {
             speed::speed(&args[2..])
         }
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed|ros2]>"
             );
             return ExitCode::from(2);
         }
@@ -543,6 +544,102 @@ fn eval(extra: &[String]) -> Result<(), String> {
     Ok(())
 }
 
+/// The Python of a throwaway venv (`$ENV_VAR`, default `default`), made with `packages`
+/// (pinned) on first use.
+fn python_venv(
+    env_var: &str,
+    default: &str,
+    packages: &[&str],
+) -> Result<std::path::PathBuf, String> {
+    let venv = std::env::var_os(env_var)
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from(default));
+    let python = venv.join("bin").join("python");
+    if !python.exists() {
+        run(
+            "make the Python venv",
+            Command::new("python3").args(["-m", "venv"]).arg(&venv),
+        )?;
+        run(
+            &format!("install {}", packages.join(", ")),
+            Command::new(&python)
+                .args(["-m", "pip", "install", "--quiet"])
+                .args(packages),
+        )?;
+    }
+    Ok(python)
+}
+
+/// `cargo xtask eval ros2 [SCANS]`: the ROS 2 node and the Foxglove live view against
+/// software we did not write. Makes a Python venv (`$ROS2_VENV`, default
+/// `/tmp/slam-ros2-venv`) with Eclipse Cyclone DDS (`cyclonedds`, one of ROS 2's middlewares)
+/// and `websockets`, builds `slam`, then runs, one at a time:
+///
+/// 1. `scripts/ros2_interop.py` at real time: Cyclone publishes the first SCANS (default 300)
+///    scans and odometry of `bench/intel.log` to `slam ros2`, receives `/map` and `/tf`, and
+///    checks them against the node's files and an offline `slam run` on the scans it
+///    processed;
+/// 2. the same data at 10× real time (`--rate 10`): skipped scans, memory and latency are
+///    reported (the comparison is again against the scans processed);
+/// 3. `scripts/foxglove_check.py`: `slam run --live` on the ROS 2 bag fixture, read by the
+///    `websockets` client with Cyclone's CDR decoder (every channel decodes; map and
+///    trajectory against the run's files).
+///
+/// Everything runs on loopback on a private DDS domain; each script starts and stops its
+/// processes. Outputs in `slam-out/ros2/`.
+fn ros2_check(extra: &[String]) -> Result<(), String> {
+    let scans = extra.first().map(String::as_str).unwrap_or("300");
+    let python = python_venv(
+        "ROS2_VENV",
+        "/tmp/slam-ros2-venv",
+        &["cyclonedds==11.0.1", "websockets==17.4"],
+    )?;
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"));
+    let exe = std::env::current_dir()
+        .map_err(|e| format!("current folder: {e}"))?
+        .join(target.join("release").join("slam"));
+    let log = "../shared/datasets/bench/intel.log";
+    if !std::path::Path::new(log).is_file() {
+        return Err(format!(
+            "{log}: missing (../shared/datasets, see its README)"
+        ));
+    }
+    for (name, rate, compare) in [("realtime", "1", true), ("replay10x", "10", true)] {
+        let out = format!("slam-out/ros2/{name}");
+        let mut cmd = Command::new(&python);
+        cmd.arg("scripts/ros2_interop.py")
+            .arg("--slam")
+            .arg(&exe)
+            .args([
+                "--log", log, "--scans", scans, "--rate", rate, "--out", &out,
+            ]);
+        if !compare {
+            cmd.arg("--no-compare");
+        }
+        run(&format!("ROS 2 node with Cyclone DDS, {name}"), &mut cmd)?;
+    }
+    run(
+        "Foxglove live view, independent client",
+        Command::new(&python)
+            .arg("scripts/foxglove_check.py")
+            .arg("--slam")
+            .arg(&exe)
+            .args([
+                "--dataset",
+                "crates/slam-io/tests/fixtures/rosbag/intel-tf",
+                "--out",
+                "slam-out/ros2/live",
+            ]),
+    )?;
+    Ok(())
+}
+
 /// `cargo xtask eval mcap`: the MCAP files `slam run --mcap` writes, read back by
 /// independent readers. Makes a Python venv (`$MCAP_VENV`, default `/tmp/slam-mcap-venv`)
 /// with the `mcap`, `mcap-ros2-support` and `rosbags` packages, runs grid FastSLAM on the
@@ -561,28 +658,11 @@ fn eval(extra: &[String]) -> Result<(), String> {
 /// `target/mcap-check-node`). With `$MCAP_CLI` naming an `mcap` executable (the official
 /// CLI, built by hand: no registry has it), also `mcap doctor --strict-message-order`.
 fn mcap_check() -> Result<(), String> {
-    let venv = std::env::var_os("MCAP_VENV")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("/tmp/slam-mcap-venv"));
-    let python = venv.join("bin").join("python");
-    if !python.exists() {
-        run(
-            "make the Python venv",
-            Command::new("python3").args(["-m", "venv"]).arg(&venv),
-        )?;
-        run(
-            "install mcap, mcap-ros2-support, rosbags",
-            Command::new(&python).args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "mcap==1.6.0",
-                "mcap-ros2-support==0.6.0",
-                "rosbags==0.11.9",
-            ]),
-        )?;
-    }
+    let python = python_venv(
+        "MCAP_VENV",
+        "/tmp/slam-mcap-venv",
+        &["mcap==1.6.0", "mcap-ros2-support==0.6.0", "rosbags==0.11.9"],
+    )?;
     run(
         "build slam",
         cargo().args(["build", "--release", "-p", "slam-cli"]),

@@ -23,7 +23,7 @@ pub struct Cli {
     pub command: Command,
 }
 
-/// The seven subcommands.
+/// The subcommands.
 #[derive(Debug, Subcommand)]
 // The run options make `Run` large; a command is parsed once per process, so boxing it
 // would buy nothing.
@@ -39,6 +39,8 @@ pub enum Command {
     Optimize(OptimizeArgs),
     /// Localize a log on a saved map (Monte Carlo localization); write trajectory, picture and metrics.
     Localize(crate::localize::LocalizeArgs),
+    /// Run a laser filter as a ROS 2 node (scans and odometry in; map, map → odom, pose out) until Ctrl-C.
+    Ros2(crate::ros2::Ros2Args),
     /// List the filters and scenarios.
     List,
     /// Say what a dataset holds (a ROS bag's topics, counts, laser and odometry; a log's records).
@@ -232,6 +234,15 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+
+    /// Laser filters: serve the run to Foxglove over its WebSocket protocol on ADDRESS
+    /// (default 127.0.0.1:8765) while it happens (docs/ros2.md).
+    #[arg(long, value_name = "ADDRESS", num_args = 0..=1, default_missing_value = slam_ros::live::DEFAULT_ADDRESS)]
+    pub live: Option<String>,
+
+    /// With --live: after the run, keep serving its last state until Ctrl-C.
+    #[arg(long, requires = "live")]
+    pub live_hold: bool,
 }
 
 /// `slam sim`.

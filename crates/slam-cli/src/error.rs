@@ -87,6 +87,9 @@ pub enum CliError {
     /// The simulator rejected the scenario or its options.
     #[error(transparent)]
     Sim(#[from] slam_sim::SimError),
+    /// The ROS 2 node or the live view failed (slam-ros).
+    #[error(transparent)]
+    Ros(Box<slam_ros::RosError>),
     /// Laser odometry (the odometry of an input without it) failed.
     #[error("{0}")]
     LaserOdometry(String),

@@ -46,6 +46,7 @@ pub mod optimize;
 mod outdir;
 mod pictures;
 mod progress;
+pub mod ros2;
 pub mod run;
 pub mod sim;
 
@@ -76,6 +77,26 @@ pub(crate) fn stop_requested() -> bool {
     STOP.load(Ordering::SeqCst)
 }
 
+/// `--live [ADDRESS]`: the Foxglove WebSocket server of a run, on its topics, announced on
+/// `out`; `None` without the option.
+pub(crate) fn start_live(
+    address: Option<&str>,
+    topics: impl Fn(slam_ros::Out) -> String,
+    out: &mut dyn Write,
+) -> Result<Option<slam_ros::LiveServer>, CliError> {
+    let Some(address) = address else {
+        return Ok(None);
+    };
+    let server =
+        slam_ros::LiveServer::start(address, topics).map_err(|e| CliError::Ros(Box::new(e)))?;
+    let _ = writeln!(
+        out,
+        "live: Foxglove WebSocket on ws://{} (Foxglove: Open connection → Foxglove WebSocket)",
+        server.address()
+    );
+    Ok(Some(server))
+}
+
 /// What a successful command did.
 #[derive(Debug)]
 pub enum Outcome {
@@ -97,6 +118,8 @@ pub enum Outcome {
     Localized(Box<localize::LocalizeReport>),
     /// `slam completions` printed a shell completion script.
     Completions,
+    /// `slam ros2` ran until Ctrl-C.
+    Ros2(Box<slam_ros::NodeReport>),
 }
 
 impl Outcome {
@@ -139,6 +162,7 @@ where
         cli::Command::Localize(a) => {
             localize::localize(&a, out).map(|r| Outcome::Localized(Box::new(r)))
         }
+        cli::Command::Ros2(a) => ros2::ros2(&a, out).map(|r| Outcome::Ros2(Box::new(r))),
         cli::Command::Info(a) => info::info(&a, out).map(|_| Outcome::Described),
         cli::Command::Completions(a) => {
             // Into a buffer first: clap_complete panics on a write error (a closed pipe,
@@ -160,7 +184,7 @@ where
 /// suggestions), whitespace collapsed, without the `error:` prefix, plus a pointer to `--help`.
 fn usage_message(e: &clap::Error) -> String {
     if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        return "missing subcommand: run, sim, eval, optimize, localize, info, list or completions (see `slam --help`)"
+        return "missing subcommand: run, sim, eval, optimize, localize, ros2, info, list or completions (see `slam --help`)"
             .into();
     }
     let text = e.render().to_string();

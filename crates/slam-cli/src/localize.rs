@@ -54,6 +54,10 @@ pub struct LocalizeArgs {
     /// Write into a non-empty --out that slam localize did not make.
     #[arg(long)]
     pub force: bool,
+    /// Serve the localization to Foxglove over its WebSocket protocol on ADDRESS (default
+    /// 127.0.0.1:8765) while it runs (docs/ros2.md).
+    #[arg(long, value_name = "ADDRESS", num_args = 0..=1, default_missing_value = slam_ros::live::DEFAULT_ADDRESS)]
+    pub live: Option<String>,
 }
 
 /// `x,y,theta[,sx,sy,stheta]`: finite numbers, σ ≥ 0.
@@ -177,7 +181,14 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
         None => InitialBelief::Global,
     };
     let mut mcl = Mcl::new(config, map, init, args.seed)?;
-    let (steps, clouds) = run_log(&mut mcl, &dataset.records, args.clouds.as_deref())?;
+    let mut live = crate::start_live(args.live.as_deref(), |o| o.default_topic().into(), out)?
+        .map(slam_ros::live::RunView::new);
+    let (steps, clouds) = run_log(
+        &mut mcl,
+        &dataset.records,
+        args.clouds.as_deref(),
+        live.as_mut(),
+    )?;
     let mut report = summarise(args, &steps, mcl.trajectory(), ground_truth.as_deref());
     let dir = staging.stage();
     let p = dir.join("trajectory.tum");
@@ -252,11 +263,12 @@ pub struct Update {
 
 /// Feeds every record to the filter; returns each update's info with the distance
 /// travelled, and the particle clouds at the chosen distances (default: first update,
-/// convergence, end).
+/// convergence, end). With `live`, the state after each record also goes to the live view.
 pub fn run_log(
     mcl: &mut Mcl,
     records: &[slam_models::ScanRecord],
     clouds_at: Option<&[f64]>,
+    mut live: Option<&mut slam_ros::live::RunView>,
 ) -> Result<(Vec<Update>, Vec<WeightedPose>), CliError> {
     let mut steps = Vec::new();
     let mut clouds = Vec::new();
@@ -272,6 +284,9 @@ pub fn run_log(
         }
         prev = Some(r.odometry);
         let info = mcl.process(r).map_err(CliError::from)?;
+        if let Some(v) = live.as_deref_mut() {
+            v.localize_step(r, mcl.pose(), &mcl.particles(), mcl.map().grid_map());
+        }
         if info.updated {
             let first = steps.is_empty() && clouds_at.is_none();
             let due = next < wanted.len() && travelled >= wanted[next];

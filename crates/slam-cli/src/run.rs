@@ -57,12 +57,27 @@ pub struct RunReport {
     pub files: Vec<PathBuf>,
 }
 
+/// `--live-hold`: the finished run stays on the live view until Ctrl-C.
+fn hold_live(args: &RunArgs, live: Option<&slam_ros::LiveServer>) {
+    if let (true, Some(server)) = (args.live_hold, live) {
+        eprintln!(
+            "live: the run is done; serving its last state on ws://{} until Ctrl-C",
+            server.address()
+        );
+        while !crate::stop_requested() {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
+}
+
 /// What a run loop hands back.
 struct Finished {
     metrics: Metrics,
     files: Vec<PathBuf>,
     /// Extra summary lines.
     notes: Vec<String>,
+    /// `--live`: the view, kept serving until the outputs are in place.
+    live: Option<slam_ros::live::RunView>,
 }
 
 /// Runs `slam run` with `args`, printing a short summary to `out`.
@@ -80,6 +95,12 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     if args.map_resolution.is_some() && info.kind != DataKind::Laser && !both {
         return Err(CliError::InvalidArgument(format!(
             "--map-resolution applies to laser filters (gridfast); `{}` maps landmarks",
+            info.name
+        )));
+    }
+    if args.live.is_some() && info.kind != DataKind::Laser && !both {
+        return Err(CliError::InvalidArgument(format!(
+            "--live applies to laser filters; `{}` maps landmarks",
             info.name
         )));
     }
@@ -206,6 +227,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         metrics,
         files,
         notes,
+        live,
     } = match threads {
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
@@ -232,6 +254,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let order: Vec<&str> = order.iter().map(String::as_str).collect();
     let files = staging.commit(&order)?;
     print_summary(out, &metrics, &notes, &out_dir, &files);
+    hold_live(args, live.as_ref().map(|v| v.server()));
     Ok(RunReport {
         out_dir,
         metrics,
@@ -514,6 +537,7 @@ fn run_landmark(
         metrics: run.metrics,
         files,
         notes,
+        live: None,
     })
 }
 
@@ -536,10 +560,19 @@ fn run_scan(
     )?;
     let mut filter = built.filter;
     let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;
+    let mut live = crate::start_live(
+        ctx.args.live.as_deref(),
+        |o| o.default_topic().into(),
+        &mut std::io::stderr(),
+    )?
+    .map(slam_ros::live::RunView::new);
     let mut progress = Progress::new(dataset.records.len(), ctx.args.quiet);
     let mut observer = |p: &ScanProgress<'_>| -> Result<Flow, ObserverError> {
         if let Some(r) = &mut mcap {
             r.scan_step(p.record, p.filter)?;
+        }
+        if let Some(v) = &mut live {
+            v.step(p.record, p.filter, p.step + 1 == p.steps);
         }
         progress.set(p.step + 1);
         Ok(if crate::stop_requested() {
@@ -633,6 +666,7 @@ fn run_scan(
         metrics: run.metrics,
         files,
         notes,
+        live,
     })
 }
 

@@ -41,6 +41,8 @@ pub mod relations;
 pub mod report;
 pub mod ros_map;
 #[cfg(feature = "rosbag")]
+pub mod ros_msg;
+#[cfg(feature = "rosbag")]
 pub mod rosbag;
 pub(crate) mod text;
 pub mod tum;

@@ -37,7 +37,7 @@
 //! interrupted run leaves no file that looks whole.
 
 mod cdr_write;
-mod msgs;
+pub(crate) mod msgs;
 
 use crate::error::IoError;
 use msgs::{Marker, MarkerKind, Stamp, Transform};
@@ -501,7 +501,7 @@ impl Drop for McapRunWriter {
 
 /// `builtin_interfaces/Time` of t seconds: ⌊t⌋ and the rounded nanoseconds (carried into
 /// the seconds at 10⁹); `None` when t is not finite or outside [0, 2³¹).
-fn stamp_of(t: f64) -> Option<Stamp> {
+pub(crate) fn stamp_of(t: f64) -> Option<Stamp> {
     if !(t.is_finite() && (0.0..2_147_483_648.0).contains(&t)) {
         return None;
     }

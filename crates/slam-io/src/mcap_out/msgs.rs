@@ -48,6 +48,14 @@ const DEFINITIONS: &[(&str, &str)] = &[
         "std_msgs/Header header\ngeometry_msgs/Pose pose\n",
     ),
     (
+        "geometry_msgs/msg/PoseWithCovariance",
+        "geometry_msgs/Pose pose\nfloat64[36] covariance\n",
+    ),
+    (
+        "geometry_msgs/msg/PoseWithCovarianceStamped",
+        "std_msgs/Header header\ngeometry_msgs/PoseWithCovariance pose\n",
+    ),
+    (
         "geometry_msgs/msg/PoseArray",
         "std_msgs/Header header\ngeometry_msgs/Pose[] poses\n",
     ),
@@ -155,7 +163,7 @@ fn field_types(text: &str) -> Vec<String> {
 
 /// The `ros2msg` schema text of `name` (`pkg/msg/Type`): its definition, then every type
 /// it uses, depth first, each once. `None` for a type not in this module's table.
-pub(crate) fn schema(name: &str) -> Option<String> {
+pub fn schema(name: &str) -> Option<String> {
     let mut out = definition(name)?.to_string();
     let mut seen = vec![name.to_string()];
     let mut stack: Vec<String> = field_types(definition(name)?).into_iter().rev().collect();
@@ -177,13 +185,16 @@ pub(crate) fn schema(name: &str) -> Option<String> {
 
 /// A `builtin_interfaces/msg/Time`: whole seconds and nanoseconds (0 ≤ nanosec < 10⁹).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub(crate) struct Stamp {
+pub struct Stamp {
+    /// Whole seconds.
     pub sec: i32,
+    /// Nanoseconds, 0 ≤ nanosec < 10⁹.
     pub nanosec: u32,
 }
 
 impl Stamp {
     /// Nanoseconds since the epoch (the MCAP log time); stamps are never negative here.
+    /// Nanoseconds since the epoch (stamps before it count as 0 s).
     pub fn ns(self) -> u64 {
         u64::from(self.sec.max(0) as u32) * 1_000_000_000 + u64::from(self.nanosec)
     }
@@ -209,7 +220,7 @@ fn pose(w: &mut CdrWriter, p: &Pose2) {
 }
 
 /// `geometry_msgs/msg/PoseStamped`.
-pub(crate) fn pose_stamped(stamp: Stamp, frame: &str, p: &Pose2) -> Vec<u8> {
+pub fn pose_stamped(stamp: Stamp, frame: &str, p: &Pose2) -> Vec<u8> {
     let mut w = CdrWriter::new();
     header(&mut w, stamp, frame);
     pose(&mut w, p);
@@ -218,7 +229,7 @@ pub(crate) fn pose_stamped(stamp: Stamp, frame: &str, p: &Pose2) -> Vec<u8> {
 
 /// `nav_msgs/msg/Path`: every pose stamped with its own time, all in `frame`; `stamp` is
 /// the path's. The caller guarantees fewer than 2³² poses.
-pub(crate) fn path(stamp: Stamp, frame: &str, poses: &[(Stamp, Pose2)]) -> Vec<u8> {
+pub fn path(stamp: Stamp, frame: &str, poses: &[(Stamp, Pose2)]) -> Vec<u8> {
     let mut w = CdrWriter::new();
     header(&mut w, stamp, frame);
     w.count(poses.len());
@@ -229,8 +240,29 @@ pub(crate) fn path(stamp: Stamp, frame: &str, poses: &[(Stamp, Pose2)]) -> Vec<u
     w.into_bytes()
 }
 
+/// `geometry_msgs/msg/PoseWithCovarianceStamped` of a planar pose with its 3×3 covariance
+/// `cov` over (x, y, θ) (row-major, m² and rad²): the 6×6 row-major covariance over
+/// (x, y, z, roll, pitch, yaw) with the planar entries at rows/columns 0, 1 and 5 and zeros
+/// elsewhere (REP 103's order).
+pub fn pose_with_covariance(stamp: Stamp, frame: &str, p: &Pose2, cov: &[[f64; 3]; 3]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    header(&mut w, stamp, frame);
+    pose(&mut w, p);
+    const AT: [usize; 3] = [0, 1, 5];
+    let mut full = [0.0; 36];
+    for (i, row) in cov.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            full[AT[i] * 6 + AT[j]] = *v;
+        }
+    }
+    for v in full {
+        w.f64(v);
+    }
+    w.into_bytes()
+}
+
 /// `geometry_msgs/msg/PoseArray`. The caller guarantees fewer than 2³² poses.
-pub(crate) fn pose_array(stamp: Stamp, frame: &str, poses: &[Pose2]) -> Vec<u8> {
+pub fn pose_array(stamp: Stamp, frame: &str, poses: &[Pose2]) -> Vec<u8> {
     let mut w = CdrWriter::new();
     header(&mut w, stamp, frame);
     w.count(poses.len());
@@ -242,15 +274,19 @@ pub(crate) fn pose_array(stamp: Stamp, frame: &str, poses: &[Pose2]) -> Vec<u8> 
 
 /// One planar transform: the pose of `child` in `parent` at `stamp`.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Transform<'a> {
+pub struct Transform<'a> {
+    /// The transform's time.
     pub stamp: Stamp,
+    /// The parent frame (`header.frame_id`).
     pub parent: &'a str,
+    /// The child frame (`child_frame_id`).
     pub child: &'a str,
+    /// The child's pose in the parent frame.
     pub pose: Pose2,
 }
 
 /// `tf2_msgs/msg/TFMessage`.
-pub(crate) fn tf_message(transforms: &[Transform<'_>]) -> Vec<u8> {
+pub fn tf_message(transforms: &[Transform<'_>]) -> Vec<u8> {
     let mut w = CdrWriter::new();
     w.count(transforms.len());
     for t in transforms {
@@ -266,7 +302,7 @@ pub(crate) fn tf_message(transforms: &[Transform<'_>]) -> Vec<u8> {
 /// `range_min` 0, `range_max` the scan's `max_range`, and a reading at or beyond it is
 /// written `+inf` (ROS: no return within `range_max`); no intensities, no timing. The
 /// caller guarantees fewer than 2³² beams.
-pub(crate) fn laser_scan(stamp: Stamp, frame: &str, scan: &LaserScan) -> Vec<u8> {
+pub fn laser_scan(stamp: Stamp, frame: &str, scan: &LaserScan) -> Vec<u8> {
     let mut w = CdrWriter::new();
     header(&mut w, stamp, frame);
     let n = scan.ranges.len();
@@ -293,7 +329,7 @@ pub(crate) fn laser_scan(stamp: Stamp, frame: &str, scan: &LaserScan) -> Vec<u8>
 /// (row 0 at the bottom, origin the lower-left corner of cell (0, 0), unrotated, values −1
 /// unknown and 0–100 occupancy percent, as map_server publishes). The caller guarantees the
 /// dimensions fit `uint32` and `cells.len() = width·height`.
-pub(crate) fn occupancy_grid(stamp: Stamp, frame: &str, map: &GridMap) -> Vec<u8> {
+pub fn occupancy_grid(stamp: Stamp, frame: &str, map: &GridMap) -> Vec<u8> {
     let mut w = CdrWriter::new();
     header(&mut w, stamp, frame);
     w.i32(stamp.sec);

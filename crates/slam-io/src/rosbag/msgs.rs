@@ -60,8 +60,10 @@ fn decode<T>(
 
 /// `std_msgs/msg/Header`: the stamp in nanoseconds since the epoch and the frame.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Header {
+pub struct Header {
+    /// The stamp, nanoseconds since the epoch.
     pub stamp_ns: i64,
+    /// The frame (`frame_id`).
     pub frame_id: String,
 }
 
@@ -73,18 +75,25 @@ fn header(c: &mut dyn Wire) -> Result<Header, DecodeError> {
 
 /// The laser scan as the message holds it (ranges widened to f64; NaN and ±∞ kept).
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct ScanMsg {
+pub struct ScanMsg {
+    /// The header.
     pub header: Header,
+    /// Angle of the first beam, radians (counter-clockwise from the frame's x axis).
     pub angle_min: f64,
+    /// Angle of the last beam, radians.
     pub angle_max: f64,
+    /// Angle between beams, radians.
     pub angle_increment: f64,
+    /// Readings below it are invalid, metres.
     pub range_min: f64,
+    /// Readings above it are invalid (no return), metres.
     pub range_max: f64,
+    /// The readings, metres.
     pub ranges: Vec<f64>,
 }
 
 /// Decodes a `sensor_msgs/msg/LaserScan` serialised as `encoding` says.
-pub(crate) fn laser_scan(encoding: &str, data: &[u8]) -> Result<ScanMsg, DecodeError> {
+pub fn laser_scan(encoding: &str, data: &[u8]) -> Result<ScanMsg, DecodeError> {
     decode(encoding, data, laser_scan_fields)
 }
 
@@ -113,10 +122,14 @@ fn laser_scan_fields(c: &mut dyn Wire) -> Result<ScanMsg, DecodeError> {
 
 /// A planar pose stamped in `parent` for `child` (an odometry message or one transform).
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct StampedPose {
+pub struct StampedPose {
+    /// The stamp, nanoseconds since the epoch.
     pub stamp_ns: i64,
+    /// The parent frame (`header.frame_id`).
     pub parent: String,
+    /// The child frame (`child_frame_id`).
     pub child: String,
+    /// The child's planar pose in the parent frame (the quaternion's yaw).
     pub pose: Pose2,
 }
 
@@ -145,7 +158,7 @@ fn planar(c: &mut dyn Wire, what: &str) -> Result<Pose2, DecodeError> {
 }
 
 /// Decodes a `nav_msgs/msg/Odometry` (the pose; the twist and covariances are read past).
-pub(crate) fn odometry(encoding: &str, data: &[u8]) -> Result<StampedPose, DecodeError> {
+pub fn odometry(encoding: &str, data: &[u8]) -> Result<StampedPose, DecodeError> {
     decode(encoding, data, odometry_fields)
 }
 
@@ -165,7 +178,7 @@ fn odometry_fields(c: &mut dyn Wire) -> Result<StampedPose, DecodeError> {
 }
 
 /// Decodes a `tf2_msgs/msg/TFMessage` into its transforms (parent = header.frame_id).
-pub(crate) fn tf_message(encoding: &str, data: &[u8]) -> Result<Vec<StampedPose>, DecodeError> {
+pub fn tf_message(encoding: &str, data: &[u8]) -> Result<Vec<StampedPose>, DecodeError> {
     decode(encoding, data, tf_fields)
 }
 

@@ -15,7 +15,7 @@ use std::fmt;
 /// Why a message did not decode: the byte offset in the message body where decoding stopped
 /// (after CDR's 4-byte encapsulation header) and what was expected there.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct DecodeError {
+pub struct DecodeError {
     /// Byte offset in the message body.
     pub offset: usize,
     /// What was expected, in words.
@@ -33,6 +33,8 @@ impl fmt::Display for DecodeError {
         )
     }
 }
+
+impl std::error::Error for DecodeError {}
 
 /// The reads a message decoder needs. Every method names the field it reads (`what`) so
 /// an error can say which field broke; every count is checked against the bytes left

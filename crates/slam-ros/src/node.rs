@@ -1,0 +1,859 @@
+//! The ROS 2 node: scans and odometry in, the map, `map → odom`, the pose, the trajectory and
+//! the particles out, while the robot drives.
+//!
+//! **Threads.** A receiver thread takes every message off DDS as it arrives and stamps the
+//! scans with their arrival time; the filter runs on the caller's thread. Between them is a
+//! slot of one scan: a scan that arrives while the previous one still waits is put in its
+//! place, and the one it replaces is *skipped* (counted, never queued). So the filter always
+//! works on the newest scan, memory does not grow when the filter falls behind, and with a
+//! filter that keeps up nothing is skipped.
+//!
+//! **Odometry** (`odom → base`) comes from `nav_msgs/Odometry`, from `/tf`, or from nowhere
+//! (laser only: the odometry is held at the origin and the filter's scan matcher carries all
+//! the motion). A scan takes the odometry interpolated at its stamp; a scan newer than every
+//! odometry message waits for the next one up to `odom_wait_s`, then takes the newest (counted
+//! as `odom_held`).
+//!
+//! **Latency** is measured from a scan's arrival (taken off DDS) to the moment its `map →
+//! odom` transform has been written, for every processed scan.
+//!
+//! **Requests.** A `std_msgs/String` on `save_topic` saves the map (map_server PGM + YAML) and
+//! the trajectory (TUM) into the folder it names (empty: the output folder); any message on
+//! `map_request_topic` publishes the map at once. At shutdown (the `stop` flag: Ctrl-C) the
+//! node publishes and saves the final map and trajectory and writes `node.json`.
+
+use crate::convert::{scan_from_msg, secs, OdomAt, OdomBuffer, StaticTf};
+use crate::dds::{self, Participant, Profile, Reader, Writer};
+use crate::error::RosError;
+use crate::live::LiveServer;
+use crate::outputs::{step_messages, trajectory_message, Frames, Include, Out};
+use slam_io::ros_msg::{self, Stamp};
+use slam_models::{Pose2, ScanRecord, ScanSlam};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Where the odometry comes from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum OdomSource {
+    /// A `nav_msgs/msg/Odometry` topic.
+    Topic(String),
+    /// The `odom → base` transform on `/tf`.
+    Tf,
+    /// None: laser only.
+    None,
+}
+
+/// The node's parameters; [`NodeOptions::default`] gives the ROS conventions.
+#[derive(Debug, Clone)]
+pub struct NodeOptions {
+    /// DDS domain (`ROS_DOMAIN_ID`), 0–232.
+    pub domain_id: u16,
+    /// The `sensor_msgs/msg/LaserScan` topic (sensor-data QoS).
+    pub scan_topic: String,
+    /// The odometry.
+    pub odometry: OdomSource,
+    /// The transforms topic (`/tf`).
+    pub tf_topic: String,
+    /// The static transforms topic (`/tf_static`), for the laser's mounting.
+    pub tf_static_topic: String,
+    /// Use `/clock` for the time of messages not tied to a scan and for the map interval.
+    pub use_sim_time: bool,
+    /// The clock topic.
+    pub clock_topic: String,
+    /// Output topics, by output (default [`Out::default_topic`]); `/scan` is not republished.
+    pub map_topic: String,
+    /// The pose topic.
+    pub pose_topic: String,
+    /// The trajectory topic.
+    pub trajectory_topic: String,
+    /// The particles topic.
+    pub particles_topic: String,
+    /// Save requests (`std_msgs/msg/String`: a folder, or empty for [`NodeOptions::out`]).
+    pub save_topic: String,
+    /// Map requests (`std_msgs/msg/String`, any content).
+    pub map_request_topic: String,
+    /// The frames.
+    pub frames: Frames,
+    /// Seconds between map publications (> 0).
+    pub map_interval_s: f64,
+    /// The trajectory is published every this many processed scans (≥ 1).
+    pub trajectory_every: usize,
+    /// Seconds a scan waits for odometry at its stamp (0–10).
+    pub odom_wait_s: f64,
+    /// The output folder of the map, the trajectory and `node.json`.
+    pub out: PathBuf,
+}
+
+impl Default for NodeOptions {
+    fn default() -> Self {
+        NodeOptions {
+            domain_id: 0,
+            scan_topic: "/scan".into(),
+            odometry: OdomSource::Topic("/odom".into()),
+            tf_topic: "/tf".into(),
+            tf_static_topic: "/tf_static".into(),
+            use_sim_time: false,
+            clock_topic: "/clock".into(),
+            map_topic: "/map".into(),
+            pose_topic: "/pose".into(),
+            trajectory_topic: "/trajectory".into(),
+            particles_topic: "/particles".into(),
+            save_topic: "/slam/save".into(),
+            map_request_topic: "/slam/map_request".into(),
+            frames: Frames::default(),
+            map_interval_s: 5.0,
+            trajectory_every: 10,
+            odom_wait_s: 0.2,
+            out: PathBuf::from("slam-ros-out"),
+        }
+    }
+}
+
+impl NodeOptions {
+    /// Checks the bounds.
+    pub fn check(&self) -> Result<(), RosError> {
+        let bad = |name, value: String, bound| Err(RosError::Parameter { name, value, bound });
+        if self.domain_id > 232 {
+            return bad("domain_id", self.domain_id.to_string(), "0–232");
+        }
+        if !(self.map_interval_s > 0.0 && self.map_interval_s.is_finite()) {
+            return bad(
+                "map_interval",
+                self.map_interval_s.to_string(),
+                "> 0 s, finite",
+            );
+        }
+        if self.trajectory_every == 0 {
+            return bad("trajectory_every", "0".into(), "≥ 1");
+        }
+        if !(0.0..=10.0).contains(&self.odom_wait_s) {
+            return bad("odom_wait", self.odom_wait_s.to_string(), "0–10 s");
+        }
+        Ok(())
+    }
+
+    /// The topic of output `out`.
+    pub fn topic(&self, out: Out) -> String {
+        match out {
+            Out::Map => self.map_topic.clone(),
+            Out::Tf => self.tf_topic.clone(),
+            Out::TfStatic => self.tf_static_topic.clone(),
+            Out::Pose => self.pose_topic.clone(),
+            Out::Trajectory => self.trajectory_topic.clone(),
+            Out::Particles => self.particles_topic.clone(),
+            Out::Scan => self.scan_topic.clone(),
+        }
+    }
+}
+
+/// Latency figures, milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Latency {
+    /// Median.
+    pub p50_ms: f64,
+    /// 95th percentile.
+    pub p95_ms: f64,
+    /// Largest.
+    pub max_ms: f64,
+    /// Mean.
+    pub mean_ms: f64,
+}
+
+impl Latency {
+    /// The figures of `samples` (nearest-rank percentiles); zeros when empty.
+    pub fn of(samples: &[f64]) -> Latency {
+        if samples.is_empty() {
+            return Latency::default();
+        }
+        let mut s = samples.to_vec();
+        s.sort_by(f64::total_cmp);
+        let rank = |p: f64| s[((p * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+        Latency {
+            p50_ms: rank(0.5),
+            p95_ms: rank(0.95),
+            max_ms: s[s.len() - 1],
+            mean_ms: s.iter().sum::<f64>() / s.len() as f64,
+        }
+    }
+}
+
+/// What the node did (`node.json`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct NodeReport {
+    /// The filter's name.
+    pub filter: String,
+    /// Scans received.
+    pub received: u64,
+    /// Scans processed.
+    pub processed: u64,
+    /// Scans skipped: replaced by a newer one before the filter was free.
+    pub skipped: u64,
+    /// Scans processed with the newest odometry because none came at their stamp in time.
+    pub odom_held: u64,
+    /// Scans dropped because no odometry was known at all yet.
+    pub no_odometry: u64,
+    /// Scans whose frame had no `/tf_static` transform to the base (taken as at the base).
+    pub unmounted: u64,
+    /// Messages that did not decode.
+    pub decode_errors: u64,
+    /// The first decoding error.
+    pub first_decode_error: Option<String>,
+    /// Scan arrival → `map → odom` written.
+    pub latency: Latency,
+    /// Maps published.
+    pub maps_published: u64,
+    /// Resident memory, MiB, sampled every 50 processed scans (and at the end).
+    pub rss_mb: Vec<f64>,
+    /// Stamps (ns) of the processed scans, in order.
+    pub processed_stamps_ns: Vec<i64>,
+    /// The last `map → odom`: x, y (m), θ (rad).
+    pub map_to_odom: [f64; 3],
+    /// Seconds from start to shutdown.
+    pub wall_s: f64,
+    /// Files written at shutdown.
+    pub files: Vec<PathBuf>,
+}
+
+/// A scan off the wire with its arrival time.
+struct Arrived {
+    msg: ros_msg::ScanMsg,
+    at: Instant,
+}
+
+/// What the receiver thread hands the filter's thread.
+#[derive(Default)]
+struct Inbox {
+    scan: Option<Arrived>,
+    received: u64,
+    skipped: u64,
+    odom: Option<OdomBuffer>,
+    statics: StaticTf,
+    clock_ns: Option<i64>,
+    saves: Vec<String>,
+    map_requests: u64,
+    decode_errors: u64,
+    first_decode_error: Option<String>,
+    failed: Option<String>,
+}
+
+struct Readers {
+    scan: Reader,
+    odom: Option<(Reader, bool)>,
+    tf_static: Reader,
+    clock: Option<Reader>,
+    save: Reader,
+    map_request: Reader,
+}
+
+struct Writers {
+    tf: Writer,
+    map: Writer,
+    pose: Writer,
+    trajectory: Writer,
+    particles: Writer,
+}
+
+impl Writers {
+    fn of(&self, out: Out) -> Option<&Writer> {
+        match out {
+            Out::Tf => Some(&self.tf),
+            Out::Map => Some(&self.map),
+            Out::Pose => Some(&self.pose),
+            Out::Trajectory => Some(&self.trajectory),
+            Out::Particles => Some(&self.particles),
+            Out::TfStatic | Out::Scan => None,
+        }
+    }
+}
+
+const LASER_SCAN: &str = "sensor_msgs/msg/LaserScan";
+const ODOMETRY: &str = "nav_msgs/msg/Odometry";
+const TF: &str = "tf2_msgs/msg/TFMessage";
+const CLOCK: &str = "rosgraph_msgs/msg/Clock";
+const STRING: &str = "std_msgs/msg/String";
+
+/// Odometry poses kept for interpolation (about 40 s at 100 Hz).
+const ODOM_KEPT: usize = 4096;
+
+/// Runs the node with `filter` until `stop` is set, then saves and reports. `live` also
+/// serves every output (and the scans) to Foxglove; `log` receives one line per event worth
+/// telling (start, first scan, saves, shutdown).
+pub fn run_node(
+    opts: &NodeOptions,
+    mut filter: Box<dyn ScanSlam>,
+    stop: &AtomicBool,
+    live: Option<&LiveServer>,
+    log: &mut dyn FnMut(&str),
+) -> Result<NodeReport, RosError> {
+    opts.check()?;
+    let started = Instant::now();
+    let dp = Participant::new(opts.domain_id)?;
+    let writers = Writers {
+        tf: dp.writer(&opts.tf_topic, TF, Profile::Tf)?,
+        map: dp.writer(&opts.map_topic, Out::Map.ros_type(), Profile::Latched)?,
+        pose: dp.writer(&opts.pose_topic, Out::Pose.ros_type(), Profile::Default)?,
+        trajectory: dp.writer(
+            &opts.trajectory_topic,
+            Out::Trajectory.ros_type(),
+            Profile::Latched,
+        )?,
+        particles: dp.writer(
+            &opts.particles_topic,
+            Out::Particles.ros_type(),
+            Profile::Default,
+        )?,
+    };
+    let readers = Readers {
+        scan: dp.reader(&opts.scan_topic, LASER_SCAN, Profile::SensorData)?,
+        odom: match &opts.odometry {
+            OdomSource::Topic(t) => Some((dp.reader(t, ODOMETRY, Profile::Default)?, false)),
+            OdomSource::Tf if opts.tf_topic.is_empty() => None,
+            OdomSource::Tf => Some((dp.reader(&opts.tf_topic, TF, Profile::Tf)?, true)),
+            OdomSource::None => None,
+        },
+        tf_static: dp.reader(&opts.tf_static_topic, TF, Profile::Latched)?,
+        clock: if opts.use_sim_time {
+            Some(dp.reader(&opts.clock_topic, CLOCK, Profile::SensorData)?)
+        } else {
+            None
+        },
+        save: dp.reader(&opts.save_topic, STRING, Profile::Default)?,
+        map_request: dp.reader(&opts.map_request_topic, STRING, Profile::Default)?,
+    };
+    // No buffer at all means laser only (the odometry held at the origin); an empty one
+    // means odometry expected but none yet.
+    let odom = (opts.odometry != OdomSource::None).then(|| OdomBuffer::new(ODOM_KEPT));
+    let inbox = Arc::new((
+        Mutex::new(Inbox {
+            odom,
+            ..Inbox::default()
+        }),
+        Condvar::new(),
+    ));
+    let quit = Arc::new(AtomicBool::new(false));
+    let receiver = {
+        let inbox = Arc::clone(&inbox);
+        let quit = Arc::clone(&quit);
+        let frames = opts.frames.clone();
+        let topics = [opts.scan_topic.clone(), opts.tf_static_topic.clone()];
+        std::thread::Builder::new()
+            .name("ros-receive".into())
+            .spawn(move || receive(readers, &inbox, &quit, &frames, &topics))
+            .map_err(|e| RosError::Dds(format!("receiver thread: {e}")))?
+    };
+    log(&format!(
+        "slam ros2: filter {} on DDS domain {}, scans from {}, odometry {}; Ctrl-C saves and stops",
+        filter.name(),
+        opts.domain_id,
+        opts.scan_topic,
+        match &opts.odometry {
+            OdomSource::Topic(t) => t.clone(),
+            OdomSource::Tf => format!(
+                "{} ({} → {})",
+                opts.tf_topic, opts.frames.odom, opts.frames.base
+            ),
+            OdomSource::None => "none (laser only)".into(),
+        }
+    ));
+    let mut node = Running {
+        opts,
+        writers: &writers,
+        live,
+        report: NodeReport {
+            filter: filter.name().to_string(),
+            ..NodeReport::default()
+        },
+        latencies: Vec::new(),
+        last_map: None,
+        last_odom: Pose2::IDENTITY,
+        last_stamp: None,
+    };
+    let result = node.spin(filter.as_mut(), &inbox, stop, log);
+    quit.store(true, Ordering::Relaxed);
+    let _ = receiver.join();
+    let (lock, _) = &*inbox;
+    if let Ok(inb) = lock.lock() {
+        node.report.received = inb.received;
+        node.report.skipped = inb.skipped + u64::from(inb.scan.is_some());
+        node.report.decode_errors = inb.decode_errors;
+        node.report.first_decode_error = inb.first_decode_error.clone();
+    }
+    result?;
+    // Shutdown: the final map out, and everything on disk.
+    let stamp = node.now_stamp(&inbox);
+    node.publish_map(filter.as_ref(), stamp)?;
+    node.report.files = save(filter.as_ref(), &opts.out)?;
+    node.report.latency = Latency::of(&node.latencies);
+    if let Some(rss) = current_rss_mb() {
+        node.report.rss_mb.push(rss);
+    }
+    node.report.wall_s = started.elapsed().as_secs_f64();
+    let json = opts.out.join("node.json");
+    let text = serde_json::to_string_pretty(&node.report).unwrap_or_default();
+    std::fs::write(&json, text + "\n").map_err(|e| RosError::Write {
+        path: json.clone(),
+        source: Box::new(e),
+    })?;
+    node.report.files.push(json);
+    log(&format!(
+        "slam ros2: {} scans received, {} processed, {} skipped; latency p50 {:.1} ms, p95 {:.1} ms, max {:.1} ms; saved to {}",
+        node.report.received,
+        node.report.processed,
+        node.report.skipped,
+        node.report.latency.p50_ms,
+        node.report.latency.p95_ms,
+        node.report.latency.max_ms,
+        opts.out.display()
+    ));
+    Ok(node.report)
+}
+
+/// Saves the filter's map (`map.pgm` + `map.yaml`) and trajectory (`trajectory.tum`) in `dir`.
+pub fn save(filter: &dyn ScanSlam, dir: &Path) -> Result<Vec<PathBuf>, RosError> {
+    let write = |path: &Path, source: Box<dyn std::error::Error + Send + Sync>| RosError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| write(dir, Box::new(e)))?;
+    slam_io::ros_map::write_ros_map(dir, "map", &filter.map())
+        .map_err(|e| write(dir, Box::new(e)))?;
+    let tum = dir.join("trajectory.tum");
+    slam_io::tum::write_tum(&tum, &filter.trajectory()).map_err(|e| write(&tum, Box::new(e)))?;
+    Ok(vec![dir.join("map.pgm"), dir.join("map.yaml"), tum])
+}
+
+/// The filter's side of the node.
+struct Running<'a> {
+    opts: &'a NodeOptions,
+    writers: &'a Writers,
+    live: Option<&'a LiveServer>,
+    report: NodeReport,
+    latencies: Vec<f64>,
+    /// When the map was last published: sim-time ns or wall clock.
+    last_map: Option<(Option<i64>, Instant)>,
+    last_odom: Pose2,
+    last_stamp: Option<Stamp>,
+}
+
+impl Running<'_> {
+    fn spin(
+        &mut self,
+        filter: &mut dyn ScanSlam,
+        inbox: &(Mutex<Inbox>, Condvar),
+        stop: &AtomicBool,
+        log: &mut dyn FnMut(&str),
+    ) -> Result<(), RosError> {
+        let (lock, cvar) = inbox;
+        while !stop.load(Ordering::Relaxed) {
+            let (scan, saves, map_requests, clock_ns) = {
+                let mut inb = lock
+                    .lock()
+                    .map_err(|_| RosError::Dds("receiver thread panicked".into()))?;
+                if inb.scan.is_none() {
+                    inb = cvar
+                        .wait_timeout(inb, Duration::from_millis(50))
+                        .map_err(|_| RosError::Dds("receiver thread panicked".into()))?
+                        .0;
+                }
+                if let Some(f) = inb.failed.take() {
+                    return Err(RosError::Dds(f));
+                }
+                let req = std::mem::take(&mut inb.map_requests);
+                (
+                    inb.scan.take(),
+                    std::mem::take(&mut inb.saves),
+                    req,
+                    inb.clock_ns,
+                )
+            };
+            if let Some(arrived) = scan {
+                self.process(filter, arrived, inbox, stop)?;
+            }
+            for dir in saves {
+                let dir = if dir.trim().is_empty() {
+                    self.opts.out.clone()
+                } else {
+                    PathBuf::from(dir.trim())
+                };
+                match save(filter, &dir) {
+                    Ok(_) => log(&format!(
+                        "slam ros2: saved the map and trajectory to {}",
+                        dir.display()
+                    )),
+                    Err(e) => log(&format!("slam ros2: save request failed: {e}")),
+                }
+            }
+            let due = match (self.last_map, self.opts.use_sim_time) {
+                (None, _) => self.report.processed > 0,
+                (Some((Some(t0), _)), true) => {
+                    clock_ns.is_some_and(|t| secs(t - t0) >= self.opts.map_interval_s)
+                }
+                (Some((_, at)), _) => at.elapsed().as_secs_f64() >= self.opts.map_interval_s,
+            };
+            if (map_requests > 0 || due) && self.report.processed > 0 {
+                let stamp = self.now_stamp(inbox);
+                self.publish_map(filter, stamp)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Now: the sim clock with `use_sim_time`, else the system clock (falling back to the
+    /// last scan's stamp).
+    fn now_stamp(&self, inbox: &(Mutex<Inbox>, Condvar)) -> Stamp {
+        let clock = inbox.0.lock().ok().and_then(|i| i.clock_ns);
+        let t = if self.opts.use_sim_time {
+            clock.map(secs)
+        } else {
+            SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .ok()
+                .map(|d| d.as_secs_f64())
+        };
+        t.and_then(ros_msg::stamp)
+            .or(self.last_stamp)
+            .unwrap_or(Stamp { sec: 0, nanosec: 0 })
+    }
+
+    fn publish_map(&mut self, filter: &dyn ScanSlam, stamp: Stamp) -> Result<(), RosError> {
+        let map = ros_msg::encode_occupancy_grid(stamp, &self.opts.frames.map, &filter.map());
+        self.send(Out::Map, stamp, map)?;
+        let path = trajectory_message(stamp, filter, &self.opts.frames);
+        self.send(Out::Trajectory, stamp, path)?;
+        self.report.maps_published += 1;
+        let sim = if self.opts.use_sim_time {
+            Some(i64::from(stamp.sec) * 1_000_000_000 + i64::from(stamp.nanosec))
+        } else {
+            None
+        };
+        self.last_map = Some((sim, Instant::now()));
+        Ok(())
+    }
+
+    fn send(&self, out: Out, stamp: Stamp, bytes: Vec<u8>) -> Result<(), RosError> {
+        if let Some(live) = self.live {
+            live.publish(out, stamp.ns(), bytes.clone());
+        }
+        match self.writers.of(out) {
+            Some(w) => dds::write(w, bytes),
+            None => Ok(()),
+        }
+    }
+
+    /// The odometry at `ns`, waiting up to `odom_wait_s` for it to arrive.
+    fn odometry_at(
+        &mut self,
+        ns: i64,
+        inbox: &(Mutex<Inbox>, Condvar),
+        stop: &AtomicBool,
+    ) -> Option<Pose2> {
+        let (lock, cvar) = inbox;
+        let deadline = Instant::now() + Duration::from_secs_f64(self.opts.odom_wait_s);
+        let mut inb = lock.lock().ok()?;
+        loop {
+            let found = match &inb.odom {
+                None => return Some(Pose2::IDENTITY),
+                Some(buf) => buf.at(ns),
+            };
+            let now = Instant::now();
+            match found {
+                OdomAt::Pose(p) => return Some(p),
+                OdomAt::Ahead(p) if now >= deadline || stop.load(Ordering::Relaxed) => {
+                    self.report.odom_held += 1;
+                    return Some(p);
+                }
+                OdomAt::Missing if now >= deadline || stop.load(Ordering::Relaxed) => return None,
+                _ => {
+                    inb = cvar.wait_timeout(inb, deadline - now).ok()?.0;
+                }
+            }
+        }
+    }
+
+    fn process(
+        &mut self,
+        filter: &mut dyn ScanSlam,
+        arrived: Arrived,
+        inbox: &(Mutex<Inbox>, Condvar),
+        stop: &AtomicBool,
+    ) -> Result<(), RosError> {
+        let ns = arrived.msg.header.stamp_ns;
+        let Some(odom) = self.odometry_at(ns, inbox, stop) else {
+            self.report.no_odometry += 1;
+            return Ok(());
+        };
+        let frame = &arrived.msg.header.frame_id;
+        let mount = inbox
+            .0
+            .lock()
+            .ok()
+            .and_then(|i| i.statics.pose_in(&self.opts.frames.base, frame));
+        let sensor_pose = mount.unwrap_or_else(|| {
+            self.report.unmounted += 1;
+            Pose2::IDENTITY
+        });
+        let scan = scan_from_msg(&arrived.msg, sensor_pose);
+        let t = secs(ns);
+        let record = ScanRecord {
+            t,
+            odometry: odom,
+            scan: Some(scan),
+        };
+        let index = self.report.processed as usize;
+        filter.process(&record).map_err(|source| RosError::Filter {
+            filter: filter.name().to_string(),
+            scan: index,
+            t,
+            source,
+        })?;
+        self.report.processed += 1;
+        self.report.processed_stamps_ns.push(ns);
+        let stamp = ros_msg::stamp(t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
+        self.last_stamp = Some(stamp);
+        self.last_odom = odom;
+        let trajectory = self.report.processed as usize % self.opts.trajectory_every == 0;
+        let include = Include {
+            map: false,
+            trajectory,
+            odom_tf: false,
+            scan: None,
+        };
+        let mut latency_done = false;
+        for (out, bytes) in step_messages(stamp, filter, &odom, &self.opts.frames, include) {
+            self.send(out, stamp, bytes)?;
+            if out == Out::Tf && !latency_done {
+                self.latencies
+                    .push(arrived.at.elapsed().as_secs_f64() * 1e3);
+                latency_done = true;
+            }
+        }
+        let pose = filter.pose();
+        let c = crate::outputs::map_to_odom(&pose, &odom);
+        self.report.map_to_odom = [c.x, c.y, c.theta];
+        if let Some(live) = self.live {
+            // The view also gets the scan in its own frame and the mounting.
+            let scan = record.scan.as_ref();
+            if let Some(scan) = scan {
+                let frames = Frames {
+                    laser: frame.clone(),
+                    ..self.opts.frames.clone()
+                };
+                live.publish(
+                    Out::Scan,
+                    stamp.ns(),
+                    ros_msg::encode_laser_scan(stamp, &frames.laser, scan),
+                );
+                live.publish(
+                    Out::TfStatic,
+                    stamp.ns(),
+                    ros_msg::encode_tf_message(&[ros_msg::Transform {
+                        stamp,
+                        parent: &frames.base,
+                        child: &frames.laser,
+                        pose: scan.sensor_pose,
+                    }]),
+                );
+            }
+        }
+        if self.report.processed % 50 == 0 {
+            if let Some(rss) = current_rss_mb() {
+                self.report.rss_mb.push(rss);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Resident memory of this process now, MiB (`VmRSS` of `/proc/self/status`).
+pub fn current_rss_mb() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+/// The receiver thread: takes every waiting message, sleeping 1 ms when there was none.
+fn receive(
+    mut r: Readers,
+    inbox: &(Mutex<Inbox>, Condvar),
+    quit: &AtomicBool,
+    frames: &Frames,
+    topics: &[String; 2],
+) {
+    let (lock, cvar) = inbox;
+    let mut counts = [0u64; 6];
+    let decode_error = |inb: &mut Inbox, e: RosError| {
+        inb.decode_errors += 1;
+        if inb.first_decode_error.is_none() {
+            inb.first_decode_error = Some(e.to_string());
+        }
+    };
+    while !quit.load(Ordering::Relaxed) {
+        let mut got = false;
+        macro_rules! each {
+            ($reader:expr, $i:expr, |$inb:ident, $bytes:ident| $body:block) => {
+                loop {
+                    match dds::take($reader) {
+                        Ok(Some(m)) => {
+                            got = true;
+                            counts[$i] += 1;
+                            let Ok(mut $inb) = lock.lock() else { return };
+                            let $bytes = m.0;
+                            $body
+                        }
+                        Ok(None) => break,
+                        Err(e) => {
+                            if let Ok(mut inb) = lock.lock() {
+                                inb.failed = Some(e.to_string());
+                            }
+                            cvar.notify_all();
+                            return;
+                        }
+                    }
+                }
+            };
+        }
+        each!(&mut r.tf_static, 0, |inb, bytes| {
+            match ros_msg::decode_tf_message(&bytes) {
+                Ok(ts) => ts.into_iter().for_each(|t| inb.statics.insert(t)),
+                Err(source) => decode_error(
+                    &mut inb,
+                    RosError::Decode {
+                        topic: topics[1].clone(),
+                        ros_type: TF,
+                        index: counts[0] - 1,
+                        source,
+                    },
+                ),
+            }
+        });
+        if let Some((reader, is_tf)) = &mut r.odom {
+            let is_tf = *is_tf;
+            each!(reader, 1, |inb, bytes| {
+                let decoded = if is_tf {
+                    ros_msg::decode_tf_message(&bytes).map(|ts| {
+                        ts.into_iter()
+                            .filter(|t| t.parent == frames.odom && t.child == frames.base)
+                            .collect::<Vec<_>>()
+                    })
+                } else {
+                    ros_msg::decode_odometry(&bytes).map(|o| vec![o])
+                };
+                match decoded {
+                    Ok(poses) => {
+                        let buf = inb.odom.get_or_insert_with(|| OdomBuffer::new(ODOM_KEPT));
+                        for p in poses {
+                            buf.push(p.stamp_ns, p.pose);
+                        }
+                        cvar.notify_all();
+                    }
+                    Err(source) => decode_error(
+                        &mut inb,
+                        RosError::Decode {
+                            topic: "odometry".into(),
+                            ros_type: if is_tf { TF } else { ODOMETRY },
+                            index: counts[1] - 1,
+                            source,
+                        },
+                    ),
+                }
+            });
+        }
+        if let Some(reader) = &mut r.clock {
+            each!(reader, 2, |inb, bytes| {
+                match ros_msg::decode_clock(&bytes) {
+                    Ok(ns) => inb.clock_ns = Some(ns),
+                    Err(source) => decode_error(
+                        &mut inb,
+                        RosError::Decode {
+                            topic: "clock".into(),
+                            ros_type: CLOCK,
+                            index: counts[2] - 1,
+                            source,
+                        },
+                    ),
+                }
+            });
+        }
+        each!(&mut r.scan, 3, |inb, bytes| {
+            match ros_msg::decode_laser_scan(&bytes) {
+                Ok(msg) => {
+                    inb.received += 1;
+                    let replaced = inb.scan.replace(Arrived {
+                        msg,
+                        at: Instant::now(),
+                    });
+                    if replaced.is_some() {
+                        inb.skipped += 1;
+                    }
+                    cvar.notify_all();
+                }
+                Err(source) => decode_error(
+                    &mut inb,
+                    RosError::Decode {
+                        topic: topics[0].clone(),
+                        ros_type: LASER_SCAN,
+                        index: counts[3] - 1,
+                        source,
+                    },
+                ),
+            }
+        });
+        each!(&mut r.save, 4, |inb, bytes| {
+            match ros_msg::decode_string(&bytes) {
+                Ok(s) => inb.saves.push(s),
+                Err(source) => decode_error(
+                    &mut inb,
+                    RosError::Decode {
+                        topic: "save".into(),
+                        ros_type: STRING,
+                        index: counts[4] - 1,
+                        source,
+                    },
+                ),
+            }
+        });
+        each!(&mut r.map_request, 5, |inb, _bytes| {
+            inb.map_requests += 1;
+        });
+        if !got {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latency_percentiles_are_nearest_rank() {
+        let l = Latency::of(&[5.0, 1.0, 3.0, 2.0, 4.0]);
+        assert_eq!(l.p50_ms, 3.0);
+        assert_eq!(l.p95_ms, 5.0);
+        assert_eq!(l.max_ms, 5.0);
+        assert_eq!(l.mean_ms, 3.0);
+        assert_eq!(Latency::of(&[]), Latency::default());
+    }
+
+    #[test]
+    fn parameters_out_of_bounds_are_refused() {
+        let mut o = NodeOptions::default();
+        assert!(o.check().is_ok());
+        o.map_interval_s = 0.0;
+        assert!(matches!(
+            o.check(),
+            Err(RosError::Parameter {
+                name: "map_interval",
+                ..
+            })
+        ));
+        let o = NodeOptions {
+            domain_id: 233,
+            ..NodeOptions::default()
+        };
+        assert!(o.check().is_err());
+    }
+}
