@@ -148,6 +148,18 @@ fn write_bag(path: &Path, size: u64) -> Result<u64, String> {
     Ok(blobs)
 }
 
+/// The peak RSS (KiB) that `/usr/bin/time -v` printed in `stderr`.
+fn peak_rss_kib(stderr: &str) -> Result<u64, String> {
+    stderr
+        .lines()
+        .find_map(|l| {
+            l.trim()
+                .strip_prefix("Maximum resident set size (kbytes): ")
+        })
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .ok_or_else(|| format!("no peak RSS in /usr/bin/time's output:\n{stderr}"))
+}
+
 /// Runs `slam args` under `/usr/bin/time -v`: its stdout and its peak RSS in MiB.
 fn timed(exe: &Path, args: &[&str]) -> Result<(String, u64), String> {
     let o = Command::new("/usr/bin/time")
@@ -160,14 +172,7 @@ fn timed(exe: &Path, args: &[&str]) -> Result<(String, u64), String> {
     if !o.status.success() {
         return Err(format!("slam {}: {err}", args.join(" ")));
     }
-    let kib = err
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .strip_prefix("Maximum resident set size (kbytes): ")
-        })
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .ok_or_else(|| format!("no peak RSS in /usr/bin/time's output:\n{err}"))?;
+    let kib = peak_rss_kib(&err)?;
     Ok((String::from_utf8_lossy(&o.stdout).into_owned(), kib / 1024))
 }
 
@@ -210,14 +215,7 @@ fn run_ignored_gzip_test() -> Result<(), String> {
             String::from_utf8_lossy(&o.stdout)
         ));
     }
-    let kib = err
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .strip_prefix("Maximum resident set size (kbytes): ")
-        })
-        .and_then(|v| v.trim().parse::<u64>().ok())
-        .ok_or("no peak RSS in /usr/bin/time's output")?;
+    let kib = peak_rss_kib(&err)?;
     println!(
         "hostile: gzip of 2 GiB + 1 MiB zeros refused by the cap; peak RSS {} MiB",
         kib / 1024
