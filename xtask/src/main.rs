@@ -13,6 +13,9 @@
 //!   robustness suite (see [`robust`]), writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
 //!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
+//! * `cargo xtask eval hostile`: ROS 1 bags of 2.5 and 5 GiB (sparse, generated) through
+//!   `slam info` and `slam run` under `/usr/bin/time -v`: right counts, peak RSS bounded
+//!   (see [`hostile::hostile`]).
 //! * `cargo xtask eval speed [--pairs N] [--other-pairs M] [--only NAME,…] [--peers P,…]
 //!   [--install-peers]`: grid FastSLAM (1 and 2 threads) beside the peer programs found
 //!   (GMapping from `$GMAPPING_BIN`, MRPT's `rbpf-slam`) under `/usr/bin/time -v` on the
@@ -23,6 +26,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, ExitCode, Stdio};
 use std::time::Instant;
 
+mod hostile;
 mod speed;
 
 fn main() -> ExitCode {
@@ -46,13 +50,14 @@ fn main() -> ExitCode {
         Some("eval") if args.get(1).map(String::as_str) == Some("robust") => robust(&args[2..]),
         Some("eval") if args.get(1).map(String::as_str) == Some("mcap") => mcap_check(),
         Some("eval") if args.get(1).map(String::as_str) == Some("ros2") => ros2_check(&args[2..]),
+        Some("eval") if args.get(1).map(String::as_str) == Some("hostile") => hostile::hostile(),
         Some("eval") if args.get(1).map(String::as_str) == Some("speed") => {
             speed::speed(&args[2..])
         }
         Some("eval") => eval(&args[1..]),
         _ => {
             eprintln!(
-                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed|ros2]>"
+                "usage: cargo xtask <test-all | tidy | bench [ekf|fastslam|grid|gridfast|graph|sim] | eval [robust|mcap|speed|ros2|hostile]>"
             );
             return ExitCode::from(2);
         }
@@ -67,7 +72,12 @@ fn main() -> ExitCode {
 }
 
 fn cargo() -> Command {
-    Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+    Command::new(cargo_path())
+}
+
+/// The cargo program (`$CARGO`, else `cargo` on the path).
+fn cargo_path() -> String {
+    std::env::var("CARGO").unwrap_or_else(|_| "cargo".into())
 }
 
 fn run(step: &str, cmd: &mut Command) -> Result<(), String> {

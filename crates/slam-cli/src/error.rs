@@ -93,6 +93,15 @@ pub enum CliError {
     /// Laser odometry (the odometry of an input without it) failed.
     #[error("{0}")]
     LaserOdometry(String),
+    /// No scan of a laser input has a return within range (every beam a no-return or
+    /// invalid reading, or no beams at all): there is nothing to match or map.
+    #[error("{input}: none of its {scans} scan(s) has a return within range (every beam a no-return or invalid reading, or none): nothing to map")]
+    NoReturns {
+        /// The input as the user gave it.
+        input: String,
+        /// Scans in the input.
+        scans: usize,
+    },
     /// The filter failed while processing the data.
     #[error("filter `{filter}` failed at step {step} (t = {t} s): {source}")]
     FilterStep {

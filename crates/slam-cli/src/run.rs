@@ -547,6 +547,15 @@ fn run_scan(
     dataset: &ScanDataset,
 ) -> Result<Finished, CliError> {
     let info = &ctx.info;
+    // Scans without a single return give nothing to match or map: said before the run
+    // (issue 32: such a run ended with an error naming the staging folder's map file).
+    let scans = dataset.records.iter().filter_map(|r| r.scan.as_ref());
+    if scans.clone().all(|s| (0..s.len()).all(|k| !s.is_hit(k))) {
+        return Err(CliError::NoReturns {
+            input: input.label.clone(),
+            scans: scans.count(),
+        });
+    }
     let built = filters::build_scan(
         info,
         &Setup {

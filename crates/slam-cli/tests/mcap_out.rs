@@ -173,6 +173,37 @@ fn mcap_paths_that_would_lose_data_are_refused_before_the_run() {
         std::fs::read(&theirs).unwrap(),
         std::fs::read(fixture("intel-tf/intel-tf.mcap")).unwrap()
     );
+    // With --force it is replaced by the run's MCAP (its header's library is slam's now);
+    // --force never replaces a file that is not MCAP.
+    let forced = |mcap: &Path| {
+        slam(&[
+            "run",
+            "--filter",
+            "scanmatch",
+            "--dataset",
+            bag.to_str().unwrap(),
+            "--laser-pose",
+            "0,0,0",
+            "--quiet",
+            "--out",
+            dir.join("forced").to_str().unwrap(),
+            "--mcap",
+            mcap.to_str().unwrap(),
+            "--force",
+        ])
+        .0
+    };
+    forced(&theirs).unwrap();
+    let now = std::fs::read(&theirs).unwrap();
+    assert_ne!(
+        now,
+        std::fs::read(fixture("intel-tf/intel-tf.mcap")).unwrap()
+    );
+    assert!(now.starts_with(b"\x89MCAP0\r\n"));
+    assert!(now.windows(7).any(|w| w == b"slam-rs"), "not slam's MCAP");
+    let e = forced(&notes).unwrap_err().to_string();
+    assert!(e.contains("not an MCAP file"), "{e}");
+    assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine");
     // A storage file of a rosbag2 folder given as the input.
     let folder = dir.join("bag");
     std::fs::create_dir_all(&folder).unwrap();

@@ -581,8 +581,9 @@ impl FilterConfig {
         }
     }
 
-    /// Builds a scan filter starting at the identity pose (its map in the odometry frame, as
-    /// GMapping's), its random numbers
+    /// Builds a scan filter whose world is the odometry frame (`initial_pose` the identity:
+    /// its first pose is the first odometry pose and its map is in the odometry frame, as
+    /// GMapping's; docs/evaluation.md, "The frame of the laser filters"), its random numbers
     /// from `seed` (particle filters).
     pub fn build_scan(&self, seed: u64) -> Result<Box<dyn ScanSlam>, FactoryError> {
         let name = self.name();

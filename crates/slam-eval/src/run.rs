@@ -198,7 +198,8 @@ pub struct ScanRun {
     /// Each record's diagnostics.
     pub updates: Vec<ScanUpdateInfo>,
     /// The ground truth in the estimate's frame (anchored at their first common pose, as
-    /// scan filters start at the identity), the one the figures are computed against.
+    /// scan filters start at the first odometry pose), the one the figures are computed
+    /// against.
     pub reference: Option<Vec<TimedPose>>,
     /// The figures of `metrics.json`.
     pub metrics: Metrics,
@@ -374,7 +375,7 @@ pub fn run_scans(
 
 /// Runs a scan filter over `data` (`process` on every record) and scores its trajectory:
 /// ATE and RPE against the ground truth re-expressed in the estimate's frame (anchored at
-/// their first common pose: scan filters start at the identity, so "as is" means "sharing
+/// their first common pose: scan filters start at the first odometry pose, so "as is" means "sharing
 /// the start frame", as for landmark runs), and the relations metric, each where its
 /// reference exists. `observer` sees every record.
 pub fn run_scans_observed(

@@ -895,3 +895,180 @@ fn imu_yaw_rates_are_read_from_mcap_and_ros1() {
     let mean = diff / mcap.yaw_rates.len() as f64;
     assert!(mean < 0.012, "mean |imu − odometry rate| = {mean} rad/s");
 }
+
+// ---------------------------------------------------------------------------------------
+// ROS 1 bags written by the OFFICIAL writer, `rosbag.Bag` of Debian's python3-rosbag
+// (make_rosbag1_fixtures.py), from the same CARMEN lines: the truth is again the CARMEN log.
+
+/// make_rosbag1_fixtures.py's `OFFSET`: the odom-offset bag's odometry is OFFSET ⊕ o.
+const OFFSET: (f64, f64, f64) = (20.0, -6.0, 0.8);
+/// make_rosbag1_fixtures.py's `TWO_CHAIN_SCALE`: odom → base_link is the log's odometry
+/// with its translation scaled by this.
+const TWO_CHAIN_SCALE: f64 = 1.05;
+
+/// The scans of a bag, in order.
+fn scans_of(b: &RosBag) -> Vec<(f64, slam_io::LaserScan)> {
+    b.dataset
+        .records
+        .iter()
+        .filter_map(|r| Some((r.t, r.scan.clone()?)))
+        .collect()
+}
+
+/// The CARMEN records with every odometry pose o replaced by `f(o)`.
+fn carmen_mapped(carmen: &[ScanRecord], f: impl Fn(&Pose2) -> Pose2) -> Vec<ScanRecord> {
+    carmen
+        .iter()
+        .map(|r| ScanRecord {
+            odometry: f(&r.odometry),
+            ..r.clone()
+        })
+        .collect()
+}
+
+/// The 2010 index bag: every index data record's data length is count × 24 (the ROS 1.1
+/// writer's `sizeof(IndexEntry)`), not count × 12 (checked here on the file's bytes, so the
+/// fixture cannot silently lose the defect); read by entry count, as the official reader
+/// does, it gives the CARMEN records, the same as the `rosbags`-written odometry bag.
+#[test]
+fn a_bag_with_2010_index_records_reads_in_full() {
+    let path = fixture("rosbag1-index-2010.bag");
+    let bytes = std::fs::read(&path).unwrap();
+    // Every index data record: header fields op=0x04, ver, conn, count (in any order).
+    let (mut seen, mut pos) = (0, 13);
+    let u32_at = |p: usize| u32::from_le_bytes(bytes[p..p + 4].try_into().unwrap()) as usize;
+    while pos < bytes.len() {
+        let hlen = u32_at(pos);
+        let (mut p, mut op, mut count) = (pos + 4, 0u8, None);
+        while p < pos + 4 + hlen {
+            let flen = u32_at(p);
+            let f = &bytes[p + 4..p + 4 + flen];
+            if f == [b'o', b'p', b'=', 4] {
+                op = 4;
+            } else if let Some(v) = f.strip_prefix(b"count=") {
+                count = Some(u32::from_le_bytes(v.try_into().unwrap()) as usize);
+            }
+            p += 4 + flen;
+        }
+        let dlen = u32_at(p);
+        pos = p + 4 + dlen;
+        if op == 4 {
+            let count = count.unwrap();
+            assert_eq!(dlen, 24 * count, "index record at {p}");
+            seen += 1;
+            // The entries really are 12 bytes each: continue after them.
+            pos = p + 4 + 12 * count;
+        }
+    }
+    assert!(seen > 100, "{seen} index records");
+    let mount = BagOptions {
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+    let r = read_rosbag(&path, &mount).unwrap();
+    assert_eq!(r.format, BagFormat::Ros1);
+    assert_eq!(r.odometry, OdometrySource::Topic("/odom".into()));
+    let other = read_rosbag(&fixture("intel-odom.bag"), &mount).unwrap();
+    assert_eq!(r.dataset.records, other.dataset.records);
+    let Some(carmen) = source() else { return };
+    check_against_carmen(&r.dataset.records, &carmen);
+}
+
+/// The laser-only and laser + IMU bags of the official writer: no odometry, the scans of
+/// the `rosbags`-written bags, and the IMU's 3421 yaw rates equal to those of
+/// intel-laser-imu.mcap (the same formula and seed, another writer and container).
+#[test]
+fn official_laser_only_and_imu_bags_read_like_the_rosbags_ones() {
+    let imu = BagOptions {
+        imu_topic: Some("/imu".into()),
+        ..Default::default()
+    };
+    let reference = read_rosbag(&fixture("intel-laser-imu.mcap"), &imu).unwrap();
+    for name in ["rosbag1-laser-only.bag", "rosbag1-laser-imu.bag"] {
+        let o = if name.contains("imu") {
+            imu.clone()
+        } else {
+            BagOptions::default()
+        };
+        let r = read_rosbag(&fixture(name), &o).unwrap();
+        assert_eq!(r.odometry, OdometrySource::None, "{name}");
+        assert_eq!(r.dataset.records.len(), SCANS, "{name}");
+        assert_eq!(scans_of(&r), scans_of(&reference), "{name}");
+        assert!(r.summary(Path::new(name)).contains("no odometry"));
+        if name.contains("imu") {
+            assert_eq!(r.yaw_rates.len(), 3421);
+            assert_eq!(r.yaw_rates, reference.yaw_rates);
+        }
+    }
+}
+
+/// The bag whose odometry starts away from the origin: every odometry pose is OFFSET ⊕ the
+/// CARMEN one (the first (20, −6, 0.8)), the scans unchanged.
+#[test]
+fn odometry_away_from_the_origin_is_read_as_written() {
+    let mount = BagOptions {
+        laser_pose: Some(Pose2::IDENTITY),
+        ..Default::default()
+    };
+    let r = read_rosbag(&fixture("rosbag1-odom-offset.bag"), &mount).unwrap();
+    let first = r.dataset.records[0].odometry;
+    assert_pose(
+        &first,
+        &Pose2::new(OFFSET.0, OFFSET.1, OFFSET.2),
+        1e-9,
+        "first",
+    );
+    let Some(carmen) = source() else { return };
+    let t = Pose2::new(OFFSET.0, OFFSET.1, OFFSET.2);
+    let moved = carmen_mapped(&carmen, |o| {
+        let p = t.compose(o);
+        // The quaternion the bag holds gives the heading back in (−π, π].
+        Pose2::new(p.x, p.y, p.theta.sin().atan2(p.theta.cos()))
+    });
+    check_against_carmen(&r.dataset.records, &moved);
+}
+
+/// Two odometry chains out of `odom` in `/tf` (odom → base_footprint, odom → base_link):
+/// without `base_frame` the reader refuses, naming both and the option; with it, the chain
+/// named is read (base_footprint: the CARMEN odometry; base_link: its translation × 1.05)
+/// and the laser mounting is found through `/tf_static` from that frame (base_footprint →
+/// base_link → laser, or base_link → laser: MOUNT either way).
+#[test]
+fn two_odometry_chains_are_told_apart_by_the_base_frame() {
+    let path = fixture("rosbag1-two-chains.bag");
+    let e = read_rosbag(&path, &BagOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        // The option by its library or CLI name (`base_frame`, `--base-frame`).
+        e.contains("base_footprint")
+            && e.contains("base_link")
+            && (e.contains("base_frame") || e.contains("base-frame")),
+        "{e}"
+    );
+    let carmen = source();
+    let mount = Pose2::new(MOUNT.0, MOUNT.1, MOUNT.2);
+    for (base, scale) in [("base_footprint", 1.0), ("base_link", TWO_CHAIN_SCALE)] {
+        let o = BagOptions {
+            base_frame: Some(base.into()),
+            ..Default::default()
+        };
+        let r = read_rosbag(&path, &o).unwrap();
+        assert_eq!(
+            r.odometry,
+            OdometrySource::Tf {
+                parent: "odom".into(),
+                child: base.into()
+            }
+        );
+        for rec in &r.dataset.records {
+            if let Some(s) = &rec.scan {
+                assert_pose(&s.sensor_pose, &mount, 1e-12, base);
+            }
+        }
+        if let Some(carmen) = &carmen {
+            let want = carmen_mapped(carmen, |o| Pose2::new(scale * o.x, scale * o.y, o.theta));
+            check_against_carmen(&r.dataset.records, &want);
+        }
+    }
+}

@@ -39,7 +39,8 @@ fn matched_pairs(est: &[TimedPose], gt: &[TimedPose], max_dt: f64) -> Vec<(Pose2
 /// lowest estimate index. This is `evo_ape --align_origin`. Unchanged when no pose matches
 /// in time (ATE then says so).
 ///
-/// Use it when the estimate starts in its own frame (a laser filter starts at the identity):
+/// Use it when the estimate starts in its own frame (a laser filter starts at the first
+/// odometry pose, in the odometry frame, which need not be the ground truth's):
 /// "as is" metrics then mean "sharing the start frame". The anchor is the first record, not
 /// the earliest stamp: logs with a few late records stamped before the start (Intel) would
 /// otherwise anchor at a pose far into the run.

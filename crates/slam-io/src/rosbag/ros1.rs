@@ -17,8 +17,10 @@
 //! The file is streamed record by record (never held whole); a length field is trusted only
 //! up to the bytes the file still holds and [`crate::bounds::MAX_RECORD_BYTES`]. An index
 //! data record (0x04, version 1) is read by its entry `count` (12 bytes each), not by its
-//! data length, as the official reader (`rosbag`'s `bag.py`) does: the 2010 writers wrote
-//! data lengths that disagree with the count.
+//! data length, as the official reader (`rosbag`'s `bag.py`) does: the ROS 1.1 C++ writer
+//! (April to July 2010, until ros/ros commit 76cb7556) wrote that length as
+//! `count * sizeof(IndexEntry)`, 24 bytes an entry on x86-64, beside 12-byte entries
+//! (fixture `rosbag1-index-2010.bag`).
 //!
 //! A connection's `md5sum` is checked against the definitions we decode
 //! (`msgs::ros1_md5`): another definition under a known name is refused when its topic is
