@@ -171,7 +171,8 @@ fn occupied_centroid(out: &std::path::Path) -> (f64, f64) {
 }
 
 /// How far two maps' occupied-cell centroids may lie apart and still "agree", metres. A
-/// filter that started at the identity instead would put its map 20.9 m away (|OFFSET|).
+/// filter that started at the identity instead would put its map 26 m away on this bag (the
+/// plain map's centroid, about (1.5, −9.0), against OFFSET ⊕ it, about (27.5, −11.2)).
 /// The same scans in a frame rotated by 0.8 rad fall differently on the grid's cells, so a
 /// scan matcher's run differs a little (measured: scanmatch's centroid 0.56 m from OFFSET ⊕
 /// its centroid with the odometry at the origin).

@@ -173,7 +173,8 @@ fn scan_run_scores_against_the_anchored_truth() {
     let n = sim.dataset.records.len();
     assert_eq!((run.trajectory.len(), run.updates.len()), (n, n));
     let reference = run.reference.as_ref().unwrap();
-    // The reference starts where the estimate starts (the identity).
+    // The reference starts where the estimate starts (the first odometry pose, the office's
+    // start: the simulated odometry starts at the true pose).
     assert!(reference[0].pose.approx_eq(&run.trajectory[0].pose, 1e-9));
     let own = ate(&run.trajectory, reference).unwrap();
     assert_eq!(run.metrics.ate_rmse_m, Some(own.rmse));
