@@ -156,6 +156,28 @@ pub struct LaserGraphConfig {
     /// (Olson 2009 §V's uniqueness test, in a cheap form), in (0, 1]; 1 switches the test
     /// off. Default 0.9.
     pub loop_ambiguity_ratio: f64,
+    /// Loop closure: a match whose score surface is flat along one direction is rejected:
+    /// the response covariance of the match on the submap (`match-covariance`'s sampling,
+    /// its default window when that is `matcher`) has translational standard deviations
+    /// σ_max / σ_min above this bound (the square root of the 2 × 2 block's condition
+    /// number; a corridor's is about 12, a room's under 2), ≥ 1. Default 4.
+    pub loop_max_anisotropy: f64,
+    /// Loop closure: candidate closures are held back and checked for mutual consistency
+    /// in groups (Olson 2009, `consistency.rs`): a group collects the closures found over
+    /// at most this many keyframes from its first (≥ 1). Default 10.
+    pub loop_group_span: usize,
+    /// … and is evaluated earlier once this many keyframes (≥ 1) found no closure. Default 3.
+    pub loop_group_gap: usize,
+    /// Loop closure: the fewest mutually consistent closures of a group that enter the
+    /// graph (≥ 1; 1 lets a lone closure in unchecked). Default 2.
+    pub loop_group_min_size: usize,
+    /// Loop closure: a group's dominant cluster is accepted only when λ₁ / λ₂ of its
+    /// consistency matrix reaches this (≥ 1; Olson's confidence test). Default 2.
+    pub loop_group_min_ratio: f64,
+    /// Loop closure: standard deviation of the scan-matching chain's drift per metre of
+    /// path [m/m, rad/m], the uncertainty of the local poses between two closures of a
+    /// group (each ≥ 0). Default [0.02, 0.005].
+    pub loop_group_drift: [f64; 2],
     /// Loop closure: levels of the max-pyramid (slam-grid's `MaxPyramid`). Default 6.
     pub loop_depth: u32,
     /// Loop closure: a submap is searched only once its last scan is this many keyframes
@@ -216,6 +238,12 @@ impl Default for LaserGraphConfig {
             loop_angle_growth: 0.02,
             loop_max_angle: 0.6,
             loop_ambiguity_ratio: 0.9,
+            loop_max_anisotropy: 4.0,
+            loop_group_span: 10,
+            loop_group_gap: 3,
+            loop_group_min_size: 2,
+            loop_group_min_ratio: 2.0,
+            loop_group_drift: [0.02, 0.005],
             loop_depth: 6,
             loop_min_scan_gap: 30,
             loop_max_candidates: 3,
@@ -368,6 +396,21 @@ impl LaserGraphConfig {
         )?;
         let r = self.loop_ambiguity_ratio;
         ensure(r > 0.0 && r <= 1.0, "loop-ambiguity-ratio", r, "in (0, 1]")?;
+        let a = self.loop_max_anisotropy;
+        ensure(a >= 1.0, "loop-max-anisotropy", a, ">= 1")?;
+        for (f, v) in [
+            ("loop-group-span", self.loop_group_span),
+            ("loop-group-gap", self.loop_group_gap),
+            ("loop-group-min-size", self.loop_group_min_size),
+        ] {
+            ensure((1..=1000).contains(&v), f, v as f64, "in 1..=1000")?;
+        }
+        let q = self.loop_group_min_ratio;
+        ensure(q >= 1.0, "loop-group-min-ratio", q, ">= 1")?;
+        for (i, &v) in self.loop_group_drift.iter().enumerate() {
+            let f = ["loop-group-drift[0]", "loop-group-drift[1]"][i];
+            ensure(v >= 0.0, f, v, ">= 0 (m/m, rad/m)")?;
+        }
         ensure(
             (1..=slam_grid::matcher::MAX_PYRAMID_DEPTH).contains(&self.loop_depth),
             "loop-depth",

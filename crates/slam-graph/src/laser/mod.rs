@@ -44,6 +44,7 @@
 //! reading in that frame. Everything is deterministic: no random numbers are drawn.
 
 pub mod config;
+mod consistency;
 mod covariance;
 
 pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SCANS};
@@ -114,6 +115,14 @@ pub struct LaserGraphStats {
     pub loop_searches: usize,
     /// Loop-closure matches rejected as ambiguous (`loop-ambiguity-ratio`).
     pub loop_ambiguous: usize,
+    /// Loop-closure matches rejected because their score surface is flat along one
+    /// direction (`loop-max-anisotropy`).
+    pub loop_flat: usize,
+    /// Groups of candidate closures checked for mutual consistency.
+    pub loop_groups: usize,
+    /// Candidate closures the consistency check rejected (outside the dominant cluster, or
+    /// in a group without a clearly dominant one).
+    pub loop_inconsistent: usize,
     /// Loop closures accepted (edges added).
     pub loop_closures: usize,
     /// Optimisations of the keyframe graph.
@@ -147,6 +156,10 @@ pub struct LaserGraphSlam {
     /// Indices of the active submaps, oldest first (at most two).
     active: Vec<usize>,
     constraints: Vec<Constraint>,
+    /// Candidate loop closures of the group being collected, not yet in the graph.
+    pending: Vec<Constraint>,
+    /// Keyframes of the group's first and last candidate.
+    pending_span: (usize, usize),
     /// Finished submaps' grids and pyramids for loop closure, most recently used last.
     loop_maps: VecDeque<LoopMap>,
     stats: LaserGraphStats,
@@ -167,6 +180,8 @@ impl Clone for LaserGraphSlam {
             submaps: self.submaps.clone(),
             active: self.active.clone(),
             constraints: self.constraints.clone(),
+            pending: self.pending.clone(),
+            pending_span: self.pending_span,
             loop_maps: self.loop_maps.clone(),
             stats: self.stats,
             smoothed: Mutex::new(self.smoothed.lock().map(|s| s.clone()).unwrap_or(None)),
@@ -215,6 +230,8 @@ impl LaserGraphSlam {
             submaps: Vec::new(),
             active: Vec::new(),
             constraints: Vec::new(),
+            pending: Vec::new(),
+            pending_span: (0, 0),
             loop_maps: VecDeque::new(),
             stats: LaserGraphStats::default(),
             smoothed: Mutex::new(None),
@@ -369,10 +386,86 @@ impl LaserGraphSlam {
             self.constraints.push(c);
         }
         self.stats.keyframes += 1;
-        if self.config.loop_max_candidates > 0 && self.search_loops(k)? {
-            self.optimize_keyframes()?;
+        if self.config.loop_max_candidates > 0 {
+            self.search_loops(k)?;
+            if self.settle_group(k) {
+                self.optimize_keyframes()?;
+            }
         }
         Ok(())
+    }
+
+    /// Once the pending group of candidate closures is complete (`loop-group-span`
+    /// keyframes since its first candidate, or `loop-group-gap` keyframes without one),
+    /// checks it for mutual consistency ([`consistency::dominant_group`]) and adds the
+    /// dominant cluster's closures to the graph; true when some were added.
+    fn settle_group(&mut self, k: usize) -> bool {
+        let c = &self.config;
+        let (first, last) = self.pending_span;
+        if self.pending.is_empty() || (k < first + c.loop_group_span && k < last + c.loop_group_gap)
+        {
+            return false;
+        }
+        let hyps: Vec<consistency::Hypothesis> = self
+            .pending
+            .iter()
+            .map(|p| {
+                let (a, b) = (&self.keyframes[p.from], &self.keyframes[p.to]);
+                consistency::Hypothesis {
+                    z: p.z,
+                    covariance: invert(&p.information),
+                    a: a.local,
+                    b: b.local,
+                    a_path: a.path,
+                    b_path: b.path,
+                }
+            })
+            .collect();
+        let test = consistency::GroupTest {
+            drift: c.loop_group_drift,
+            min_size: c.loop_group_min_size,
+            min_ratio: c.loop_group_min_ratio,
+        };
+        let decision = consistency::dominant_group(&hyps, &test);
+        let pending = std::mem::take(&mut self.pending);
+        self.stats.loop_groups += 1;
+        self.stats.loop_inconsistent += pending.len() - decision.accepted.len();
+        self.stats.loop_closures += decision.accepted.len();
+        for &i in &decision.accepted {
+            self.constraints.push(pending[i]);
+        }
+        !decision.accepted.is_empty()
+    }
+
+    /// True when the response of `scan` on `grid` around `pose` is flat along one
+    /// direction: the translational block of its sampled covariance
+    /// ([`covariance::response_covariance`]) has σ_max / σ_min above `loop-max-anisotropy`.
+    fn flat_match(&self, grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> bool {
+        let sampling = match self.config.match_covariance {
+            MatchCovariance::Response {
+                linear_window,
+                angular_window,
+                temperature,
+            } => covariance::ResponseSampling {
+                linear_window,
+                angular_window,
+                temperature,
+            },
+            MatchCovariance::Matcher => covariance::ResponseSampling {
+                linear_window: 0.3,
+                angular_window: 0.03,
+                temperature: 10.0,
+            },
+        };
+        let Some(cov) = covariance::response_covariance(grid, scan, pose, &sampling) else {
+            return true;
+        };
+        let (a, b, d) = (cov[(0, 0)], cov[(0, 1)], cov[(1, 1)]);
+        // Eigenvalues of the 2 × 2 block [[a, b], [b, d]].
+        let mean = 0.5 * (a + d);
+        let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+        let (hi, lo) = (mean + r, (mean - r).max(f64::MIN_POSITIVE));
+        (hi / lo).sqrt() > self.config.loop_max_anisotropy
     }
 
     /// Local scan-to-submap match from `predicted`: pose and covariance, or `None` when
@@ -508,8 +601,9 @@ impl LaserGraphSlam {
         Ok(())
     }
 
-    /// Searches finished submaps for loop closures of keyframe `k`; true when one was
-    /// added.
+    /// Searches finished submaps for loop closures of keyframe `k` and adds the matches to
+    /// the pending group (`settle_group` decides which enter the graph); true when one was
+    /// found.
     fn search_loops(&mut self, k: usize) -> Result<bool, GraphError> {
         let c = &self.config;
         let kf = &self.keyframes[k];
@@ -584,6 +678,10 @@ impl LaserGraphSlam {
                 Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
                 _ => hit,
             };
+            if self.flat_match(grid, scan, &m.pose) {
+                self.stats.loop_flat += 1;
+                continue;
+            }
             // The edge starts at the submap's keyframe nearest to the match: the submap is
             // exact relative to its own keyframes' local poses only up to its internal
             // drift, which grows with the distance along it.
@@ -602,14 +700,17 @@ impl LaserGraphSlam {
             // The matcher's own covariance: on the office the response's made the
             // closures slightly worse (docs/results/graph.md).
             let information = self.match_information(&m.covariance, from_local.theta);
-            self.constraints.push(Constraint {
+            if self.pending.is_empty() {
+                self.pending_span.0 = k;
+            }
+            self.pending_span.1 = k;
+            self.pending.push(Constraint {
                 from,
                 to: k,
                 z,
                 information,
                 loop_closure: true,
             });
-            self.stats.loop_closures += 1;
             found = true;
         }
         Ok(found)

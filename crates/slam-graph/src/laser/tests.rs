@@ -140,3 +140,132 @@ fn obstacle_bounded_pyramid_searches_like_the_full_one() {
         assert!(a.pose.distance(&Pose2::new(2.5, 1.5, 0.0)) < 0.1, "{a:?}");
     }
 }
+
+/// A front end whose keyframes and records are a noisy-odometry drive twice around a 6 m
+/// square (0.5 m steps, 96 records, every record a keyframe whose local pose is the
+/// odometry), with the odometry edges and, from the second lap to the first, true loop
+/// closures (the true relative pose, σ = 2 cm / 0.005 rad); optionally one false closure
+/// joining records 12 and 36 (opposite corners, 8.5 m apart) as if they were one place.
+/// Returns the smoothed trajectory and the odometry chain's covariance between the false
+/// closure's ends (the uncertainty of the edges it contradicts).
+fn square_with_closures(config: LaserGraphConfig, false_closure: bool) -> (Vec<Pose2>, Matrix3) {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
+    let noise = Normal::new(0.0, 1.0).unwrap();
+    let mut f = LaserGraphSlam::new(config, Pose2::IDENTITY, 0).unwrap();
+    let scan = PreparedScan::new(&room_scan(2.5, 1.5)).unwrap();
+    let n = 96;
+    let truth: Vec<Pose2> = {
+        let mut p = Pose2::IDENTITY;
+        (0..n)
+            .map(|k| {
+                let here = p;
+                let turn = if k % 12 == 11 {
+                    std::f64::consts::FRAC_PI_2
+                } else {
+                    0.0
+                };
+                p = p.compose(&Pose2::new(0.5, 0.0, turn));
+                here
+            })
+            .collect()
+    };
+    let mut o = Pose2::IDENTITY;
+    for k in 0..n {
+        if k > 0 {
+            let d = truth[k - 1].between(&truth[k]);
+            let e = Pose2::new(
+                d.x + 0.02 * noise.sample(&mut rng),
+                d.y + 0.02 * noise.sample(&mut rng),
+                d.theta + 0.01 + 0.01 * noise.sample(&mut rng),
+            );
+            o = o.compose(&e);
+        }
+        f.times.push(k as f64);
+        f.odometry.push(o);
+        f.last_keyframe_at.push(Some(k));
+        f.keyframes.push(Keyframe {
+            record: k,
+            scan: scan.clone(),
+            local: o,
+            global: o,
+            path: 0.5 * k as f64,
+        });
+        if k > 0 {
+            let z = f.odometry[k - 1].between(&o);
+            let information = invert(&f.odometry_chain_covariance(k - 1, k));
+            f.constraints.push(Constraint {
+                from: k - 1,
+                to: k,
+                z,
+                information,
+                loop_closure: false,
+            });
+        }
+    }
+    let closure_info = invert(&Matrix3::from_diagonal(&slam_models::Vector3::new(
+        4e-4, 4e-4, 2.5e-5,
+    )));
+    for k in [0, 3, 6, 9, 20, 30, 40] {
+        let z = truth[k].between(&truth[k + 48]);
+        f.constraints.push(Constraint {
+            from: k,
+            to: k + 48,
+            z: Pose2::new(
+                z.x + 0.02 * noise.sample(&mut rng),
+                z.y + 0.02 * noise.sample(&mut rng),
+                z.theta + 0.005 * noise.sample(&mut rng),
+            ),
+            information: closure_info,
+            loop_closure: true,
+        });
+    }
+    if false_closure {
+        f.constraints.push(Constraint {
+            from: 12,
+            to: 36,
+            z: Pose2::IDENTITY,
+            information: closure_info,
+            loop_closure: true,
+        });
+    }
+    f.optimize_keyframes().unwrap();
+    let contradicted = f.odometry_chain_covariance(12, 36);
+    (f.smoothed_poses(), contradicted)
+}
+
+/// A wrong closure cannot move the estimate by more than the uncertainty of the edges it
+/// contradicts: with the default treatment (DCS on the keyframe graph's closures, then
+/// χ²-gated out of the trajectory graph) a false closure between opposite corners of the
+/// square moves no smoothed pose by more than the 1σ position uncertainty of the odometry
+/// chain between its ends; without a closure kernel the same closure moves the estimate by
+/// more than that (the test has teeth).
+#[test]
+fn an_injected_false_closure_moves_the_estimate_less_than_the_contradicted_uncertainty() {
+    let sigma = |cov: &Matrix3| {
+        let (a, b, d) = (cov[(0, 0)], cov[(0, 1)], cov[(1, 1)]);
+        (0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt()).sqrt()
+    };
+    let moved = |x: &[Pose2], y: &[Pose2]| {
+        x.iter()
+            .zip(y)
+            .map(|(a, b)| a.distance(b))
+            .fold(0.0, f64::max)
+    };
+    let (clean, cov) = square_with_closures(LaserGraphConfig::default(), false);
+    let (dirty, _) = square_with_closures(LaserGraphConfig::default(), true);
+    let bound = sigma(&cov);
+    let shift = moved(&clean, &dirty);
+    eprintln!("false closure: moved {shift:.4} m, contradicted chain 1σ {bound:.3} m");
+    assert!(bound > 0.1, "the chain's σ {bound} m");
+    assert!(shift < bound, "moved {shift} m, bound {bound} m");
+    let mut plain = LaserGraphConfig::default();
+    plain.optimizer.closure_kernel = crate::kernel::RobustKernel::None;
+    plain.smoother_max_closure_chi2 = f64::MAX;
+    let (clean, _) = square_with_closures(plain.clone(), false);
+    let (dirty, _) = square_with_closures(plain, true);
+    let shift = moved(&clean, &dirty);
+    eprintln!("without the kernel: moved {shift:.4} m");
+    assert!(shift > bound, "moved {shift} m, bound {bound} m");
+}
