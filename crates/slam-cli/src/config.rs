@@ -63,8 +63,12 @@ fn config_error(text: &str, path: &Path, e: &toml::de::Error) -> CliError {
 }
 
 /// For serde's "unknown field `a_b`" about a key with an underscore: the hint that keys are
-/// kebab-case now, naming the spelling to use.
+/// kebab-case now, naming the spelling to use; for an association key at the top of a file,
+/// that it moved into the `[association]` table.
 fn snake_case_hint(message: &str) -> String {
+    if let Some(hint) = slam_models::association::moved_key_hint(message) {
+        return hint;
+    }
     let key = message
         .strip_prefix("unknown field `")
         .and_then(|rest| rest.split('`').next());

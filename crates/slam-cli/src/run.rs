@@ -278,8 +278,15 @@ fn default_name(args: &RunArgs) -> String {
     }
 }
 
-/// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]).
+/// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]); the
+/// description names the dataset options by their flags.
 fn load_input(args: &RunArgs) -> Result<Input, CliError> {
+    let mut input = load_input_named_by_option(args)?;
+    input.description = crate::error::with_flags(&input.description);
+    Ok(input)
+}
+
+fn load_input_named_by_option(args: &RunArgs) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
         let params = input::ScenarioParams {
             landmarks: args.landmarks,
