@@ -52,7 +52,10 @@ def g2o_chi2(graph, values):
     return total
 
 
-def run(path):
+def optimize(path):
+    """GTSAM's Levenberg-Marquardt on the file at `path` as the module says: returns the
+    file's edges (no prior), the initial values, the result, the iterations and the wall time
+    (s) of the optimize call. scripts/gtsam_compare.py runs GTSAM through this too."""
     with open(path) as fh:
         toro = any(line.startswith("EDGE2") for line in fh)
     fmt = gtsam.NoiseFormat.NoiseFormatTORO if toro else gtsam.NoiseFormat.NoiseFormatG2O
@@ -69,11 +72,16 @@ def run(path):
     opt = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
     result = opt.optimize()
     seconds = time.perf_counter() - t0
+    return edges, initial, result, opt.iterations(), seconds
+
+
+def run(path):
+    edges, initial, result, iterations, seconds = optimize(path)
     return {
         "chi2_initial_g2o_error": g2o_chi2(edges, initial),
         "chi2_final_g2o_error": g2o_chi2(edges, result),
         "chi2_final_gtsam_error": 2.0 * edges.error(result),
-        "iterations": opt.iterations(),
+        "iterations": iterations,
         "seconds_optimize": seconds,
     }
 
