@@ -96,14 +96,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     // A bad configuration fails before the data is loaded: the filter is built once on a
     // placeholder start (the real one, with the data's initial pose and a simulation's
     // noise models, is built in the run).
-    let placeholder = Setup {
-        config_path: args.config.as_deref(),
-        particles: args.particles.map(|p| p as usize),
-        seed: args.seed,
-        initial_pose: slam_models::Pose2::default(),
-        sim_noise: None,
-        preset: args.preset.as_deref(),
-    };
+    let placeholder = Setup::of_run(args, slam_models::Pose2::default(), None);
     match info.kind {
         _ if both => {}
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
@@ -390,14 +383,7 @@ fn run_landmark(
     let info = &ctx.info;
     let built = filters::build_landmark(
         info,
-        &Setup {
-            config_path: ctx.args.config.as_deref(),
-            particles: ctx.args.particles.map(|p| p as usize),
-            seed: ctx.args.seed,
-            initial_pose: dataset.initial_pose,
-            sim_noise,
-            preset: ctx.args.preset.as_deref(),
-        },
+        &Setup::of_run(ctx.args, dataset.initial_pose, sim_noise),
     )?;
     let mut filter = built.filter;
     let steps = &dataset.steps;
@@ -532,14 +518,7 @@ fn run_scan(
     let info = &ctx.info;
     let built = filters::build_scan(
         info,
-        &Setup {
-            config_path: ctx.args.config.as_deref(),
-            particles: ctx.args.particles.map(|p| p as usize),
-            seed: ctx.args.seed,
-            initial_pose: slam_models::Pose2::default(),
-            sim_noise: None,
-            preset: ctx.args.preset.as_deref(),
-        },
+        &Setup::of_run(ctx.args, slam_models::Pose2::default(), None),
     )?;
     let mut filter = built.filter;
     let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;
