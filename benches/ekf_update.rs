@@ -9,7 +9,7 @@
 
 use criterion::{BenchmarkId, Criterion};
 use faer::Mat;
-use slam_ekf::{AssociationMode, EkfConfig, EkfSlam};
+use slam_ekf::{AssociationMode, AssociationOptions, EkfConfig, EkfSlam};
 use slam_models::{Control, LandmarkId, LandmarkSlam, OdometryControl, Pose2, RangeBearing};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -20,8 +20,11 @@ const SIZES: [usize; 5] = [100, 250, 500, 1000, 2000];
 /// small motions in between (so Σ is dense), and 10 observations of mapped landmarks.
 fn build(n: usize) -> (EkfSlam, Vec<RangeBearing>) {
     let config = EkfConfig {
-        association: AssociationMode::KnownIds,
-        known_id_gate_probability: None,
+        association: AssociationOptions {
+            mode: AssociationMode::KnownIds,
+            known_id_gate_probability: None,
+            ..AssociationOptions::default()
+        },
         initial_pose_variance: [1e-4, 1e-4, 1e-5],
         ..EkfConfig::default()
     };

@@ -18,56 +18,24 @@ and the median time ratios. Run through scripts/gtsam_compare.sh, which makes th
 import argparse
 import importlib.metadata
 import json
-import math
 import statistics
 import subprocess
 import time
+import sys
+from pathlib import Path
 
-import gtsam
-
-
-def g2o_chi2(path, values):
-    """Sum over EDGE_SE2 lines of e^T I e with e = t2v(Z^-1 (Xi^-1 Xj)), g2o's EdgeSE2."""
-    total = 0.0
-    with open(path) as f:
-        for line in f:
-            w = line.split()
-            if not w or w[0] != "EDGE_SE2":
-                continue
-            i, j = int(w[1]), int(w[2])
-            zx, zy, zt = map(float, w[3:6])
-            u = list(map(float, w[6:12]))
-            info = [[u[0], u[1], u[2]], [u[1], u[3], u[4]], [u[2], u[4], u[5]]]
-            a, b = values.atPose2(i), values.atPose2(j)
-            c, s = math.cos(a.theta()), math.sin(a.theta())
-            dx, dy = b.x() - a.x(), b.y() - a.y()
-            d = (c * dx + s * dy, -s * dx + c * dy)
-            cz, sz = math.cos(zt), math.sin(zt)
-            tx, ty = d[0] - zx, d[1] - zy
-            e = [cz * tx + sz * ty, -sz * tx + cz * ty,
-                 math.remainder(b.theta() - a.theta() - zt, 2 * math.pi)]
-            total += sum(e[r] * info[r][k] * e[k] for r in range(3) for k in range(3))
-    return total
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from gtsam_truth import g2o_chi2, optimize  # noqa: E402  (GTSAM's run, shared with the tests)
 
 
 def run_gtsam(path):
-    graph, initial = gtsam.readG2o(path, False)
-    edges_only = gtsam.NonlinearFactorGraph(graph)
-    prior = gtsam.noiseModel.Diagonal.Variances(gtsam.Point3(1e-6, 1e-6, 1e-8))
-    graph.add(gtsam.PriorFactorPose2(0, initial.atPose2(0), prior))
-    params = gtsam.LevenbergMarquardtParams()
-    params.setRelativeErrorTol(1e-5)
-    params.setAbsoluteErrorTol(0.5e-5)
-    params.setMaxIterations(100)
-    t0, c0 = time.perf_counter(), time.process_time()
-    opt = gtsam.LevenbergMarquardtOptimizer(graph, initial, params)
-    result = opt.optimize()
-    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    """GTSAM's run, through tests/gtsam_truth.py (the same reader, prior and parameters)."""
+    edges, initial, result, iterations, seconds, cpu = optimize(path)
     return {
-        "chi2_initial": 2.0 * edges_only.error(initial),
-        "chi2_final_gtsam_error": 2.0 * edges_only.error(result),
-        "chi2_final_g2o_error": g2o_chi2(path, result),
-        "iterations": opt.iterations(),
+        "chi2_initial": 2.0 * edges.error(initial),
+        "chi2_final_gtsam_error": 2.0 * edges.error(result),
+        "chi2_final_g2o_error": g2o_chi2(edges, result),
+        "iterations": iterations,
         "seconds_total": seconds,
         "cpu_seconds_total": cpu,
     }

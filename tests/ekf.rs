@@ -54,7 +54,7 @@ fn freiburg_landmark_rmse() {
     let d = slam_io::freiburg::read_freiburg(&dir).expect("read Freiburg data");
     let truth = d.landmarks.clone().expect("world.dat");
     let config = EkfConfig {
-        association: AssociationMode::KnownIds,
+        association: AssociationMode::KnownIds.into(),
         motion: MotionModels {
             odometry: slam_models::motion::OdometryModel::new([0.01, 0.001, 0.01, 0.001]),
             ..MotionModels::default()
@@ -87,7 +87,7 @@ fn mrclam_robot1_ate_beats_dead_reckoning() {
         .expect("resampled MRCLAM has ground truth");
     let truth = d.landmarks.clone().expect("landmark ground truth");
     let config = EkfConfig {
-        association: AssociationMode::KnownIds,
+        association: AssociationMode::KnownIds.into(),
         motion: MotionModels {
             velocity: slam_models::motion::VelocityModel::new([0.1, 0.01, 0.01, 0.1, 0.001, 0.01]),
             ..MotionModels::default()
@@ -96,7 +96,6 @@ fn mrclam_robot1_ate_beats_dead_reckoning() {
         // extra process noise is ≈ 2.5e-3 m² and rad² per second.
         extra_motion_noise: [5e-5, 5e-5, 5e-5],
         sensor: RangeBearingModel::new(0.15, 0.05),
-        known_id_gate_probability: Some(0.9999),
         ..EkfConfig::default()
     };
     let mut ekf = EkfSlam::new(config, d.initial_pose, 0).unwrap();
@@ -238,7 +237,7 @@ fn clutter_with_jcbb_finds_landmarks_without_false_merges() {
             _ => panic!("landmark scenario expected"),
         };
         let config = EkfConfig {
-            association: AssociationMode::Jcbb,
+            association: AssociationMode::Jcbb.into(),
             ..sim_config(r.motion, r.sensor)
         };
         let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0).unwrap();
@@ -326,7 +325,7 @@ fn nearest_neighbour_on_hidden_ids_maps_each_landmark_once() {
     };
     let r = loop_run(3, opts);
     let config = EkfConfig {
-        association: AssociationMode::NearestNeighbour,
+        association: AssociationMode::NearestNeighbour.into(),
         ..sim_config(r.motion, r.sensor)
     };
     let mut ekf = EkfSlam::new(config, r.dataset.initial_pose, 0).unwrap();

@@ -234,7 +234,7 @@ fn clutter_with_jcbb_maps_each_landmark_once() {
             },
         );
         let config = GraphLandmarkConfig {
-            association: AssociationMode::Jcbb,
+            association: AssociationMode::Jcbb.into(),
             ..graph_config(r.motion, r.sensor)
         };
         let d = &r.dataset;
@@ -297,7 +297,7 @@ fn nearest_neighbour_on_hidden_ids_maps_each_landmark_once() {
         },
     );
     let config = GraphLandmarkConfig {
-        association: AssociationMode::NearestNeighbour,
+        association: AssociationMode::NearestNeighbour.into(),
         ..graph_config(r.motion, r.sensor)
     };
     let mut g = GraphLandmarkSlam::new(config, r.dataset.initial_pose, 3).unwrap();
@@ -345,14 +345,14 @@ fn freiburg_landmarks() {
     };
     let sensor = RangeBearingModel::new(0.1, 0.05);
     let config = GraphLandmarkConfig {
-        association: AssociationMode::KnownIds,
+        association: AssociationMode::KnownIds.into(),
         ..graph_config(motion, sensor)
     };
     let mut g = GraphLandmarkSlam::new(config, d.initial_pose, 0).unwrap();
     run(&mut g, &d);
     let mut e = EkfSlam::new(
         EkfConfig {
-            association: AssociationMode::KnownIds,
+            association: AssociationMode::KnownIds.into(),
             ..ekf_config(motion, sensor)
         },
         d.initial_pose,
@@ -390,7 +390,7 @@ fn mrclam_robot1_path_shape_beats_the_ekf() {
     let sensor = RangeBearingModel::new(0.15, 0.05);
     let extra = [5e-5, 5e-5, 5e-5];
     let config = GraphLandmarkConfig {
-        association: AssociationMode::KnownIds,
+        association: AssociationMode::KnownIds.into(),
         extra_motion_noise: extra,
         ..graph_config(motion, sensor)
     };
@@ -400,7 +400,7 @@ fn mrclam_robot1_path_shape_beats_the_ekf() {
     let secs = t0.elapsed().as_secs_f64();
     let mut e = EkfSlam::new(
         EkfConfig {
-            association: AssociationMode::KnownIds,
+            association: AssociationMode::KnownIds.into(),
             extra_motion_noise: extra,
             ..ekf_config(motion, sensor)
         },

@@ -63,8 +63,12 @@ fn config_error(text: &str, path: &Path, e: &toml::de::Error) -> CliError {
 }
 
 /// For serde's "unknown field `a_b`" about a key with an underscore: the hint that keys are
-/// kebab-case now, naming the spelling to use.
+/// kebab-case now, naming the spelling to use; for an association key at the top of a file,
+/// that it moved into the `[association]` table.
 fn snake_case_hint(message: &str) -> String {
+    if let Some(hint) = slam_models::association::moved_key_hint(message) {
+        return hint;
+    }
     let key = message
         .strip_prefix("unknown field `")
         .and_then(|rest| rest.split('`').next());
@@ -87,24 +91,42 @@ mod tests {
     struct Demo {
         particles: usize,
         sigma: f64,
-        gate_probability: f64,
+        min_range: f64,
     }
 
     /// An old snake_case key is an error (never silently ignored) that names the
     /// kebab-case key to write instead; the kebab-case key parses.
     #[test]
     fn an_old_snake_case_key_is_refused_with_its_kebab_case_spelling() {
-        let err = parse::<Demo>("gate_probability = 0.9\n", Path::new("x.toml"))
+        let err = parse::<Demo>("min_range = 0.9\n", Path::new("x.toml"))
             .err()
             .unwrap()
             .to_string();
         assert!(
-            err.contains("unknown field `gate_probability`")
-                && err.contains("write `gate-probability`"),
+            err.contains("unknown field `min_range`") && err.contains("write `min-range`"),
             "{err}"
         );
-        let ok: Loaded<Demo> = parse("gate-probability = 0.9\n", Path::new("x.toml")).unwrap();
-        assert_eq!(ok.config.gate_probability, 0.9);
+        let ok: Loaded<Demo> = parse("min-range = 0.9\n", Path::new("x.toml")).unwrap();
+        assert_eq!(ok.config.min_range, 0.9);
+    }
+
+    /// An association key at the top of a file (where files before the `[association]`
+    /// table had it) is refused with the table to move it to.
+    #[test]
+    fn an_old_flat_association_key_names_the_table() {
+        #[derive(Debug, Default, Deserialize)]
+        #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+        struct Holder {
+            association: slam_models::association::AssociationOptions,
+        }
+        let err = parse::<Holder>("\nmin-sightings = 2\n", Path::new("x.toml"))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("line 2") && err.contains("under `[association]`"),
+            "{err}"
+        );
     }
 
     #[test]

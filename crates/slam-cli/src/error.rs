@@ -136,12 +136,35 @@ pub enum CliError {
     },
 }
 
+/// The command-line flag that sets a dataset option.
+pub(crate) fn flag(option: slam_io::DatasetOption) -> &'static str {
+    use slam_io::DatasetOption;
+    match option {
+        DatasetOption::Robot => "--robot",
+        DatasetOption::ScanTopic => "--scan-topic",
+        DatasetOption::OdomTopic => "--odom-topic",
+        DatasetOption::LaserPose => "--laser-pose",
+        DatasetOption::OdomFrame => "--odom-frame",
+        DatasetOption::BaseFrame => "--base-frame",
+        DatasetOption::ImuTopic => "--imu-topic",
+        DatasetOption::LaserOnly => "--odometry none",
+    }
+}
+
+/// A library text (a dataset's description, `slam info`'s report) with every dataset option
+/// it names ("option `base_frame`", [`slam_io::DatasetOption`]'s display) replaced by the
+/// flag that sets it.
+pub(crate) fn with_flags(text: &str) -> String {
+    slam_io::DatasetOption::ALL
+        .iter()
+        .fold(text.to_string(), |t, &o| t.replace(&o.to_string(), flag(o)))
+}
+
 impl From<slam_io::IoError> for CliError {
     /// A slam-io error as the program reports it: a dataset option the data does not take
     /// (or needs) is named by its flag (`--robot`, `--scan-topic`, `--odom-topic`,
     /// `--laser-pose`); every other error unchanged.
     fn from(e: slam_io::IoError) -> Self {
-        use slam_io::DatasetOption;
         match e {
             slam_io::IoError::DatasetOption {
                 path,
@@ -149,15 +172,7 @@ impl From<slam_io::IoError> for CliError {
                 option,
                 what,
             } => {
-                let flag = match option {
-                    DatasetOption::Robot => "--robot",
-                    DatasetOption::ScanTopic => "--scan-topic",
-                    DatasetOption::OdomTopic => "--odom-topic",
-                    DatasetOption::LaserPose => "--laser-pose",
-                    DatasetOption::OdomFrame => "--odom-frame",
-                    DatasetOption::BaseFrame => "--base-frame",
-                    DatasetOption::ImuTopic => "--imu-topic",
-                };
+                let flag = flag(option);
                 let topic = topic.map(|t| format!("topic {t}: ")).unwrap_or_default();
                 CliError::InvalidArgument(format!("{}: {topic}{flag} {what}", path.display()))
             }

@@ -36,6 +36,25 @@ pub(crate) struct Setup<'a> {
     pub preset: Option<&'a str>,
 }
 
+impl<'a> Setup<'a> {
+    /// The setup `slam run`'s arguments ask for, from `initial_pose` with the simulator's
+    /// noise models `sim_noise` (simulated data only).
+    pub fn of_run(
+        args: &'a crate::cli::RunArgs,
+        initial_pose: Pose2,
+        sim_noise: Option<NoiseModels>,
+    ) -> Self {
+        Setup {
+            config_path: args.config.as_deref(),
+            particles: args.particles.map(|p| p as usize),
+            seed: args.seed,
+            initial_pose,
+            sim_noise,
+            preset: args.preset.as_deref(),
+        }
+    }
+}
+
 /// A built filter and the configuration it runs with (as TOML, written beside the output).
 pub(crate) struct Built<F: ?Sized> {
     /// The filter.
@@ -47,6 +66,17 @@ pub(crate) struct Built<F: ?Sized> {
     pub config: FilterConfig,
     /// One line when the simulator's noise models replaced the filter's.
     pub noise_note: Option<String>,
+}
+
+impl<F: ?Sized> Built<F> {
+    fn new(filter: Box<F>, parsed: ParsedConfig, noise_note: Option<String>) -> Self {
+        Built {
+            filter,
+            config_toml: parsed.config.table_toml(),
+            config: parsed.config,
+            noise_note,
+        }
+    }
 }
 
 /// A factory error as the program reports it (a config file's errors name the file).
@@ -141,12 +171,7 @@ pub(crate) fn build_landmark(
         .config
         .build_landmark(setup.initial_pose, setup.seed)
         .map_err(|e| factory_error(e, None))?;
-    Ok(Built {
-        filter,
-        config_toml: parsed.config.table_toml(),
-        config: parsed.config,
-        noise_note,
-    })
+    Ok(Built::new(filter, parsed, noise_note))
 }
 
 /// Builds a laser (scan) filter.
@@ -167,12 +192,7 @@ pub(crate) fn build_scan(
         .config
         .build_scan(setup.seed)
         .map_err(|e| factory_error(e, None))?;
-    Ok(Built {
-        filter,
-        config_toml: parsed.config.table_toml(),
-        config: parsed.config,
-        noise_note,
-    })
+    Ok(Built::new(filter, parsed, noise_note))
 }
 
 /// gridfast: the values the given configuration left to the data and the filter took from

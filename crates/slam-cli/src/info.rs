@@ -8,7 +8,7 @@ use std::io::Write;
 /// for a ROS bag its topics, types, counts, rates, span, laser geometry and odometry
 /// sources; for the other formats their record counts and laser geometry.
 pub fn info(args: &InfoArgs, out: &mut dyn Write) -> Result<(), CliError> {
-    let text = slam_io::dataset_info(&args.path)?;
+    let text = crate::error::with_flags(&slam_io::dataset_info(&args.path)?);
     let _ = writeln!(out, "{text}");
     Ok(())
 }

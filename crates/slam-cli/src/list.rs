@@ -1,7 +1,7 @@
 //! `slam list`: the filters and the scenarios.
 
 use crate::filters::filters;
-use slam_sim::scenario::{self, ScenarioKind};
+use slam_sim::scenario;
 use std::io::Write;
 
 /// Prints the filters and scenarios to `out`.
@@ -22,10 +22,7 @@ pub(crate) fn list(out: &mut dyn Write) {
         "Scenarios (slam run --sim NAME, slam sim NAME; all available):"
     );
     for s in scenario::list() {
-        let kind = match s.kind {
-            ScenarioKind::Landmark => "landmark",
-            ScenarioKind::Laser => "laser",
-        };
+        let kind = s.kind.as_str();
         let name = if s.name == "replay" {
             "replay:<map.yaml>".to_string()
         } else {

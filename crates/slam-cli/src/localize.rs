@@ -164,7 +164,8 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
         odom_topic: args.odom_topic.clone(),
         ..Default::default()
     };
-    let input = slam_eval::input::open(&args.dataset, &options)?;
+    let mut input = slam_eval::input::open(&args.dataset, &options)?;
+    input.description = crate::error::with_flags(&input.description);
     let InputData::Laser(dataset) = &input.data else {
         return Err(CliError::InvalidArgument(format!(
             "--dataset {}: localization needs odometry and laser scans, not landmark data",

@@ -117,14 +117,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     // A bad configuration fails before the data is loaded: the filter is built once on a
     // placeholder start (the real one, with the data's initial pose and a simulation's
     // noise models, is built in the run).
-    let placeholder = Setup {
-        config_path: args.config.as_deref(),
-        particles: args.particles.map(|p| p as usize),
-        seed: args.seed,
-        initial_pose: slam_models::Pose2::default(),
-        sim_noise: None,
-        preset: args.preset.as_deref(),
-    };
+    let placeholder = Setup::of_run(args, slam_models::Pose2::default(), None);
     match info.kind {
         _ if both => {}
         DataKind::Landmark => drop(filters::build_landmark(&info, &placeholder)?),
@@ -301,8 +294,15 @@ fn default_name(args: &RunArgs) -> String {
     }
 }
 
-/// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]).
+/// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]); the
+/// description names the dataset options by their flags.
 fn load_input(args: &RunArgs) -> Result<Input, CliError> {
+    let mut input = load_input_named_by_option(args)?;
+    input.description = crate::error::with_flags(&input.description);
+    Ok(input)
+}
+
+fn load_input_named_by_option(args: &RunArgs) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
         let params = input::ScenarioParams {
             landmarks: args.landmarks,
@@ -406,14 +406,7 @@ fn run_landmark(
     let info = &ctx.info;
     let built = filters::build_landmark(
         info,
-        &Setup {
-            config_path: ctx.args.config.as_deref(),
-            particles: ctx.args.particles.map(|p| p as usize),
-            seed: ctx.args.seed,
-            initial_pose: dataset.initial_pose,
-            sim_noise,
-            preset: ctx.args.preset.as_deref(),
-        },
+        &Setup::of_run(ctx.args, dataset.initial_pose, sim_noise),
     )?;
     let mut filter = built.filter;
     let steps = &dataset.steps;
@@ -558,14 +551,7 @@ fn run_scan(
     }
     let built = filters::build_scan(
         info,
-        &Setup {
-            config_path: ctx.args.config.as_deref(),
-            particles: ctx.args.particles.map(|p| p as usize),
-            seed: ctx.args.seed,
-            initial_pose: slam_models::Pose2::default(),
-            sim_noise: None,
-            preset: ctx.args.preset.as_deref(),
-        },
+        &Setup::of_run(ctx.args, slam_models::Pose2::default(), None),
     )?;
     let mut filter = built.filter;
     let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;

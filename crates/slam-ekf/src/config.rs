@@ -5,14 +5,13 @@ use serde::{Deserialize, Serialize};
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 
-pub use slam_models::association::AssociationMode;
-use slam_models::association::AssociationOptions;
+pub use slam_models::association::{AssociationMode, AssociationOptions};
 
 /// Parameters of [`crate::EkfSlam`].
 ///
 /// ```
-/// let c: slam_ekf::EkfConfig = toml::from_str("min-sightings = 2").unwrap();
-/// assert_eq!(c.min_sightings, 2);
+/// let c: slam_ekf::EkfConfig = toml::from_str("[association]\nmin-sightings = 2").unwrap();
+/// assert_eq!(c.association.min_sightings, 2);
 /// ```
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
@@ -28,36 +27,10 @@ pub struct EkfConfig {
     /// Initial pose covariance, diagonal variances (m², m², rad²). Zero fixes the world
     /// frame at the initial pose (the usual SLAM convention).
     pub initial_pose_variance: [f64; 3],
-    /// Data association mode.
-    pub association: AssociationMode,
-    /// Individual-compatibility gate: an observation may match a landmark when its
-    /// Mahalanobis distance d² = νᵀS⁻¹ν is below the chi-square quantile with 2 dof at this
-    /// probability.
-    pub gate_probability: f64,
-    /// An id-less observation left unpaired is discarded as ambiguous, rather than
-    /// starting a new landmark, when some landmark lies inside this wider χ²₂ gate (at least
-    /// `gate_probability`): a duplicate of a mapped landmark costs more than a lost
-    /// observation.
-    pub new_landmark_gate_probability: f64,
-    /// Joint-compatibility gate of JCBB: a hypothesis with k pairings is accepted when its
-    /// joint d² is below χ²_{2k} at this probability.
-    pub joint_probability: f64,
-    /// Outlier gate for observations with known ids (χ²₂ quantile at this probability);
-    /// `None` accepts every observation of a known landmark.
-    pub known_id_gate_probability: Option<f64>,
-    /// k: an id-less observation that matches no landmark starts a provisional landmark,
-    /// which joins the state after this many consistent sightings (1 = at once).
-    /// Landmarks with known ids always join at their first sighting.
-    pub min_sightings: usize,
-    /// A provisional landmark not seen for more than this many updates is dropped, so its
-    /// k sightings must come with gaps of at most this many updates: a real landmark in
-    /// view is seen nearly every scan, clutter at one place only by chance.
-    pub provisional_max_age: usize,
-    /// Gate (χ²₂ probability) for matching a sighting to a provisional landmark.
-    pub provisional_gate_probability: f64,
-    /// Search budget of JCBB (nodes of the interpretation tree per update); when it is
-    /// exhausted the best hypothesis found so far is used.
-    pub jcbb_max_nodes: usize,
+    /// Data association: the mode, its gates and provisional landmarks (the `[association]`
+    /// table; a bare mode string `association = "auto"` is still read).
+    #[serde(deserialize_with = "slam_models::association::options_or_mode")]
+    pub association: AssociationOptions,
     /// Most landmarks the map may hold (1 ..= [`MAX_LANDMARKS`]); one more is
     /// [`EkfError::TooManyLandmarks`]. The dense covariance takes (3 + 2n)² × 8 bytes:
     /// 800 MB at the default 5000 (the `city` scenario's default world has 2000).
@@ -70,24 +43,14 @@ pub const MAX_LANDMARKS: usize = 20_000;
 
 impl Default for EkfConfig {
     /// slam-models' default motion and sensor models, no extra motion noise, a zero
-    /// initial pose covariance, `Auto` association, gates at 99.9 % (individual), 99 %
-    /// (joint), 99.999 % (no new landmark inside) and 99.99 % (known-id outliers), k = 4 sightings with gaps of at most 2 updates
-    /// (provisional gate 99 %), 100 000 JCBB nodes.
+    /// initial pose covariance, [`AssociationOptions`]' defaults, at most 5000 landmarks.
     fn default() -> Self {
         Self {
             motion: MotionModels::default(),
             extra_motion_noise: [0.0; 3],
             sensor: RangeBearingModel::default(),
             initial_pose_variance: [0.0; 3],
-            association: AssociationMode::Auto,
-            gate_probability: 0.999,
-            new_landmark_gate_probability: 0.99999,
-            joint_probability: 0.99,
-            known_id_gate_probability: Some(0.9999),
-            min_sightings: 4,
-            provisional_max_age: 2,
-            provisional_gate_probability: 0.99,
-            jcbb_max_nodes: 100_000,
+            association: AssociationOptions::default(),
             max_landmarks: 5000,
         }
     }
@@ -131,24 +94,7 @@ impl EkfConfig {
         };
         self.motion.validate().map_err(named)?;
         self.sensor.validate().map_err(named)?;
-        self.association_options().validate().map_err(named)
-    }
-
-    /// The association keys, for `slam_models::association::Associator` (observations
-    /// with a negative range are rejected, all others kept: `min_range` = 0).
-    pub fn association_options(&self) -> AssociationOptions {
-        AssociationOptions {
-            mode: self.association,
-            gate_probability: self.gate_probability,
-            new_landmark_gate_probability: self.new_landmark_gate_probability,
-            joint_probability: self.joint_probability,
-            known_id_gate_probability: self.known_id_gate_probability,
-            min_sightings: self.min_sightings,
-            provisional_max_age: self.provisional_max_age,
-            provisional_gate_probability: self.provisional_gate_probability,
-            jcbb_max_nodes: self.jcbb_max_nodes,
-            min_range: 0.0,
-        }
+        self.association.validate().map_err(named)
     }
 }
 
@@ -163,30 +109,26 @@ mod tests {
         c.validate().unwrap();
         let s = toml::to_string(&c).unwrap();
         let back: EkfConfig = toml::from_str(&s).unwrap();
-        assert_eq!(back.min_sightings, c.min_sightings);
+        assert_eq!(back.association, c.association);
         assert!(toml::from_str::<EkfConfig>("no_such_field = 1").is_err());
     }
 
     #[test]
     fn rejects_bad_values() {
-        let c = EkfConfig {
-            gate_probability: 1.0,
-            ..EkfConfig::default()
-        };
+        let mut c = EkfConfig::default();
+        c.association.gate_probability = 1.0;
         assert!(matches!(
             c.validate(),
             Err(EkfError::InvalidConfig(ConfigError {
-                field: "gate_probability",
+                field: "association.gate_probability",
                 ..
             }))
         ));
         let mut c = EkfConfig::default();
         c.sensor.sigma_range = f64::NAN;
         assert!(c.validate().is_err());
-        let c = EkfConfig {
-            min_sightings: 0,
-            ..EkfConfig::default()
-        };
+        let mut c = EkfConfig::default();
+        c.association.min_sightings = 0;
         assert!(c.validate().is_err());
     }
 }

@@ -72,8 +72,10 @@ impl EkfSlam {
             Matrix3::from_diagonal(&Vector3::new(v[0], v[1], v[2])),
         );
         Ok(Self {
-            assoc: Associator::new(config.association_options()),
-            next_id: if config.association == AssociationMode::Auto {
+            // Negative ranges are rejected, all others kept (the EKF's linearisation copes
+            // with a near landmark; the sensor's `min_range` is the graph's bound).
+            assoc: Associator::new(config.association, 0.0),
+            next_id: if config.association.mode == AssociationMode::Auto {
                 AUTO_ID_BASE
             } else {
                 0
@@ -290,6 +292,7 @@ impl LandmarkSlam for EkfSlam {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::AssociationOptions;
     use slam_models::OdometryControl;
 
     fn z(range: f64, bearing: f64, id: Option<u32>) -> RangeBearing {
@@ -325,7 +328,7 @@ mod tests {
         );
         assert!(e.to_string().contains("20001") && e.to_string().contains("20000"));
         let cfg = EkfConfig {
-            association: AssociationMode::KnownIds,
+            association: AssociationMode::KnownIds.into(),
             max_landmarks: 3,
             ..EkfConfig::default()
         };
@@ -348,7 +351,7 @@ mod tests {
     #[test]
     fn trait_errors_keep_the_typed_source() {
         let cfg = EkfConfig {
-            association: AssociationMode::KnownIds,
+            association: AssociationMode::KnownIds.into(),
             ..EkfConfig::default()
         };
         let mut ekf: Box<dyn LandmarkSlam> =
@@ -373,7 +376,7 @@ mod tests {
     #[test]
     fn input_errors_and_rejections() {
         let cfg = EkfConfig {
-            association: AssociationMode::KnownIds,
+            association: AssociationMode::KnownIds.into(),
             ..EkfConfig::default()
         };
         let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY, 0).unwrap();
@@ -407,8 +410,11 @@ mod tests {
     #[test]
     fn provisional_landmarks_join_after_k_sightings() {
         let cfg = EkfConfig {
-            association: AssociationMode::Jcbb,
-            min_sightings: 3,
+            association: AssociationOptions {
+                mode: AssociationMode::Jcbb,
+                min_sightings: 3,
+                ..AssociationOptions::default()
+            },
             ..EkfConfig::default()
         };
         let mut ekf = EkfSlam::new(cfg, Pose2::IDENTITY, 0).unwrap();

@@ -31,7 +31,7 @@ mod error;
 mod filter;
 mod state;
 
-pub use config::{AssociationMode, EkfConfig, MAX_LANDMARKS};
+pub use config::{AssociationMode, AssociationOptions, EkfConfig, MAX_LANDMARKS};
 pub use error::EkfError;
 pub use filter::{EkfSlam, EkfUpdateInfo};
 pub use slam_models::association::{Association, AUTO_ID_BASE};

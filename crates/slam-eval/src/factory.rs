@@ -33,24 +33,8 @@ use slam_models::{BoxedError, LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
 use thiserror::Error;
 
-/// The two kinds of data (and of filters).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DataKind {
-    /// Range-bearing observations of point landmarks ([`LandmarkSlam`]).
-    Landmark,
-    /// Odometry and laser scans ([`ScanSlam`]).
-    Laser,
-}
-
-impl DataKind {
-    /// `"landmark"` or `"laser"`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            DataKind::Landmark => "landmark",
-            DataKind::Laser => "laser",
-        }
-    }
-}
+/// The two kinds of data (and of filters), slam-models' one enum.
+pub use slam_models::DataKind;
 
 /// A filter the factory knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -656,6 +640,10 @@ fn toml_error(text: &str, e: &toml::de::Error) -> FactoryError {
         .map(|span| text[..span.start.min(text.len())].matches('\n').count() + 1);
     FactoryError::Parse {
         line,
-        message: e.message().trim().replace('\n', " "),
+        message: format!(
+            "{}{}",
+            e.message().trim().replace('\n', " "),
+            slam_models::association::moved_key_hint(e.message()).unwrap_or_default()
+        ),
     }
 }

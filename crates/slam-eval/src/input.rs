@@ -248,15 +248,9 @@ pub fn kind_before_loading(sim: Option<&str>, dataset: Option<&Path>) -> Option<
         return slam_sim::scenario::list()
             .into_iter()
             .find(|s| s.name == name)
-            .map(|s| match s.kind {
-                slam_sim::scenario::ScenarioKind::Landmark => DataKind::Landmark,
-                slam_sim::scenario::ScenarioKind::Laser => DataKind::Laser,
-            });
+            .map(|s| s.kind);
     }
-    dataset.and_then(slam_io::dataset_kind).map(|k| match k {
-        slam_io::DatasetKind::Landmark => DataKind::Landmark,
-        slam_io::DatasetKind::Scan => DataKind::Laser,
-    })
+    dataset.and_then(slam_io::dataset_kind)
 }
 
 /// Generates the scenario `spec` ([`scenario_options`], [`generate_exact`]) as an input.
@@ -365,7 +359,7 @@ pub fn dataset_stem(path: &Path) -> String {
 pub enum NoOdometry {
     /// The recording has none (a ROS bag with no odometry topic and no `/tf`).
     InRecording,
-    /// It was asked for (`--odometry none`): the recording's odometry is not used.
+    /// It was asked for (the `laser_only` option): the recording's odometry is not used.
     Withheld,
 }
 
@@ -402,7 +396,7 @@ pub fn withhold_odometry(
          it) over {} scans, {} recovered by the wide search, {} unmatched{prior}",
         match why {
             NoOdometry::InRecording => "none in the recording",
-            NoOdometry::Withheld => "withheld (--odometry none)",
+            NoOdometry::Withheld => "withheld (option `laser_only`)",
         },
         run.scans,
         run.recoveries,

@@ -51,7 +51,7 @@ pub use optimizer::{
 /// The `slam-models` vocabulary this crate's API speaks (poses and matrices of the graph,
 /// the filter traits its front ends implement), re-exported so that a user of the pose
 /// graph or its front ends compiles with this crate alone (sophus-rs style).
-pub use slam_models::association::AssociationMode;
+pub use slam_models::association::{AssociationMode, AssociationOptions};
 pub use slam_models::{
     ConfigError, Control, FilterError, FromConfig, GridMap, LandmarkDataset, LandmarkEstimate,
     LandmarkId, LandmarkSlam, LaserScan, Matrix2, Matrix3, OdometryControl, Point2, Pose2,

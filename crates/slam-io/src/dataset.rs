@@ -1,7 +1,7 @@
 //! Opening a dataset by path, whatever its format.
 
 use crate::error::{DatasetOption, IoError};
-use slam_models::{LandmarkDataset, Pose2, ScanDataset, TimedPose};
+use slam_models::{DataKind, LandmarkDataset, Pose2, ScanDataset, TimedPose};
 use std::path::Path;
 
 /// What [`open_dataset_with`] may need besides the path: the MRCLAM robot, and for ROS bags
@@ -49,30 +49,21 @@ impl DatasetOptions {
     }
 }
 
-/// The two kinds of data [`open_dataset_with`] returns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DatasetKind {
-    /// Range-bearing landmark data ([`Dataset::Landmark`]).
-    Landmark,
-    /// Odometry and laser scans ([`Dataset::Scan`]).
-    Scan,
-}
-
 /// The kind of data [`open_dataset_with`] would read at `path`, told from the path alone (a
 /// folder's listing, a file's first 16 bytes), so that a filter given the wrong kind of data
 /// is refused before a large input is read: a Freiburg or MRCLAM folder holds landmark data,
 /// a ROS bag or any other file (read as a CARMEN log) laser data; `None` for a missing path
 /// or a folder that is neither (opening it then says why).
-pub fn dataset_kind(path: &Path) -> Option<DatasetKind> {
+pub fn dataset_kind(path: &Path) -> Option<DataKind> {
     if is_bag(path) {
-        return Some(DatasetKind::Scan);
+        return Some(DataKind::Laser);
     }
     if path.is_dir() {
         let landmark =
             path.join("sensor_data.dat").is_file() || path.join("Barcodes.dat").is_file();
-        return landmark.then_some(DatasetKind::Landmark);
+        return landmark.then_some(DataKind::Landmark);
     }
-    path.is_file().then_some(DatasetKind::Scan)
+    path.is_file().then_some(DataKind::Laser)
 }
 
 /// True when `path` is a ROS bag: a folder with `metadata.yaml` (rosbag2), or a file that
@@ -326,14 +317,15 @@ pub fn dataset_info(path: &Path) -> Result<String, IoError> {
             .collect();
         if path.join("Barcodes.dat").is_file() && robots.len() > 1 {
             let mut s = format!(
-                "MRCLAM folder {}: {} robots ({}; slam run reads one, --robot N)",
+                "MRCLAM folder {}: {} robots ({}; one is read at a time, chosen with {})",
                 path.display(),
                 robots.len(),
                 robots
                     .iter()
                     .map(|n| n.to_string())
                     .collect::<Vec<_>>()
-                    .join(", ")
+                    .join(", "),
+                DatasetOption::Robot
             );
             for n in robots {
                 s.push('\n');

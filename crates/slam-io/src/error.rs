@@ -22,6 +22,22 @@ pub enum DatasetOption {
     BaseFrame,
     /// `imu_topic`: a ROS bag's `sensor_msgs/msg/Imu` topic.
     ImuTopic,
+    /// `laser_only`: the recording's odometry withheld, the scans alone.
+    LaserOnly,
+}
+
+impl DatasetOption {
+    /// Every option, in declaration order (for a front end naming each its own way).
+    pub const ALL: [DatasetOption; 8] = [
+        DatasetOption::Robot,
+        DatasetOption::ScanTopic,
+        DatasetOption::OdomTopic,
+        DatasetOption::LaserPose,
+        DatasetOption::OdomFrame,
+        DatasetOption::BaseFrame,
+        DatasetOption::ImuTopic,
+        DatasetOption::LaserOnly,
+    ];
 }
 
 impl std::fmt::Display for DatasetOption {
@@ -35,6 +51,7 @@ impl std::fmt::Display for DatasetOption {
             DatasetOption::OdomFrame => "odom_frame",
             DatasetOption::BaseFrame => "base_frame",
             DatasetOption::ImuTopic => "imu_topic",
+            DatasetOption::LaserOnly => "laser_only",
         };
         write!(f, "option `{name}`")
     }

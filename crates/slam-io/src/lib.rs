@@ -49,7 +49,7 @@ pub mod tum;
 
 pub use dataset::{
     dataset_info, dataset_kind, dead_reckoning, odometry_trajectory, open_dataset,
-    open_dataset_report, open_dataset_with, Dataset, DatasetKind, DatasetOptions, OpenedDataset,
+    open_dataset_report, open_dataset_with, Dataset, DatasetOptions, OpenedDataset,
 };
 pub use error::{DatasetOption, IoError};
 pub use report::Skipped;

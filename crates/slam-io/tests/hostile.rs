@@ -335,7 +335,7 @@ fn two_odometry_chains_in_tf_are_chosen_by_base_frame() {
     let info = describe_bag(&p).unwrap();
     assert!(
         info.contains(
-            "odometry: /tf, one of odom → base_footprint; odom → base_link (choose with --base-frame)"
+            "odometry: /tf, one of odom → base_footprint; odom → base_link (choose with option `base_frame`)"
         ),
         "{info}"
     );

@@ -146,7 +146,7 @@ fn odometry_bag_gives_the_carmen_scans_and_poses() {
     let r = read_rosbag(&fixture("intel-odom.mcap"), &opts).unwrap();
     assert_eq!(r.scan_topic, "/scan");
     assert_eq!(r.odometry, OdometrySource::Topic("/odom".into()));
-    assert_eq!(r.laser_pose, (Pose2::IDENTITY, "--laser-pose"));
+    assert_eq!(r.laser_pose, (Pose2::IDENTITY, "option `laser_pose`"));
     check_against_carmen(&r.dataset.records, &carmen);
     assert_eq!(r.scans_outside_odometry, 0);
     assert_eq!(r.invalid_readings, 0);

@@ -9,6 +9,28 @@ use crate::error::{ensure_finite, ModelError};
 use crate::{Point2, Pose2};
 use serde::{Deserialize, Serialize};
 
+/// The two kinds of data, and of the filters that take them: what a scenario simulates, a
+/// dataset holds and a filter runs on. One enum for the simulator, the readers and the
+/// filter factory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum DataKind {
+    /// Range-bearing observations of point landmarks ([`LandmarkDataset`],
+    /// `crate::LandmarkSlam`).
+    Landmark,
+    /// Odometry and laser scans ([`ScanDataset`], `crate::ScanSlam`).
+    Laser,
+}
+
+impl DataKind {
+    /// `"landmark"` or `"laser"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            DataKind::Landmark => "landmark",
+            DataKind::Laser => "laser",
+        }
+    }
+}
+
 /// Identifier of a landmark (a Freiburg `world.dat` id, an MRCLAM subject number, or one the
 /// filter assigned when data association is unknown).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]

@@ -58,8 +58,8 @@ pub mod sampling;
 
 pub use angle::normalize_angle;
 pub use data::{
-    Control, LandmarkDataset, LandmarkId, LandmarkStep, LaserScan, OdometryControl, RangeBearing,
-    ScanDataset, ScanRecord, TimedPose, VelocityControl, YawRate,
+    Control, DataKind, LandmarkDataset, LandmarkId, LandmarkStep, LaserScan, OdometryControl,
+    RangeBearing, ScanDataset, ScanRecord, TimedPose, VelocityControl, YawRate,
 };
 pub use error::{ConfigError, ModelError};
 pub use filter::{

@@ -3,7 +3,7 @@
 use crate::error::GraphError;
 use crate::optimizer::{Initialisation, OptimizerConfig};
 use serde::{Deserialize, Serialize};
-use slam_models::association::{AssociationMode, AssociationOptions};
+use slam_models::association::AssociationOptions;
 use slam_models::measurement::RangeBearingModel;
 use slam_models::motion::MotionModels;
 use slam_models::ModelError;
@@ -12,9 +12,9 @@ use slam_models::ModelError;
 /// 3.2 GB at this bound.
 pub const MAX_LANDMARKS: usize = 10_000;
 
-/// Parameters of [`super::GraphLandmarkSlam`]. The noise models and the association keys
-/// mean what they mean in `slam_ekf::EkfConfig` (same names, same defaults), so one data
-/// set's settings carry over between the two.
+/// Parameters of [`super::GraphLandmarkSlam`]. The noise models mean what they mean in
+/// `slam_ekf::EkfConfig` (same names, same defaults) and the `[association]` table is the
+/// same struct ([`AssociationOptions`]), so one data set's settings carry over between the two.
 ///
 /// ```
 /// let c: slam_graph::landmark::GraphLandmarkConfig = toml::from_str("optimize-every = 5").unwrap();
@@ -33,25 +33,10 @@ pub struct GraphLandmarkConfig {
     /// Range-bearing sensor noise Q = diag(σr², σφ²); Q⁻¹ is each landmark edge's
     /// information.
     pub sensor: RangeBearingModel,
-    /// Data association mode.
-    pub association: AssociationMode,
-    /// Individual-compatibility gate (χ²₂ probability), as the EKF's.
-    pub gate_probability: f64,
-    /// Unpaired id-less observations inside this wider χ²₂ gate of some landmark are
-    /// dropped as ambiguous, as the EKF's.
-    pub new_landmark_gate_probability: f64,
-    /// JCBB's joint gate (χ²_{2k} probability), as the EKF's.
-    pub joint_probability: f64,
-    /// Outlier gate for known ids (χ²₂ probability); `None` accepts every observation.
-    pub known_id_gate_probability: Option<f64>,
-    /// Sightings an id-less landmark needs before it joins the graph (1 = at once).
-    pub min_sightings: usize,
-    /// A provisional landmark not seen for more than this many updates is dropped.
-    pub provisional_max_age: usize,
-    /// Gate (χ²₂ probability) for matching a sighting to a provisional landmark.
-    pub provisional_gate_probability: f64,
-    /// JCBB's search budget (interpretation-tree nodes per update).
-    pub jcbb_max_nodes: usize,
+    /// Data association: the mode, its gates and provisional landmarks, the EKF's
+    /// `[association]` table (a bare mode string `association = "auto"` is still read).
+    #[serde(deserialize_with = "slam_models::association::options_or_mode")]
+    pub association: AssociationOptions,
     /// Most landmarks the map may hold (1 ..= [`MAX_LANDMARKS`]).
     pub max_landmarks: usize,
     /// A new pose node is added at every update with observations, and after this many
@@ -83,15 +68,7 @@ impl Default for GraphLandmarkConfig {
             motion: MotionModels::default(),
             extra_motion_noise: [0.0; 3],
             sensor: RangeBearingModel::default(),
-            association: AssociationMode::Auto,
-            gate_probability: 0.999,
-            new_landmark_gate_probability: 0.99999,
-            joint_probability: 0.99,
-            known_id_gate_probability: Some(0.9999),
-            min_sightings: 4,
-            provisional_max_age: 2,
-            provisional_gate_probability: 0.99,
-            jcbb_max_nodes: 100_000,
+            association: AssociationOptions::default(),
             max_landmarks: 5000,
             max_steps_between_nodes: 10,
             optimize_every: 1,
@@ -153,29 +130,12 @@ impl GraphLandmarkConfig {
         };
         self.motion.validate().map_err(named)?;
         self.sensor.validate().map_err(named)?;
-        self.association_options().validate().map_err(named)?;
+        self.association.validate().map_err(named)?;
         at_least_one("max_steps_between_nodes", self.max_steps_between_nodes)?;
         at_least_one("optimize_every", self.optimize_every)?;
         let g = self.optimize_growth;
         check("optimize_growth", g, (0.0..=1.0).contains(&g), "in [0, 1]")?;
         self.optimizer.validate()
-    }
-
-    /// The association keys, for `slam_models::association::Associator`; observations
-    /// closer than the sensor's `min_range` are rejected (their edge would be degenerate).
-    pub fn association_options(&self) -> AssociationOptions {
-        AssociationOptions {
-            mode: self.association,
-            gate_probability: self.gate_probability,
-            new_landmark_gate_probability: self.new_landmark_gate_probability,
-            joint_probability: self.joint_probability,
-            known_id_gate_probability: self.known_id_gate_probability,
-            min_sightings: self.min_sightings,
-            provisional_max_age: self.provisional_max_age,
-            provisional_gate_probability: self.provisional_gate_probability,
-            jcbb_max_nodes: self.jcbb_max_nodes,
-            min_range: self.sensor.min_range,
-        }
     }
 }
 
@@ -209,10 +169,13 @@ mod tests {
         );
         assert_eq!(
             bad(GraphLandmarkConfig {
-                gate_probability: 1.0,
+                association: AssociationOptions {
+                    gate_probability: 1.0,
+                    ..AssociationOptions::default()
+                },
                 ..d()
             }),
-            "gate_probability"
+            "association.gate_probability"
         );
         assert_eq!(
             bad(GraphLandmarkConfig {

@@ -141,8 +141,10 @@ impl GraphLandmarkSlam {
         graph.add_pose(0, start)?;
         graph.fix(0)?;
         Ok(Self {
-            assoc: Associator::new(config.association_options()),
-            next_id: if config.association == AssociationMode::Auto {
+            // Observations closer than the sensor's `min_range` are rejected: their edge
+            // would be degenerate.
+            assoc: Associator::new(config.association, config.sensor.min_range),
+            next_id: if config.association.mode == AssociationMode::Auto {
                 AUTO_ID_BASE
             } else {
                 0

@@ -186,7 +186,7 @@ fn linear_case_matches_the_kalman_filter() {
 #[test]
 fn bad_input_is_an_error_not_a_panic() {
     let c = GraphLandmarkConfig {
-        association: AssociationMode::KnownIds,
+        association: AssociationMode::KnownIds.into(),
         ..GraphLandmarkConfig::default()
     };
     let mut g = GraphLandmarkSlam::new(c.clone(), Pose2::IDENTITY, 0).unwrap();

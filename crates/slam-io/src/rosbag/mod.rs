@@ -354,8 +354,11 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
     for t in topics.iter().filter(|t| t.msg_type == msgs::IMU) {
         let _ = writeln!(
             s,
-            "imu {}: {} messages (its yaw rate is the rotation prior of laser odometry with --imu-topic {})",
-            t.topic, t.count, t.topic
+            "imu {}: {} messages (its yaw rate is the rotation prior of laser odometry with {} {})",
+            t.topic,
+            t.count,
+            DatasetOption::ImuTopic,
+            t.topic
         );
     }
     let mut odometry: Vec<String> = odom_frames
@@ -363,9 +366,9 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
         .map(|(t, (p, c))| format!("{} ({} → {})", shorten(t), shorten(p), shorten(c)))
         .collect();
     let tf_note = if odometry.is_empty() {
-        ""
+        String::new()
     } else {
-        ", with --odom-topic /tf"
+        format!(", with {} {TF}", DatasetOption::OdomTopic)
     };
     match chains.as_slice() {
         [] => {}
@@ -375,8 +378,9 @@ pub fn describe_bag(path: &Path) -> Result<String, IoError> {
             transforms(one)
         )),
         many => odometry.push(format!(
-            "/tf, one of {} (choose with --base-frame{tf_note})",
-            fold(many.iter().map(|e| arrow(e)).collect())
+            "/tf, one of {} (choose with {}{tf_note})",
+            fold(many.iter().map(|e| arrow(e)).collect()),
+            DatasetOption::BaseFrame
         )),
     }
     let _ = writeln!(
@@ -592,9 +596,11 @@ pub fn read_rosbag(path: &Path, options: &BagOptions) -> Result<RosBag, IoError>
         chosen => pick(path, &topics, ODOMETRY, chosen, DatasetOption::OdomTopic)?,
     };
     if options.odom_topic.as_deref() == Some(TF) && tf_topic.is_none() {
-        return Err(IoError::invalid(
+        return Err(IoError::option(
             path,
-            format!("--odom-topic {TF}: the bag has no {TF} topic"),
+            None,
+            DatasetOption::OdomTopic,
+            format!("{TF}: the bag has no {TF} topic"),
         ));
     }
     // No odometry in the bag, or none wanted: the scans alone.
@@ -861,7 +867,7 @@ fn assemble(
             return Ok(*m);
         }
         let m = match options.laser_pose {
-            Some(p) => (p, "--laser-pose"),
+            Some(p) => (p, "option `laser_pose`"),
             None if frame == base_frame => (Pose2::IDENTITY, "same frame"),
             None => match static_chain(statics, &base_frame, frame) {
                 Some(p) => (p, "/tf_static"),

@@ -16,37 +16,139 @@ use crate::error::ModelError;
 use crate::gaussian::mahalanobis_squared;
 use crate::measurement::RangeBearingModel;
 use crate::{LandmarkId, Matrix2, Matrix3, Pose2, RangeBearing};
+use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
-/// The association keys of a landmark SLAM configuration (EKF-SLAM's and the pose graph's
-/// share their names, meanings and defaults).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The association keys of a landmark SLAM configuration: the `[association]` table of
+/// EKF-SLAM's (`slam_ekf::EkfConfig`) and the pose graph's
+/// (`slam_graph::landmark::GraphLandmarkConfig`) configuration, one struct for both.
+///
+/// Up to version 0.1 these keys stood flat at the top of those files (`association =
+/// "auto"`, `gate-probability = 0.999`, …). A bare mode string is still read
+/// ([`options_or_mode`]); any other flat key is refused by its configuration's
+/// `deny_unknown_fields`, and [`moved_key_hint`] names the table it moved to.
+///
+/// ```
+/// use slam_models::association::{AssociationMode, AssociationOptions};
+/// let a: AssociationOptions = toml::from_str("mode = \"jcbb\"\nmin-sightings = 2").unwrap();
+/// assert_eq!((a.mode, a.min_sightings), (AssociationMode::Jcbb, 2));
+/// assert_eq!(a.gate_probability, AssociationOptions::default().gate_probability);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct AssociationOptions {
     /// Known ids, or nearest neighbour / JCBB for id-less observations.
     pub mode: AssociationMode,
-    /// Individual-compatibility gate, a χ²₂ probability.
+    /// Individual-compatibility gate: an observation may match a landmark when its
+    /// Mahalanobis distance d² = νᵀS⁻¹ν is below the χ²₂ quantile at this probability.
     pub gate_probability: f64,
-    /// Unpaired id-less observations inside this wider χ²₂ gate are ambiguous.
+    /// An id-less observation left unpaired is discarded as ambiguous, rather than starting
+    /// a new landmark, when some landmark lies inside this wider χ²₂ gate (at least
+    /// `gate_probability`): a duplicate of a mapped landmark costs more than a lost
+    /// observation.
     pub new_landmark_gate_probability: f64,
-    /// JCBB's joint gate, a χ²_{2k} probability.
+    /// JCBB's joint gate: a hypothesis with k pairings is accepted when its joint d² is
+    /// below χ²_{2k} at this probability.
     pub joint_probability: f64,
     /// Outlier gate for known ids (χ²₂ probability); `None` accepts every observation.
     pub known_id_gate_probability: Option<f64>,
-    /// Sightings an id-less landmark needs before it joins the map (≥ 1).
+    /// k: an id-less observation that matches no landmark starts a provisional landmark,
+    /// which joins the map after this many consistent sightings (≥ 1; 1 = at once).
+    /// Landmarks with known ids always join at their first sighting.
     pub min_sightings: usize,
-    /// A provisional landmark unseen for more than this many updates is dropped (≥ 1).
+    /// A provisional landmark unseen for more than this many updates is dropped (≥ 1), so
+    /// its k sightings must come with gaps of at most this many updates.
     pub provisional_max_age: usize,
     /// Gate (χ²₂ probability) matching a sighting to a provisional landmark.
     pub provisional_gate_probability: f64,
-    /// JCBB's search budget, interpretation-tree nodes per update (≥ 1).
+    /// JCBB's search budget, interpretation-tree nodes per update (≥ 1); when it runs out
+    /// the best hypothesis found so far is used.
     pub jcbb_max_nodes: usize,
-    /// Observations with a range below this (m) are rejected (the bearing of a landmark on
-    /// the robot is undefined); ≥ 0.
-    pub min_range: f64,
+}
+
+impl Default for AssociationOptions {
+    /// `Auto` association, gates at 99.9 % (individual), 99 % (joint), 99.999 % (no new
+    /// landmark inside) and 99.99 % (known-id outliers), k = 4 sightings with gaps of at
+    /// most 2 updates (provisional gate 99 %), 100 000 JCBB nodes.
+    fn default() -> Self {
+        Self {
+            mode: AssociationMode::Auto,
+            gate_probability: 0.999,
+            new_landmark_gate_probability: 0.99999,
+            joint_probability: 0.99,
+            known_id_gate_probability: Some(0.9999),
+            min_sightings: 4,
+            provisional_max_age: 2,
+            provisional_gate_probability: 0.99,
+            jcbb_max_nodes: 100_000,
+        }
+    }
+}
+
+impl From<AssociationMode> for AssociationOptions {
+    /// `mode` with every other key at its default.
+    fn from(mode: AssociationMode) -> Self {
+        Self {
+            mode,
+            ..Self::default()
+        }
+    }
+}
+
+/// The keys of [`AssociationOptions`] as written in a configuration file.
+pub const ASSOCIATION_KEYS: [&str; 9] = [
+    "mode",
+    "gate-probability",
+    "new-landmark-gate-probability",
+    "joint-probability",
+    "known-id-gate-probability",
+    "min-sightings",
+    "provisional-max-age",
+    "provisional-gate-probability",
+    "jcbb-max-nodes",
+];
+
+/// For serde's "unknown field `k`" about a key that moved into the `[association]` table
+/// (its old flat spelling at the top of an EKF or graph-landmark configuration, in kebab- or
+/// snake_case): the sentence saying where to write it now; `None` for any other message.
+pub fn moved_key_hint(message: &str) -> Option<String> {
+    let key = message
+        .strip_prefix("unknown field `")?
+        .split('`')
+        .next()?
+        .replace('_', "-");
+    (key != "mode" && ASSOCIATION_KEYS.contains(&key.as_str())).then(|| {
+        format!(" (the association keys moved into the [association] table: write `{key} = …` under `[association]`)")
+    })
+}
+
+/// Reads a configuration's `association` value: the `[association]` table
+/// ([`AssociationOptions`]), or, as files before the table did, a bare mode string
+/// (`association = "known-ids"`), which sets `mode` and keeps every other key's default.
+/// For `#[serde(deserialize_with = …)]`.
+pub fn options_or_mode<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<AssociationOptions, D::Error> {
+    use serde::de::{value::MapAccessDeserializer, IntoDeserializer, MapAccess, Visitor};
+    struct OptionsOrMode;
+    impl<'de> Visitor<'de> for OptionsOrMode {
+        type Value = AssociationOptions;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("an [association] table, or a mode name such as \"known-ids\"")
+        }
+        fn visit_str<E: serde::de::Error>(self, s: &str) -> Result<Self::Value, E> {
+            AssociationMode::deserialize(s.into_deserializer()).map(AssociationOptions::from)
+        }
+        fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Value, A::Error> {
+            AssociationOptions::deserialize(MapAccessDeserializer::new(map))
+        }
+    }
+    d.deserialize_any(OptionsOrMode)
 }
 
 impl AssociationOptions {
-    /// Checks every field against its documented range; the error names the field.
+    /// Checks every field against its documented range; the error names the field (as
+    /// `association.<field>`).
     pub fn validate(&self) -> Result<(), ModelError> {
         let bad = |name, value: f64, ok: bool, expected| {
             if ok && value.is_finite() {
@@ -61,35 +163,30 @@ impl AssociationOptions {
         };
         let probability =
             |name, p: f64| bad(name, p, p > 0.0 && p < 1.0, "a probability in (0, 1)");
-        probability("gate_probability", self.gate_probability)?;
-        probability("joint_probability", self.joint_probability)?;
+        probability("association.gate_probability", self.gate_probability)?;
+        probability("association.joint_probability", self.joint_probability)?;
         let p = self.new_landmark_gate_probability;
         bad(
-            "new_landmark_gate_probability",
+            "association.new_landmark_gate_probability",
             p,
             p >= self.gate_probability && p < 1.0,
             "a probability in [gate_probability, 1)",
         )?;
         probability(
-            "provisional_gate_probability",
+            "association.provisional_gate_probability",
             self.provisional_gate_probability,
         )?;
         if let Some(p) = self.known_id_gate_probability {
-            probability("known_id_gate_probability", p)?;
+            probability("association.known_id_gate_probability", p)?;
         }
         for (name, v) in [
-            ("min_sightings", self.min_sightings),
-            ("provisional_max_age", self.provisional_max_age),
-            ("jcbb_max_nodes", self.jcbb_max_nodes),
+            ("association.min_sightings", self.min_sightings),
+            ("association.provisional_max_age", self.provisional_max_age),
+            ("association.jcbb_max_nodes", self.jcbb_max_nodes),
         ] {
             bad(name, v as f64, v >= 1, "at least 1")?;
         }
-        bad(
-            "min_range",
-            self.min_range,
-            self.min_range >= 0.0,
-            "finite and >= 0",
-        )
+        Ok(())
     }
 }
 
@@ -119,6 +216,7 @@ pub struct Pairing {
 #[derive(Debug, Clone)]
 pub struct Associator {
     options: AssociationOptions,
+    min_range: f64,
     gate: f64,
     new_landmark_gate: f64,
     known_gate: Option<f64>,
@@ -128,9 +226,12 @@ pub struct Associator {
 }
 
 impl Associator {
-    /// Thresholds from validated `options`.
-    pub fn new(options: AssociationOptions) -> Self {
+    /// Thresholds from validated `options`; observations with a range below `min_range`
+    /// (m, ≥ 0) are rejected (the bearing of a landmark on the robot is undefined), as are
+    /// negative ranges.
+    pub fn new(options: AssociationOptions, min_range: f64) -> Self {
         Self {
+            min_range,
             gate: chi2_quantile(2, options.gate_probability),
             new_landmark_gate: chi2_quantile(2, options.new_landmark_gate_probability),
             known_gate: options
@@ -166,7 +267,7 @@ impl Associator {
         };
         let mut unknown: Vec<usize> = Vec::new();
         for (i, z) in observations.iter().enumerate() {
-            if z.range < 0.0 || z.range < self.options.min_range {
+            if z.range < 0.0 || z.range < self.min_range {
                 continue; // Rejected: a sensor glitch, or a landmark on the robot.
             }
             let id = match mode {
@@ -277,5 +378,63 @@ impl Associator {
     pub fn expire(&mut self, step: u64) -> usize {
         self.provisional
             .expire(step, self.options.provisional_max_age)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A configuration holding the table as EKF-SLAM's and the graph's do.
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+    struct Holder {
+        #[serde(deserialize_with = "options_or_mode")]
+        association: AssociationOptions,
+        max_landmarks: usize,
+    }
+
+    #[test]
+    fn the_table_and_the_old_mode_string_both_read() {
+        let h: Holder =
+            toml::from_str("[association]\nmode = \"jcbb\"\njcbb-max-nodes = 7\n").unwrap();
+        assert_eq!(h.association.mode, AssociationMode::Jcbb);
+        assert_eq!(h.association.jcbb_max_nodes, 7);
+        assert_eq!(h.association.min_sightings, 4);
+        let h: Holder = toml::from_str("association = \"known-ids\"\n").unwrap();
+        assert_eq!(
+            h.association,
+            AssociationOptions {
+                mode: AssociationMode::KnownIds,
+                ..AssociationOptions::default()
+            }
+        );
+        assert!(toml::from_str::<Holder>("association = \"telepathy\"\n").is_err());
+        assert!(toml::from_str::<Holder>("[association]\nno-such-key = 1\n").is_err());
+    }
+
+    /// An old flat key is never silently ignored: the configuration refuses it and the hint
+    /// names the table to move it to.
+    #[test]
+    fn an_old_flat_key_is_refused_with_a_hint_naming_the_table() {
+        let e = toml::from_str::<Holder>("gate-probability = 0.99\n").unwrap_err();
+        let hint = moved_key_hint(e.message()).expect(e.message());
+        assert!(
+            hint.contains("[association]") && hint.contains("gate-probability"),
+            "{hint}"
+        );
+        let e = toml::from_str::<Holder>("min_sightings = 2\n").unwrap_err();
+        assert!(moved_key_hint(e.message())
+            .unwrap()
+            .contains("`min-sightings = …`"));
+        let e = toml::from_str::<Holder>("max-landmark = 2\n").unwrap_err();
+        assert_eq!(moved_key_hint(e.message()), None);
+    }
+
+    #[test]
+    fn keys_name_every_field() {
+        let text = toml::to_string(&AssociationOptions::default()).unwrap();
+        let written: Vec<&str> = text.lines().filter_map(|l| l.split(" =").next()).collect();
+        assert_eq!(written, ASSOCIATION_KEYS);
     }
 }

@@ -21,7 +21,9 @@ pub mod jcbb;
 pub mod nearest;
 pub mod provisional;
 
-pub use batch::{AssociationOptions, Associator, Pairing};
+pub use batch::{
+    moved_key_hint, options_or_mode, AssociationOptions, Associator, Pairing, ASSOCIATION_KEYS,
+};
 pub use compatibility::{candidates, cross_cov, linearise, projected_cov, Candidate};
 pub use dense::DenseGaussian;
 pub use provisional::ProvisionalList;

@@ -11,16 +11,7 @@ pub mod laser;
 use crate::error::SimError;
 use crate::SimOutput;
 use serde::{Deserialize, Serialize};
-use slam_models::{GridMap, Point2};
-
-/// Which simulator a scenario uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum ScenarioKind {
-    /// Point landmarks and a range-bearing sensor ([`crate::LandmarkSimRun`]).
-    Landmark,
-    /// Walls and a laser scanner ([`crate::LaserSimRun`]).
-    Laser,
-}
+use slam_models::{DataKind, GridMap, Point2};
 
 /// Name, kind and a one-line description of a scenario.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -28,7 +19,7 @@ pub struct ScenarioInfo {
     /// The name [`generate`] accepts.
     pub name: &'static str,
     /// Landmark or laser.
-    pub kind: ScenarioKind,
+    pub kind: DataKind,
     /// One line: what the world is and its defaults.
     pub description: &'static str,
 }
@@ -38,41 +29,41 @@ pub fn list() -> Vec<ScenarioInfo> {
     vec![
         ScenarioInfo {
             name: "loop",
-            kind: ScenarioKind::Landmark,
+            kind: DataKind::Landmark,
             description: "closed loop of ~60 m (21 m x 11 m rounded rectangle) with 50 landmarks; 1.1 laps, \
                           odometry controls, range 6 m, 180 deg field of view, ids known",
         },
         ScenarioInfo {
             name: "figure8",
-            kind: ScenarioKind::Landmark,
+            kind: DataKind::Landmark,
             description: "figure-eight (two lobes crossing at the origin, ~61 m) with 40 landmarks; 1.1 laps, ids known",
         },
         ScenarioInfo {
             name: "city",
-            kind: ScenarioKind::Landmark,
+            kind: DataKind::Landmark,
             description: "grid of streets (15 m blocks) with landmarks along them; size set by `landmarks` \
                           (default 2000, up to millions), random walk of 1500 steps, range 8 m",
         },
         ScenarioInfo {
             name: "clutter",
-            kind: ScenarioKind::Landmark,
+            kind: DataKind::Landmark,
             description: "`loop` with hidden ids, detection probability 0.9 and 1 false alarm per scan on average",
         },
         ScenarioInfo {
             name: "office",
-            kind: ScenarioKind::Laser,
+            kind: DataKind::Laser,
             description: "office floor (40 m x 20 m, rooms on both sides of a corridor loop); 180 deg 181-beam laser, \
                           range 20 m, two laps of the corridor",
         },
         ScenarioInfo {
             name: "campus",
-            kind: ScenarioKind::Laser,
+            kind: DataKind::Laser,
             description: "outdoor campus (250 m x 250 m: roads, buildings, trees, no boundary wall); 180 deg \
                           361-beam laser, range 80 m, 1.5 m/s, two laps of a 1.3 km route with loops",
         },
         ScenarioInfo {
             name: "replay",
-            kind: ScenarioKind::Laser,
+            kind: DataKind::Laser,
             description: "laser world built from an occupancy map (`replay_map`), driven along `replay_path` \
                           or a generated path through free space",
         },
