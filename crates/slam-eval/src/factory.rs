@@ -746,22 +746,18 @@ mod laser_odometry_tests {
     #[test]
     fn the_laser_odometry_table_is_read_and_written() {
         let text = "filter = \"scanmatch\"\nresolution = 0.1\n\n[laser-odometry]\n\
-                    submap-scans = 7\nhypotheses = [\"constant-velocity\"]\n\n\
-                    [laser-odometry.matcher.matching]\nsearch-range-xy = 1.0\n\n\
+                    submap-scans = 7\nhypotheses = [\"constant-velocity\"]\n\
+                    search-range-xy = 1.0\n\n\
+                    [laser-odometry.matcher.matching]\nsigma = 0.06\n\n\
                     [matching]\nsigma = 0.07\n";
         let parsed = FilterConfig::from_toml(text).unwrap();
         let lo = &parsed.laser_odometry;
         assert_eq!(lo.submap_scans, 7);
         assert_eq!(lo.hypotheses, vec![MotionPrediction::ConstantVelocity]);
-        assert_eq!(lo.matcher.matching.search_range_xy, 1.0);
+        let m = lo.matcher_config().matching;
+        assert_eq!((m.search_range_xy, m.sigma), (1.0, 0.06));
         // Left to its default: laser odometry's, not scan-matching odometry's.
-        assert_eq!(
-            lo.matcher.matching.search_range_theta,
-            LaserOdometryConfig::default()
-                .matcher
-                .matching
-                .search_range_theta
-        );
+        assert_eq!(m.search_range_theta, 0.8);
         let FilterConfig::Scanmatch(c) = &parsed.config else {
             panic!("{:?}", parsed.config)
         };

@@ -64,13 +64,24 @@ pub const MAX_HYPOTHESES: usize = 4;
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct LaserOdometryConfig {
-    /// The map, the endpoint model and the search window around each hypothesis
-    /// (scan-matching odometry's configuration; its `linear-update` / `angular-update` are
-    /// the map update thresholds, its `odometry-jump` is not used). Defaults: scan-matching
-    /// odometry's, with the window widened to ±1.5 m and ±0.8 rad (more than the largest
-    /// step between the bench logs' keyframes: 1.19 m and 0.62 rad on Intel), a weak prior
-    /// (0.5 m, 0.3 rad) and a 30 m match range.
+    /// The map and the endpoint model (scan-matching odometry's configuration, its
+    /// defaults; its `linear-update` / `angular-update` are the map update thresholds).
+    /// Its window search and match range are replaced by this table's `search-range-xy`,
+    /// `search-range-theta`, `search-prior-std` and `match-max-range`, and its
+    /// `odometry-jump` is not used.
     pub matcher: ScanMatchConfig,
+    /// The search window around each hypothesis: ± this in x and y, metres. Default 1.5 m
+    /// (more than the largest step between the bench logs' keyframes: 1.19 m on Intel).
+    pub search_range_xy: f64,
+    /// … and ± this in θ, radians, in [0, π]. Default 0.8 rad (Intel's keyframes: up to
+    /// 0.62 rad apart).
+    pub search_range_theta: f64,
+    /// Standard deviations (metres, radians) of the weak Gaussian prior around each
+    /// hypothesis that decides between near-equal fits (a corridor's length); 0 for none.
+    /// Default (0.5, 0.3).
+    pub search_prior_std: [f64; 2],
+    /// End points farther than this from the sensor are not matched, metres. Default 30.
+    pub match_max_range: f64,
     /// The predictions searched around, in order of preference on a tie (1 to 4, no
     /// repeats). Default zero motion, then constant velocity.
     pub hypotheses: Vec<MotionPrediction>,
@@ -87,19 +98,11 @@ pub struct LaserOdometryConfig {
 impl Default for LaserOdometryConfig {
     fn default() -> Self {
         Self {
-            matcher: ScanMatchConfig {
-                matching: EndpointMatchingConfig {
-                    search_range_xy: 1.5,
-                    search_range_theta: 0.8,
-                    // A weak pull to the hypothesis: it decides only between near-equal
-                    // fits (a corridor's length), not against the scan.
-                    search_prior_std: [0.5, 0.3],
-                    min_inlier_fraction: 0.25,
-                    ..EndpointMatchingConfig::default()
-                },
-                match_max_range: 30.0,
-                ..ScanMatchConfig::default()
-            },
+            matcher: ScanMatchConfig::default(),
+            search_range_xy: 1.5,
+            search_range_theta: 0.8,
+            search_prior_std: [0.5, 0.3],
+            match_max_range: 30.0,
             hypotheses: vec![
                 MotionPrediction::ZeroMotion,
                 MotionPrediction::ConstantVelocity,
@@ -111,10 +114,25 @@ impl Default for LaserOdometryConfig {
 }
 
 impl LaserOdometryConfig {
+    /// The configuration of each submap's matching: `matcher` with this table's window,
+    /// prior and match range.
+    pub fn matcher_config(&self) -> ScanMatchConfig {
+        ScanMatchConfig {
+            matching: EndpointMatchingConfig {
+                search_range_xy: self.search_range_xy,
+                search_range_theta: self.search_range_theta,
+                search_prior_std: self.search_prior_std,
+                ..self.matcher.matching
+            },
+            match_max_range: self.match_max_range,
+            ..self.matcher.clone()
+        }
+    }
+
     /// Checks every value (the matcher's by [`ScanMatchOdometry::new`]'s rules), naming the
     /// key that is wrong.
     pub fn validate(&self) -> Result<(), GridError> {
-        ScanMatchOdometry::new(self.matcher.clone(), Pose2::IDENTITY, 0)?;
+        ScanMatchOdometry::new(self.matcher_config(), Pose2::IDENTITY, 0)?;
         let h = &self.hypotheses;
         let repeated = h.iter().enumerate().any(|(i, a)| h[..i].contains(a));
         ensure_config(
@@ -156,6 +174,8 @@ struct Submap {
 #[derive(Debug, Clone)]
 pub struct LaserOdometry {
     config: LaserOdometryConfig,
+    /// Each submap's matching ([`LaserOdometryConfig::matcher_config`]).
+    matcher: ScanMatchConfig,
     /// The active submaps, oldest first (at most two); the scan is matched against the
     /// first.
     submaps: Vec<Submap>,
@@ -173,6 +193,7 @@ impl LaserOdometry {
     pub fn new(config: LaserOdometryConfig) -> Result<Self, GridError> {
         config.validate()?;
         Ok(Self {
+            matcher: config.matcher_config(),
             config,
             submaps: Vec::new(),
             started: 0,
@@ -203,7 +224,7 @@ impl LaserOdometry {
         let n = self.config.submap_scans;
         let full = self.submaps.last().is_some_and(|s| n > 0 && s.scans >= n);
         if self.submaps.is_empty() || full {
-            let matcher = ScanMatchOdometry::new(self.config.matcher.clone(), Pose2::IDENTITY, 0)?;
+            let matcher = ScanMatchOdometry::new(self.matcher.clone(), Pose2::IDENTITY, 0)?;
             self.submaps.push(Submap { matcher, scans: 0 });
             self.started += 1;
             if self.submaps.len() > 2 {
@@ -226,7 +247,7 @@ impl LaserOdometry {
         scan: &LaserScan,
         turn: Option<f64>,
     ) -> Result<(Pose2, MatchOutcome), GridError> {
-        let prepared = PreparedScan::with_limits(scan, 0.0, self.config.matcher.match_max_range)?;
+        let prepared = PreparedScan::with_limits(scan, 0.0, self.matcher.match_max_range)?;
         let (Some((last, velocity)), Some(map)) = (self.last, self.submaps.first()) else {
             self.insert(&Pose2::IDENTITY, &prepared)?;
             self.last = Some((Pose2::IDENTITY, Pose2::IDENTITY));
@@ -274,8 +295,7 @@ impl LaserOdometry {
                 }
             }
         }
-        let needed =
-            self.config.matcher.matching.min_inlier_fraction * prepared.points().len() as f64;
+        let needed = self.matcher.matching.min_inlier_fraction * prepared.points().len() as f64;
         let accepted = best.filter(|(_, m)| m.score.inliers as f64 >= needed.ceil().max(1.0));
         self.finish(
             &prepared,
@@ -301,7 +321,7 @@ impl LaserOdometry {
                 (fallback, MatchOutcome::Failed)
             }
         };
-        let c = &self.config.matcher;
+        let c = &self.matcher;
         if self.written.distance(&pose) >= c.linear_update
             || normalize_angle(pose.theta - self.written.theta).abs() >= c.angular_update
         {
@@ -648,7 +668,7 @@ mod tests {
         let pairs = intel_pairs();
         assert_eq!(pairs.len(), 2);
         let config = LaserOdometryConfig::default();
-        let mut narrow = config.matcher.clone();
+        let mut narrow = config.matcher_config();
         narrow.matching.search_range_xy = EndpointMatchingConfig::default().search_range_xy;
         narrow.matching.search_range_theta = EndpointMatchingConfig::default().search_range_theta;
         for (a, b, truth) in &pairs {
@@ -657,8 +677,8 @@ mod tests {
             let (pose, _) = lo.process(b, None).unwrap();
             assert!(near(&pose, truth), "{pose:?} vs {truth:?}");
 
-            let b = PreparedScan::with_limits(b, 0.0, config.matcher.match_max_range).unwrap();
-            let a = PreparedScan::with_limits(a, 0.0, config.matcher.match_max_range).unwrap();
+            let b = PreparedScan::with_limits(b, 0.0, config.match_max_range).unwrap();
+            let a = PreparedScan::with_limits(a, 0.0, config.match_max_range).unwrap();
             let mut missed = 0;
             for offset in [
                 Pose2::new(1.0, 0.0, 0.5),
@@ -668,7 +688,7 @@ mod tests {
             ] {
                 let guess = truth.compose(&offset);
                 let mut wide =
-                    ScanMatchOdometry::new(config.matcher.clone(), Pose2::IDENTITY, 0).unwrap();
+                    ScanMatchOdometry::new(config.matcher_config(), Pose2::IDENTITY, 0).unwrap();
                 wide.integrate(&Pose2::IDENTITY, &a).unwrap();
                 let found = wide
                     .match_scored(&b, &guess, wide.window().as_ref())
@@ -724,7 +744,7 @@ mod tests {
             assert_eq!(field(config), key);
         }
         let mut config = LaserOdometryConfig::default();
-        config.matcher.matching.search_range_xy = 100.0;
+        config.search_range_xy = 100.0;
         assert_eq!(field(config), "matching.search_range_xy");
     }
 }
