@@ -743,8 +743,10 @@ mod tests {
         ] {
             assert_eq!(field(config), key);
         }
-        let mut config = LaserOdometryConfig::default();
-        config.search_range_xy = 100.0;
+        let config = LaserOdometryConfig {
+            search_range_xy: 100.0,
+            ..Default::default()
+        };
         assert_eq!(field(config), "matching.search_range_xy");
     }
 }
