@@ -140,6 +140,7 @@ fn configure(
             config: FilterConfig::default_for_kind(info.name, info.kind)
                 .map_err(|e| factory_error(e, None))?,
             keys: Vec::new(),
+            laser_odometry: Default::default(),
         },
     };
     if let Some(n) = setup.particles {
@@ -159,6 +160,26 @@ fn configure(
         Some(format!("the filter uses the simulator's {which}"))
     });
     Ok((parsed, note))
+}
+
+/// The `[laser-odometry]` table of the `--config` file over its defaults (the defaults
+/// without a file, or for a filter of landmark data), for laser data whose odometry is made
+/// from the scans.
+pub(crate) fn laser_odometry_config(
+    info: &FilterInfo,
+    config_path: Option<&Path>,
+) -> Result<slam_grid::LaserOdometryConfig, CliError> {
+    let laser = info.kind == DataKind::Laser || factory::serves_both_kinds(info.name);
+    let Some(path) = config_path.filter(|_| laser) else {
+        return Ok(Default::default());
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| CliError::Read {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let parsed = FilterConfig::from_toml_for_kind(info.name, DataKind::Laser, &text)
+        .map_err(|e| factory_error(e, Some(path)))?;
+    Ok(parsed.laser_odometry)
 }
 
 /// Builds a landmark filter.

@@ -169,7 +169,8 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         }
     }
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
-    let input = load_input(args)?;
+    let laser_odometry = filters::laser_odometry_config(&info, args.config.as_deref())?;
+    let input = load_input(args, &laser_odometry)?;
     let _ = writeln!(out, "input: {}", input.description);
     let info = slam_eval::factory::find_for(info.name, input.kind()).unwrap_or(info);
     if both {
@@ -295,14 +296,21 @@ fn default_name(args: &RunArgs) -> String {
 }
 
 /// Generates the scenario or reads the dataset (slam-eval's [`slam_eval::input`]); the
-/// description names the dataset options by their flags.
-fn load_input(args: &RunArgs) -> Result<Input, CliError> {
-    let mut input = load_input_named_by_option(args)?;
+/// description names the dataset options by their flags. `laser_odometry`: how the odometry
+/// is made from the scans, should it be (the config file's `[laser-odometry]` table).
+fn load_input(
+    args: &RunArgs,
+    laser_odometry: &slam_grid::LaserOdometryConfig,
+) -> Result<Input, CliError> {
+    let mut input = load_input_named_by_option(args, laser_odometry)?;
     input.description = crate::error::with_flags(&input.description);
     Ok(input)
 }
 
-fn load_input_named_by_option(args: &RunArgs) -> Result<Input, CliError> {
+fn load_input_named_by_option(
+    args: &RunArgs,
+    laser_odometry: &slam_grid::LaserOdometryConfig,
+) -> Result<Input, CliError> {
     if let Some(spec) = &args.sim {
         let params = input::ScenarioParams {
             landmarks: args.landmarks,
@@ -311,7 +319,7 @@ fn load_input_named_by_option(args: &RunArgs) -> Result<Input, CliError> {
         let mut input =
             input::simulate_with(spec, args.seed, args.steps.map(|s| s as usize), params)?;
         if args.odometry.as_deref() == Some("none") {
-            input::withhold_odometry(&mut input, &[], input::NoOdometry::Withheld)?;
+            input::withhold_odometry(&mut input, &[], input::NoOdometry::Withheld, laser_odometry)?;
         }
         return Ok(input);
     }
@@ -330,7 +338,7 @@ fn load_input_named_by_option(args: &RunArgs) -> Result<Input, CliError> {
         laser_only: args.odometry.as_deref() == Some("none"),
         imu_topic: args.imu_topic.clone(),
     };
-    Ok(input::open(path, &options)?)
+    Ok(input::open_with(path, &options, laser_odometry)?)
 }
 
 /// A name usable as part of a folder name.
@@ -652,7 +660,13 @@ fn run_scan(
     pic.save_png(&p)?;
     files.push(p);
     let p = dir.join("config.toml");
-    std::fs::write(&p, effective.table_toml()).map_err(write_err(&p))?;
+    // With laser odometry, its table too: the file reproduces the run.
+    let mut text = effective.table_toml();
+    if let Some(c) = &input.laser_odometry {
+        text.push('\n');
+        text.push_str(&slam_eval::factory::laser_odometry_toml(c));
+    }
+    std::fs::write(&p, text).map_err(write_err(&p))?;
     files.push(p);
     let p = dir.join("metrics.json");
     run.metrics.write(&p).map_err(write_err(&p))?;

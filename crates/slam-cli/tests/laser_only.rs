@@ -121,3 +121,63 @@ fn odometry_none_withholds_recorded_odometry() {
         "{text}"
     );
 }
+
+/// The aligned ATE (m) of a run's metrics.json.
+fn aligned_ate(dir: &std::path::Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join("metrics.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["ate_rmse_aligned_m"].as_f64().unwrap()
+}
+
+/// Runs `filter` on the simulated office with `--odometry none` and `extra` options into
+/// `out`; what it printed.
+fn office_without_odometry(filter: &str, out: &std::path::Path, extra: &[&str]) -> String {
+    let o = out.to_str().unwrap();
+    let base = [
+        "run",
+        "--filter",
+        filter,
+        "--sim",
+        "office",
+        "--odometry",
+        "none",
+    ];
+    let args = [&base[..], extra, &["--quiet", "--out", o]].concat();
+    let (r, text) = slam(&args);
+    r.unwrap_or_else(|e| panic!("{filter}: {e}"));
+    text
+}
+
+/// The simulated office without odometry (issue 32's bar): every laser filter on laser
+/// odometry alone ends within 0.5 m aligned ATE of the simulator's ground truth. The
+/// run's config.toml holds the laser odometry's table, and a `[laser-odometry]` table in
+/// `--config` is used (one map of every scan: "1 local maps" on the input line).
+#[test]
+fn every_laser_filter_maps_the_office_without_odometry() {
+    let out = scratch("office-none");
+    for filter in ["scanmatch", "graph", "gridfast"] {
+        let o = out.join(filter);
+        let extra: &[&str] = if filter == "gridfast" {
+            &["--particles", "10"]
+        } else {
+            &[]
+        };
+        let text = office_without_odometry(filter, &o, extra);
+        let ate = aligned_ate(&o);
+        assert!(ate < 0.5, "{filter}: aligned ATE {ate} m\n{text}");
+        let config = std::fs::read_to_string(o.join("config.toml")).unwrap();
+        assert!(config.contains("[laser-odometry]"), "{config}");
+    }
+    let file = out.join("one-map.toml");
+    std::fs::write(
+        &file,
+        "filter = \"scanmatch\"\n[laser-odometry]\nsubmap-scans = 0\n",
+    )
+    .unwrap();
+    let o = out.join("one-map");
+    let extra = ["--steps", "60", "--config", file.to_str().unwrap()];
+    let text = office_without_odometry("scanmatch", &o, &extra);
+    assert!(text.contains(", 1 local maps"), "{text}");
+    let config = std::fs::read_to_string(o.join("config.toml")).unwrap();
+    assert!(config.contains("submap-scans = 0"), "{config}");
+}

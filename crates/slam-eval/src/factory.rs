@@ -27,7 +27,9 @@ use slam_ekf::{EkfConfig, EkfSlam};
 use slam_fastslam::{FastSlam, FastSlamConfig, Variant};
 use slam_graph::landmark::{GraphLandmarkConfig, GraphLandmarkSlam};
 use slam_graph::laser::{LaserGraphConfig, LaserGraphSlam};
-use slam_grid::{KnownPoseConfig, KnownPoseMapping, ScanMatchConfig, ScanMatchOdometry};
+use slam_grid::{
+    KnownPoseConfig, KnownPoseMapping, LaserOdometryConfig, ScanMatchConfig, ScanMatchOdometry,
+};
 use slam_gridfast::{GridFastConfig, GridFastSlam};
 use slam_models::{BoxedError, LandmarkSlam, Pose2, ScanSlam};
 use slam_sim::{NoiseApplied, NoiseModels};
@@ -276,6 +278,10 @@ pub struct ParsedConfig {
     pub config: FilterConfig,
     /// Top-level keys the text set, besides the `filter` tag.
     pub keys: Vec<String>,
+    /// The `[laser-odometry]` table of a laser filter's text over its defaults
+    /// ([`slam_grid::LaserOdometryConfig`]): how the odometry is made from the scans when a
+    /// recording has none or it is withheld (`--odometry none`).
+    pub laser_odometry: LaserOdometryConfig,
 }
 
 impl ParsedConfig {
@@ -419,8 +425,19 @@ impl FilterConfig {
         }
         let keys: Vec<String> = table.keys().cloned().collect();
         // Deserialised from the text (the tag blanked out) rather than the table, so that
-        // toml's error spans point into the user's text.
-        let body = blank_filter_key(text);
+        // toml's error spans point into the user's text. A laser filter's text may hold a
+        // `[laser-odometry]` table: read on its own, and blanked out of the filter's.
+        let (body, laser_odometry) = if info.kind == DataKind::Laser {
+            let (filter_text, table_text) = split_laser_odometry(text);
+            let table: LaserOdometryTable = de(&table_text)?;
+            table
+                .laser_odometry
+                .validate()
+                .map_err(|e| FactoryError::invalid("laser-odometry", e))?;
+            (blank_filter_key(&filter_text), table.laser_odometry)
+        } else {
+            (blank_filter_key(text), LaserOdometryConfig::default())
+        };
         let config = match info.name {
             "ekf" => FilterConfig::Ekf(de(&body)?),
             "fastslam1" | "fastslam2" => {
@@ -455,7 +472,11 @@ impl FilterConfig {
                 })
             }
         };
-        Ok(ParsedConfig { config, keys })
+        Ok(ParsedConfig {
+            config,
+            keys,
+            laser_odometry,
+        })
     }
 
     /// The filter's name (the tag).
@@ -601,6 +622,61 @@ impl FilterConfig {
     }
 }
 
+/// The `[laser-odometry]` table of a laser filter's configuration, on its own.
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+struct LaserOdometryTable {
+    laser_odometry: LaserOdometryConfig,
+}
+
+/// `config` as the `[laser-odometry]` table of a run's configuration, TOML (appended to
+/// the filter's table in the `config.toml` a run writes when its odometry was made from
+/// the scans; read back by [`FilterConfig::from_toml_for`]).
+pub fn laser_odometry_toml(config: &LaserOdometryConfig) -> String {
+    let table = LaserOdometryTable {
+        laser_odometry: config.clone(),
+    };
+    toml::to_string_pretty(&table).unwrap_or_else(|e| format!("# could not serialise: {e}\n"))
+}
+
+/// Splits a configuration's text into the filter's lines and those of its
+/// `[laser-odometry]` table (its header, its sub-tables, and top-level `laser-odometry…`
+/// keys before the first header); each text keeps every line, the other's commented out,
+/// so that error lines stay right.
+fn split_laser_odometry(text: &str) -> (String, String) {
+    let is_ours = |name: &str| {
+        name.strip_prefix("laser-odometry")
+            .is_some_and(|rest| rest.is_empty() || rest.starts_with('.'))
+    };
+    let mut in_ours = false;
+    let mut in_root = true;
+    let (mut filter, mut table) = (Vec::new(), Vec::new());
+    for l in text.lines() {
+        let t = l.trim_start();
+        if t.starts_with('[') {
+            in_root = false;
+            let name = t.trim_start_matches('[').split(']').next().unwrap_or("");
+            in_ours = is_ours(name.trim().trim_matches('"'));
+        }
+        let ours = in_ours
+            || (in_root
+                && is_ours(
+                    t.split(|c: char| c == '=' || c.is_whitespace())
+                        .next()
+                        .unwrap_or(""),
+                ));
+        let comment = format!("# {l}");
+        if ours {
+            filter.push(comment);
+            table.push(l.to_string());
+        } else {
+            filter.push(l.to_string());
+            table.push(comment);
+        }
+    }
+    (filter.join("\n"), table.join("\n"))
+}
+
 fn parse_table(text: &str) -> Result<toml::Table, FactoryError> {
     toml::from_str::<toml::Table>(text).map_err(|e| toml_error(text, &e))
 }
@@ -645,5 +721,69 @@ fn toml_error(text: &str, e: &toml::de::Error) -> FactoryError {
             e.message().trim().replace('\n', " "),
             slam_models::association::moved_key_hint(e.message()).unwrap_or_default()
         ),
+    }
+}
+
+#[cfg(test)]
+mod laser_odometry_tests {
+    use super::*;
+    use slam_grid::MotionPrediction;
+
+    /// The `[laser-odometry]` table of a laser filter's file is read over its defaults,
+    /// beside the filter's own keys and tables, and written back the same
+    /// ([`laser_odometry_toml`]); without it the defaults hold.
+    #[test]
+    fn the_laser_odometry_table_is_read_and_written() {
+        let text = "filter = \"scanmatch\"\nresolution = 0.1\n\n[laser-odometry]\n\
+                    submap-scans = 7\nhypotheses = [\"constant-velocity\"]\n\
+                    search-range-xy = 1.0\n\n\
+                    [laser-odometry.matcher.matching]\nsigma = 0.06\n\n\
+                    [matching]\nsigma = 0.07\n";
+        let parsed = FilterConfig::from_toml(text).unwrap();
+        let lo = &parsed.laser_odometry;
+        assert_eq!(lo.submap_scans, 7);
+        assert_eq!(lo.hypotheses, vec![MotionPrediction::ConstantVelocity]);
+        let m = lo.matcher_config().matching;
+        assert_eq!((m.search_range_xy, m.sigma), (1.0, 0.06));
+        // Left to its default: laser odometry's, not scan-matching odometry's.
+        assert_eq!(m.search_range_theta, 0.8);
+        let FilterConfig::Scanmatch(c) = &parsed.config else {
+            panic!("{:?}", parsed.config)
+        };
+        assert_eq!((c.resolution, c.matching.sigma), (0.1, 0.07));
+        // Written and read back: the same table.
+        let written = format!(
+            "filter = \"scanmatch\"\n{}",
+            laser_odometry_toml(&parsed.laser_odometry)
+        );
+        let again = FilterConfig::from_toml(&written).unwrap().laser_odometry;
+        assert_eq!(laser_odometry_toml(&again), laser_odometry_toml(lo));
+        let plain = FilterConfig::from_toml("filter = \"gridfast\"\n").unwrap();
+        assert_eq!(
+            laser_odometry_toml(&plain.laser_odometry),
+            laser_odometry_toml(&LaserOdometryConfig::default())
+        );
+    }
+
+    /// An unknown key of the table is an error on its line; a value out of range names
+    /// the key; a landmark filter's file has no such table.
+    #[test]
+    fn a_bad_laser_odometry_table_is_refused() {
+        let text = "filter = \"graph-laser\"\n[laser-odometry]\nsubmap-scans = 3\nsubmaps = 4\n";
+        match FilterConfig::from_toml(text) {
+            Err(FactoryError::Parse { line, message }) => {
+                assert_eq!(line, Some(4), "{message}");
+                assert!(message.contains("submaps"), "{message}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let text = "filter = \"gridfast\"\n[laser-odometry]\nhypotheses = []\n";
+        let e = FilterConfig::from_toml(text).unwrap_err();
+        assert!(e.to_string().contains("hypotheses"), "{e}");
+        let text = "filter = \"ekf\"\n[laser-odometry]\nsubmap-scans = 3\n";
+        assert!(matches!(
+            FilterConfig::from_toml(text),
+            Err(FactoryError::Parse { .. })
+        ));
     }
 }

@@ -130,6 +130,9 @@ pub struct Input {
     pub simulated: bool,
     /// The data.
     pub data: InputData,
+    /// The laser odometry's configuration when the odometry was made from the scans
+    /// ([`withhold_odometry`]), `None` when the recording's own odometry is used.
+    pub laser_odometry: Option<slam_grid::LaserOdometryConfig>,
 }
 
 impl Input {
@@ -316,6 +319,7 @@ pub fn simulate_with(
                 label: format!("scenario {spec}"),
                 times_are_indices: false,
                 simulated: true,
+                laser_odometry: None,
                 data: InputData::Landmark {
                     sim_noise: Some(run.noise_models()),
                     dataset: run.dataset,
@@ -334,6 +338,7 @@ pub fn simulate_with(
                 label: format!("scenario {spec}"),
                 times_are_indices: false,
                 simulated: true,
+                laser_odometry: None,
                 data: InputData::Laser(run.dataset),
             }
         }
@@ -364,22 +369,25 @@ pub enum NoOdometry {
 }
 
 /// Replaces the odometry of a laser input by laser odometry
-/// ([`slam_grid::laser_odometry()`], default configuration): each scan matched against the
-/// map of the scans before it, from a constant-velocity prediction, with `yaw_rates` (an
-/// IMU's, time order) as the rotation prior when given; every laser filter then takes it
-/// as wheel odometry. Records without a scan get the time interpolation of the scan poses
-/// around them. The ground truth is kept; the description line gains what was done. A
-/// landmark input is left as it is.
+/// ([`slam_grid::laser_odometry()`] with `config`, the `[laser-odometry]` table of a run's
+/// configuration): each scan matched against a local map of the scans before it, around
+/// zero-motion and constant-velocity predictions, with `yaw_rates` (an IMU's, time order)
+/// as one more (rotation) prediction when given; every laser filter then takes it as wheel
+/// odometry. Records without a scan get the time interpolation of the scan poses around
+/// them. The ground truth is kept; the description line gains what was done, and
+/// [`Input::laser_odometry`] the configuration. A landmark input is left as it is.
 pub fn withhold_odometry(
     input: &mut Input,
     yaw_rates: &[slam_models::YawRate],
     why: NoOdometry,
+    config: &slam_grid::LaserOdometryConfig,
 ) -> Result<(), InputError> {
     let InputData::Laser(d) = &mut input.data else {
         return Ok(());
     };
     let rates = (!yaw_rates.is_empty()).then_some(yaw_rates);
-    let run = slam_grid::laser_odometry(&d.records, rates, Default::default())?;
+    let run = slam_grid::laser_odometry(&d.records, rates, config.clone())?;
+    input.laser_odometry = Some(config.clone());
     for (r, pose) in d.records.iter_mut().zip(run.odometry) {
         r.odometry = pose;
     }
@@ -393,14 +401,14 @@ pub fn withhold_odometry(
     };
     input.description.push_str(&format!(
         "; odometry: {} — laser odometry (each scan matched against the map of those before \
-         it) over {} scans, {} recovered by the wide search, {} unmatched{prior}",
+         it) over {} scans, {} unmatched, {} local maps{prior}",
         match why {
             NoOdometry::InRecording => "none in the recording",
             NoOdometry::Withheld => "withheld (option `laser_only`)",
         },
         run.scans,
-        run.recoveries,
         run.failures,
+        run.submaps,
     ));
     Ok(())
 }
@@ -408,9 +416,19 @@ pub fn withhold_odometry(
 /// Reads the dataset at `path` ([`slam_io::open_dataset_report`]) as an input, named by the
 /// dataset's own name or else [`dataset_stem`]. Laser data without odometry (a ROS bag
 /// that has none, or any laser data opened with [`DatasetOptions::laser_only`]) gets laser
-/// odometry ([`withhold_odometry`], with the IMU's yaw rates of
-/// [`DatasetOptions::imu_topic`]).
+/// odometry ([`withhold_odometry`] with the default configuration, and the IMU's yaw rates
+/// of [`DatasetOptions::imu_topic`]).
 pub fn open(path: &Path, options: &DatasetOptions) -> Result<Input, InputError> {
+    open_with(path, options, &slam_grid::LaserOdometryConfig::default())
+}
+
+/// [`open`] with the laser odometry's configuration `laser_odometry` (used only when the
+/// odometry is made from the scans).
+pub fn open_with(
+    path: &Path,
+    options: &DatasetOptions,
+    laser_odometry: &slam_grid::LaserOdometryConfig,
+) -> Result<Input, InputError> {
     let opened = slam_io::open_dataset_report(path, options)?;
     let (has_odometry, yaw_rates) = (opened.has_odometry, opened.yaw_rates);
     let mut input = open_parts(path, opened.dataset, opened.description);
@@ -420,7 +438,7 @@ pub fn open(path: &Path, options: &DatasetOptions) -> Result<Input, InputError> 
         } else {
             NoOdometry::InRecording
         };
-        withhold_odometry(&mut input, &yaw_rates, why)?;
+        withhold_odometry(&mut input, &yaw_rates, why, laser_odometry)?;
     }
     Ok(input)
 }
@@ -444,6 +462,7 @@ fn open_parts(path: &Path, dataset: Dataset, description: String) -> Input {
             description,
             times_are_indices: freiburg_without_clock,
             simulated: false,
+            laser_odometry: None,
             data: InputData::Landmark {
                 dataset: d,
                 sim_noise: None,
@@ -455,6 +474,7 @@ fn open_parts(path: &Path, dataset: Dataset, description: String) -> Input {
             description,
             times_are_indices: false,
             simulated: false,
+            laser_odometry: None,
             data: InputData::Laser(d),
         },
     }

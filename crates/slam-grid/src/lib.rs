@@ -26,9 +26,10 @@
 //! * [`ScanMatchOdometry`]: each scan matched against the map built so far with
 //!   [`matcher::endpoint`] (`ScanSlam`, name `"scanmatch"`).
 //! * [`LaserOdometry`]: the odometry of a recording that has none, each scan matched
-//!   against the map of the scans before it from a constant-velocity prediction with a wide
-//!   multi-resolution search (Hector SLAM's and Cartographer's front end), optionally with
-//!   an IMU's yaw rate as the rotation prior; the front stage of laser-only mapping.
+//!   against a local map of the scans before it (two active submaps) around several
+//!   predictions (zero motion, constant velocity) by a wide branch-and-bound search over
+//!   max-pooled grids (Hector SLAM's and Cartographer's front end), optionally with an
+//!   IMU's yaw rate as one more prediction; the front stage of laser-only mapping.
 //!
 //! Units: metres, radians; world frame right-handed, θ counter-clockwise.
 
@@ -64,7 +65,9 @@ pub use known_poses::{KnownPoseConfig, KnownPoseMapping};
 pub mod scanmatch;
 pub use scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
 pub mod laser_odometry;
-pub use laser_odometry::{laser_odometry, LaserOdometry, LaserOdometryConfig, LaserOdometryRun};
+pub use laser_odometry::{
+    laser_odometry, LaserOdometry, LaserOdometryConfig, LaserOdometryRun, MotionPrediction,
+};
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of
 /// the occupancy grid and scan matchers compiles with this crate alone (sophus-rs style).

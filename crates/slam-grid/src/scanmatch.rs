@@ -6,7 +6,7 @@ use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
 use crate::matcher::check_input;
 use crate::matcher::endpoint::{
-    hill_climb, wide_search, EndpointModel, HillClimbSteps, SearchWindow,
+    hill_climb, wide_search, EndpointMatch, EndpointModel, HillClimbSteps, SearchWindow,
 };
 use crate::scan::PreparedScan;
 use crate::{InverseSensorModel, MAX_DISTANCE_RADIUS};
@@ -397,6 +397,24 @@ impl ScanMatchOdometry {
         window: Option<&SearchWindow>,
         min_inlier_fraction: f64,
     ) -> Result<Option<Pose2>, GridError> {
+        let Some(matched) = self.match_scored(scan, predicted, window)? else {
+            return Ok(None);
+        };
+        let needed = ((min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
+        Ok((matched.score.inliers >= needed).then_some(matched.pose))
+    }
+
+    /// The best pose of the window search over `window` (none: the climb alone) around
+    /// `predicted` after the hill climb, with its fine score (log-likelihood and inliers,
+    /// whatever they are); `None` when the scan or the prediction cannot be matched (too
+    /// few end points, out of the matchers' range). Errors only when the window is too
+    /// large for the search's pyramid.
+    pub(crate) fn match_scored(
+        &self,
+        scan: &PreparedScan,
+        predicted: &Pose2,
+        window: Option<&SearchWindow>,
+    ) -> Result<Option<EndpointMatch>, GridError> {
         let m = &self.matching;
         let reach = window.map_or(0.0, |w| w.range_xy)
             + CLIMB_REACH_STEPS * self.config.matching.linear_step;
@@ -426,9 +444,9 @@ impl ScanMatchOdometry {
             }
             None => *predicted,
         };
-        let matched = hill_climb(&field, scan, &start, &m.capture, &m.lk, &m.hc);
-        let needed = ((min_inlier_fraction * scan.points().len() as f64).ceil() as usize).max(1);
-        Ok((matched.score.inliers >= needed).then_some(matched.pose))
+        Ok(Some(hill_climb(
+            &field, scan, &start, &m.capture, &m.lk, &m.hc,
+        )))
     }
 
     /// The configured window search ([`EndpointMatchingConfig`]), `None` when it is off.
@@ -441,11 +459,6 @@ impl ScanMatchOdometry {
         self.grid.try_integrate_prepared(pose, scan)?;
         self.map_has_scan = true;
         Ok(())
-    }
-
-    /// The configuration.
-    pub(crate) fn config(&self) -> &ScanMatchConfig {
-        &self.config
     }
 
     fn step(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, GridError> {
