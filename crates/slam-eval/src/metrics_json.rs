@@ -84,6 +84,15 @@ pub struct Metrics {
     /// particles and processed scans (`ScanUpdateInfo::match_recoveries`); null for
     /// landmark filters.
     pub match_recovered: Option<usize>,
+    /// Laser filters: the fraction of scans that contradict the run's own map, at the
+    /// poses the run estimated for them (more than 25 % of a scan's beams pass through
+    /// cells where at least 3 other scans ended beams: a wall the others saw;
+    /// [`crate::metrics::map_contradictions`]); needs no ground truth. Null for landmark
+    /// filters.
+    pub map_contradicting_fraction: Option<f64>,
+    /// Laser filters: whether `map_contradicting_fraction` exceeds 15 %: the map
+    /// contradicts itself (bent, doubled walls). Null for landmark filters.
+    pub map_inconsistent: Option<bool>,
 }
 
 impl Metrics {
@@ -115,6 +124,8 @@ impl Metrics {
             peak_rss_mb: None,
             match_failed: None,
             match_recovered: None,
+            map_contradicting_fraction: None,
+            map_inconsistent: None,
         }
     }
 
@@ -151,6 +162,7 @@ impl Metrics {
             &mut self.nees_pose_median,
             &mut self.nees_pose_mean,
             &mut self.peak_rss_mb,
+            &mut self.map_contradicting_fraction,
         ] {
             *v = finite(*v);
         }
@@ -212,6 +224,17 @@ impl Metrics {
                 "  landmarks RMSE {} (aligned {})",
                 fmt_opt(self.landmark_rmse_m, " m"),
                 fmt_opt(self.landmark_rmse_aligned_m, " m"),
+            ));
+        }
+        if let (Some(f), Some(bad)) = (self.map_contradicting_fraction, self.map_inconsistent) {
+            lines.push(format!(
+                "  map check: {:.1} % of the scans look through walls other scans saw ({})",
+                100.0 * f,
+                if bad {
+                    "the map contradicts itself: bent or doubled"
+                } else {
+                    "consistent: at most 15 %"
+                }
             ));
         }
         if let Some(f) = self.nees_pose_in_band_fraction {
@@ -301,6 +324,8 @@ mod tests {
             "peak_rss_mb",
             "match_failed",
             "match_recovered",
+            "map_contradicting_fraction",
+            "map_inconsistent",
         ];
         let mut sorted_keys = keys.clone();
         sorted_keys.sort_unstable();

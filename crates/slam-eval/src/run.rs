@@ -484,6 +484,20 @@ pub fn run_scans_observed(
     // Scan matches that failed (motion model instead) and that a wider search recovered.
     metrics.match_failed = Some(updates.iter().map(|u| u.match_failures).sum());
     metrics.match_recovered = Some(updates.iter().map(|u| u.match_recoveries).sum());
+    // Whether the map contradicts itself: every scan the filter processed (its keyframes:
+    // the others' poses are dead-reckoned from them) at the pose of its record.
+    if trajectory.len() == records.len() {
+        let scans: Vec<_> = records
+            .iter()
+            .zip(&trajectory)
+            .zip(&updates)
+            .filter(|(_, u)| u.processed_scan)
+            .filter_map(|((r, p), _)| r.scan.as_ref().map(|s| (p.pose, s)))
+            .collect();
+        let check = crate::metrics::map_contradictions(&scans, &Default::default());
+        metrics.map_contradicting_fraction = Some(check.fraction);
+        metrics.map_inconsistent = Some(check.inconsistent);
+    }
     Ok(ScanRun {
         trajectory,
         map,

@@ -5,6 +5,8 @@
 //! * [`relations_error`]: the Kümmerle et al. (2009) relations metric.
 //! * [`landmark_error`]: landmark map error, matched by id or by nearest neighbour.
 //! * [`nees_pose`], [`nis`], [`chi2_quantile`], [`chi2_band`]: filter consistency.
+//! * [`map_contradictions`]: a laser run's map that contradicts itself (scans looking
+//!   through walls other scans saw), without ground truth.
 //!
 //! **Matching by time.** Everywhere an estimate is looked up at a time t (the relations
 //! metric, ATE, RPE) the same rule is used, the one the dataset README fixes for the
@@ -24,6 +26,7 @@ mod align;
 mod associate;
 mod consistency;
 mod landmarks;
+mod map_check;
 mod relations;
 mod trajectory;
 
@@ -39,6 +42,7 @@ pub use consistency::{
 pub use landmarks::{
     landmark_error, landmark_error_with, LandmarkErrorResult, LandmarkMatching, DEFAULT_NN_GATE,
 };
+pub use map_check::{map_contradictions, MapCheck, MapCheckParams};
 pub use relations::{
     relations_error, relations_error_lookup, relations_error_with, RelationsResult,
 };
