@@ -49,10 +49,14 @@ pub struct StepInfo {
     pub spread: f64,
     /// Random particles drawn from the free space at this resampling (augmented MCL).
     pub injected: usize,
-    /// Short- and long-term averages of the per-beam measurement likelihood.
+    /// Short- and long-term averages of the per-beam measurement likelihood, bias-corrected
+    /// (0 at a record without an update).
     pub w_fast: f64,
     /// See `w_fast`.
     pub w_slow: f64,
+    /// The exponent the scan's likelihood was raised to (`weight_exponent`, or lower
+    /// when adaptive tempering kept N_eff up; 0 without an update).
+    pub exponent: f64,
     /// The estimate after this record.
     pub pose: Pose2,
 }
@@ -230,8 +234,9 @@ impl Mcl {
             n_eff: effective_sample_size_log(&self.log_w),
             spread: self.spread(),
             injected: 0,
-            w_fast: self.w_fast,
-            w_slow: self.w_slow,
+            w_fast: 0.0,
+            w_slow: 0.0,
+            exponent: 0.0,
             pose: Pose2::IDENTITY,
         };
         if let Some(scan) = record
@@ -271,40 +276,51 @@ impl Mcl {
         beams: &ScanBeams,
         info: &mut StepInfo,
     ) -> Result<(), MclError> {
-        let k = self.config.sensor.weight_exponent;
+        let k_max = self.config.sensor.weight_exponent;
+        // The map prior p(x | m): a particle outside the free space is down-weighted.
+        let ln_not_free = self.config.not_free_weight.ln();
+        let free_max = self.config.free_max;
         // w_avg (PR table 8.3 line 8) over the prior weights, each likelihood taken as the
         // geometric mean per beam exp(ℓ / n) so that its scale does not depend on the beam
         // count (a product of 60 densities is far outside what α-averages can hold).
         let mut w_avg = 0.0;
+        let mut lls = Vec::with_capacity(self.poses.len());
         for (p, lw) in self.poses.iter().zip(self.log_w.iter_mut()) {
             let (ll, used) = log_likelihood(&self.map, &self.config.sensor, beams, p);
-            if used > 0 {
-                w_avg += lw.exp() * (ll / used as f64).exp();
+            if !self.map.is_free(p.x, p.y, free_max) {
+                *lw += ln_not_free;
             }
+            if used > 0 {
+                w_avg += (*lw + ll / used as f64).exp();
+            }
+            lls.push(ll);
+        }
+        let k = self.tempered_exponent(&lls, k_max);
+        for (lw, ll) in self.log_w.iter_mut().zip(&lls) {
             *lw += k * ll;
         }
+        info.exponent = k;
         normalize_log_weights(&mut self.log_w)?;
         self.updates += 1;
         let r = self.config.recovery;
-        if self.w_slow == 0.0 && self.w_fast == 0.0 {
-            // First update: start both averages at the first value (nav2 starts them at
-            // 0, which makes the first updates look like a sudden improvement).
-            self.w_slow = w_avg;
-            self.w_fast = w_avg;
-        } else {
-            self.w_slow += r.alpha_slow * (w_avg - self.w_slow);
-            self.w_fast += r.alpha_fast * (w_avg - self.w_fast);
-        }
-        let p_inject = if r.alpha_slow > 0.0 && self.w_slow > 0.0 {
-            (1.0 - self.w_fast / self.w_slow).max(0.0)
+        // Both averages start at 0 (nav2) and are read bias-corrected, ŵ = w / (1 − (1 − α)ⁿ)
+        // after n updates (Kingma & Ba 2015, §3): ŵ is then a true weighted mean of the
+        // values so far. Starting w_slow at the first value instead pins it for thousands
+        // of updates to a global cloud's low average, so that recovery never fires (in the
+        // symmetric hall w_fast/w_slow stayed above 3 for 90 m).
+        self.w_slow += r.alpha_slow * (w_avg - self.w_slow);
+        self.w_fast += r.alpha_fast * (w_avg - self.w_fast);
+        let (w_slow, w_fast) = self.averages();
+        let p_inject = if r.alpha_slow > 0.0 && w_slow > 0.0 {
+            (1.0 - w_fast / w_slow).max(0.0)
         } else {
             0.0
         };
         info.updated = true;
         info.n_eff = effective_sample_size_log(&self.log_w);
         info.spread = self.spread();
-        info.w_fast = self.w_fast;
-        info.w_slow = self.w_slow;
+        info.w_fast = w_fast;
+        info.w_slow = w_slow;
         self.refresh_estimate();
         let n = self.poses.len() as f64;
         if info.n_eff < self.config.resample_ratio * n || p_inject > 0.0 {
@@ -314,6 +330,65 @@ impl Mcl {
         Ok(())
     }
 
+    /// The bias-corrected averages (ŵ_slow, ŵ_fast) after `updates` updates; (0, 0)
+    /// before the first or with α = 0.
+    fn averages(&self) -> (f64, f64) {
+        let r = self.config.recovery;
+        let n = self.updates.min(i32::MAX as usize) as i32;
+        let hat = |w: f64, a: f64| {
+            let c = 1.0 - (1.0 - a).powi(n);
+            if c > 0.0 {
+                w / c
+            } else {
+                0.0
+            }
+        };
+        (
+            hat(self.w_slow, r.alpha_slow),
+            hat(self.w_fast, r.alpha_fast),
+        )
+    }
+
+    /// The exponent of this update's likelihood: `k_max` unless that leaves
+    /// N_eff < `min_n_eff_ratio`·N, else the largest k in (0, k_max] that keeps N_eff at
+    /// that floor (bisection to 1e-4 relative; N_eff falls as k grows from 0, where it is
+    /// the prior's).
+    fn tempered_exponent(&self, lls: &[f64], k_max: f64) -> f64 {
+        let floor = self.config.sensor.min_n_eff_ratio * lls.len() as f64;
+        let n_eff = |k: f64| -> f64 {
+            let top = self
+                .log_w
+                .iter()
+                .zip(lls)
+                .map(|(w, l)| w + k * l)
+                .fold(f64::NEG_INFINITY, f64::max);
+            let (mut s1, mut s2) = (0.0, 0.0);
+            for (w, l) in self.log_w.iter().zip(lls) {
+                let e = (w + k * l - top).exp();
+                s1 += e;
+                s2 += e * e;
+            }
+            if s2 > 0.0 {
+                s1 * s1 / s2
+            } else {
+                0.0
+            }
+        };
+        if floor <= 0.0 || n_eff(k_max) >= floor || n_eff(0.0) < floor {
+            return k_max;
+        }
+        let (mut lo, mut hi) = (0.0, k_max);
+        while hi - lo > 1e-4 * k_max {
+            let mid = 0.5 * (lo + hi);
+            if n_eff(mid) >= floor {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo.max(1e-6 * k_max)
+    }
+
     /// Low-variance (systematic) resampling of `max_particles` ancestors, visited in a
     /// seeded random order; each draw is replaced by a random free-space pose with
     /// probability `p_inject`; drawing stops once the count reaches KLD's bound for the
@@ -321,6 +396,21 @@ impl Mcl {
     fn resample(&mut self, p_inject: f64) -> Result<usize, MclError> {
         let kld = self.config.kld;
         let w: Vec<f64> = self.log_w.iter().map(|l| l.exp()).collect();
+        // The cloud's weighted deviation per axis, for roughening.
+        let (mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0);
+        for (p, wi) in self.poses.iter().zip(&w) {
+            mx += wi * p.x;
+            my += wi * p.y;
+            ms += wi * p.theta.sin();
+            mc += wi * p.theta.cos();
+        }
+        let (mut vx, mut vy) = (0.0, 0.0);
+        for (p, wi) in self.poses.iter().zip(&w) {
+            vx += wi * (p.x - mx).powi(2);
+            vy += wi * (p.y - my).powi(2);
+        }
+        let r_len = ms.hypot(mc).clamp(1e-12, 1.0);
+        let spread = [vx.sqrt(), vy.sqrt(), (-2.0 * r_len.ln()).sqrt()];
         let mut ancestors = Vec::with_capacity(kld.max_particles);
         Resampler::Systematic.resample_into(
             &w,
@@ -354,6 +444,16 @@ impl Mcl {
             }
         }
         let n = out.len();
+        let k = self.config.roughening * (n as f64).powf(-1.0 / 3.0);
+        if k > 0.0 {
+            for p in &mut out {
+                p.x += k * spread[0] * sampling::standard_normal(&mut self.rng);
+                p.y += k * spread[1] * sampling::standard_normal(&mut self.rng);
+                p.theta = slam_models::normalize_angle(
+                    p.theta + k * spread[2] * sampling::standard_normal(&mut self.rng),
+                );
+            }
+        }
         self.poses = out;
         self.log_w = vec![-(n as f64).ln(); n];
         Ok(injected)
