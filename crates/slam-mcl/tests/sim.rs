@@ -9,8 +9,9 @@ use slam_sim::path::Path;
 use slam_sim::scenario::laser::{office_path, office_world};
 
 /// One row per record: distance the true robot drove so far (a teleport adds nothing),
-/// the filter's estimate, its cloud spread, the truth.
-type Row = (f64, Pose2, f64, Pose2);
+/// the filter's estimate, its cloud spread, the truth, and the modes the filter reported
+/// at its last update.
+type Row = (f64, Pose2, f64, Pose2, usize);
 
 /// slam-sim drives the robot along `path` (0.8 m/s, odometry every 0.1 s, a scan every
 /// third record, odometry α = (0.02, 0.002, 0.02, 0.001), 181 beams over 180°, 20 m,
@@ -38,25 +39,16 @@ fn drive(
     let gt = run.dataset.ground_truth.as_ref().unwrap();
     let mut travelled = 0.0;
     let mut out = Vec::with_capacity(gt.len());
+    let mut modes = 0;
     for (k, (r, truth)) in run.dataset.records.iter().zip(gt).enumerate() {
         if k > 0 && !teleports.iter().any(|t| t.record == k) {
             travelled += gt[k - 1].pose.distance(&truth.pose);
         }
         let info = mcl.process(r).unwrap();
-        if info.updated && std::env::var("DBG").is_ok() && (k / 3) % 5 == 0 {
-            eprintln!(
-                "UPD {:.1} n {} neff {:.0} k {:.3} inj {} wf/ws {:.3} spread {:.2} err {:.2}",
-                travelled,
-                info.particles,
-                info.n_eff,
-                info.exponent,
-                info.injected,
-                info.w_fast / info.w_slow,
-                info.spread,
-                info.pose.distance(&truth.pose)
-            );
+        if info.updated {
+            modes = info.modes;
         }
-        out.push((travelled, info.pose, info.spread, truth.pose));
+        out.push((travelled, info.pose, info.spread, truth.pose, modes));
     }
     out
 }
@@ -65,7 +57,7 @@ fn drive(
 /// path's pose 30 m further on (`Teleport`: the truth jumps, the odometry does not). The
 /// filter, sure of the old place, must notice (w_fast falls below w_slow), spread random
 /// particles and find the robot again. Measured (seed 3): back within 0.3 m after
-/// ≈ MEASURED m; the bound is 25 m, and it must then stay within 0.3 m.
+/// 5.0 m; the bound is 25 m, and it must then stay within 0.3 m.
 #[test]
 fn a_kidnapped_robot_is_found_again() {
     let world = office_world();
@@ -88,7 +80,7 @@ fn a_kidnapped_robot_is_found_again() {
         to: 50.0,
     };
     let steps = drive(&world, &path, &mut mcl, 250, &[kidnap]);
-    let err = |(_, e, _, t): &Row| e.distance(t);
+    let err = |(_, e, _, t, _): &Row| e.distance(t);
     let at = steps[kidnap.record].0;
     // Tracking before the kidnapping.
     assert!(steps[..kidnap.record]
@@ -131,14 +123,18 @@ fn symmetric_hall() -> World {
 }
 
 /// Global localization in the symmetric hall, driving a loop around the boxes: at every
-/// step the cloud is either wide (spread ≥ 0.5 m, "multi-modal or unsure") or its estimate
-/// within 0.5 m of the truth; "confident and wrong" may last at most 15 m of travel in
-/// all. KNOWN FAILURE (seed 1): the cloud collapses onto the mirrored mode within the
-/// first metres and stays there, confidently wrong for 87 of 90 m: the small pillar that
-/// breaks the symmetry costs the wrong mode too little with `weight-exponent` 0.2 for
-/// augmented MCL to notice. Kept, ignored, as the target of the open part of issue 35.
+/// step the cloud is either wide (spread ≥ 0.5 m: unsure, or several places at once) or
+/// its estimate within 0.5 m of the truth; "confident and wrong" may last at most 5 m of
+/// travel in all (issue 35's stated distance), and the run must end on the truth. The
+/// modes kept by clustered resampling hold the mirrored place and the true one side by
+/// side until the pillar tells them apart; the filter reports the two (`modes` ≥ 2) on
+/// the way. KNOWN FAILURE with the defaults: seed 2 passes (0 m confidently wrong, up
+/// to 12 modes), seed 1 is confidently wrong for 58.6 of 59.5 m (the mirrored mode wins
+/// the first metres). With `sensor.min-n-eff-ratio` 0.1 both seeds pass (0 m), but then a
+/// recovery on the Intel bench log widens its converged cloud past 0.5 m at 419 m; the
+/// default 0.03 is chosen for the bench logs. Kept, ignored, as the open part of issue 35.
 #[test]
-#[ignore = "known failure: confidently wrong for 87 m of 90 m (issue 35, open)"]
+#[ignore = "known failure: seed 1 confidently wrong for 58.6 m of 59.5 m (issue 35, open)"]
 fn global_localization_in_a_symmetric_world_is_never_confidently_wrong_for_long() {
     let world = symmetric_hall();
     let path = Path::rounded(
@@ -153,36 +149,32 @@ fn global_localization_in_a_symmetric_world_is_never_confidently_wrong_for_long(
         0.05,
     )
     .unwrap();
-    let config = MclConfig::default();
-    let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
-    let mut mcl = Mcl::new(config, map, InitialBelief::Global, 1).unwrap();
-    // 375 scans, 0.24 m apart: 90 m.
-    let steps = drive(&world, &path, &mut mcl, 375, &[]);
-    let wrong: f64 = steps
-        .windows(2)
-        .filter(|w| {
-            let (_, e, spread, t) = w[1];
-            spread < 0.5 && e.distance(&t) > 0.5
-        })
-        .map(|w| w[1].0 - w[0].0)
-        .sum();
-    let total = steps.last().unwrap().0;
-    for r in steps
-        .iter()
-        .step_by(30)
-        .filter(|_| std::env::var("DBG").is_ok())
-    {
+    for seed in [1, 2] {
+        let config = MclConfig::default();
+        let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
+        let mut mcl = Mcl::new(config, map, InitialBelief::Global, seed).unwrap();
+        // 250 scans, 0.24 m apart: 60 m, the loop once and a half.
+        let steps = drive(&world, &path, &mut mcl, 250, &[]);
+        let wrong: f64 = steps
+            .windows(2)
+            .filter(|w| {
+                let (_, e, spread, t, _) = w[1];
+                spread < 0.5 && e.distance(&t) > 0.5
+            })
+            .map(|w| w[1].0 - w[0].0)
+            .sum();
+        let total = steps.last().unwrap().0;
+        let most_modes = steps.iter().map(|r| r.4).max().unwrap();
         eprintln!(
-            "DBG {:.1} est {:.2} {:.2} {:.2} truth {:.2} {:.2} {:.2} spread {:.2}",
-            r.0, r.1.x, r.1.y, r.1.theta, r.3.x, r.3.y, r.3.theta, r.2
+            "seed {seed}: confidently wrong for {wrong:.2} m of {total:.1} m, up to {most_modes} modes"
+        );
+        assert!(wrong <= 5.0, "seed {seed}: confidently wrong for {wrong} m");
+        assert!(most_modes >= 2, "seed {seed}: never reported two places");
+        // And it ends converged on the truth.
+        let (_, e, spread, t, _) = steps.last().unwrap();
+        assert!(
+            *spread < 0.5 && e.distance(t) < 0.3,
+            "seed {seed}: {e:?} vs {t:?}, spread {spread}"
         );
     }
-    eprintln!("confidently wrong for {wrong:.2} m of {total:.1} m");
-    assert!(wrong <= 15.0, "confidently wrong for {wrong} m");
-    // And it ends converged on the truth.
-    let (_, e, spread, t) = steps.last().unwrap();
-    assert!(
-        *spread < 0.5 && e.distance(t) < 0.3,
-        "{e:?} vs {t:?}, spread {spread}"
-    );
 }
