@@ -164,6 +164,13 @@ pub struct RunArgs {
     #[arg(long, value_name = "X,Y,THETA", requires = "dataset", value_parser = laser_pose, allow_hyphen_values = true)]
     pub laser_pose: Option<slam_io::Pose2>,
 
+    /// known-poses: the poses to write the scans at, a TUM file (instead of the log's
+    /// odometry). Each scan takes the pose nearest in time within 5 ms, in file order
+    /// (scans sharing a time take that time's poses in order); a scan without one is an
+    /// error; odometry-only records are dropped.
+    #[arg(long, value_name = "FILE.tum", requires = "dataset")]
+    pub poses: Option<PathBuf>,
+
     /// Number of particles (particle filters only); overrides the config file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub particles: Option<u64>,

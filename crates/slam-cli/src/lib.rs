@@ -45,6 +45,7 @@ mod mcap;
 pub mod optimize;
 mod outdir;
 mod pictures;
+mod poses;
 mod progress;
 pub mod ros2;
 pub mod run;

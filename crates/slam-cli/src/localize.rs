@@ -97,6 +97,9 @@ pub struct UpdateRow {
     pub resampled: bool,
     /// Random particles injected (augmented MCL).
     pub injected: usize,
+    /// The exponent the scan's likelihood was raised to (below `weight-exponent` when
+    /// adaptive tempering kept N_eff up).
+    pub exponent: f64,
 }
 
 /// What `slam localize` measured (metrics.json).
@@ -336,6 +339,7 @@ fn summarise(
             n_eff: s.n_eff,
             resampled: s.resampled,
             injected: s.injected,
+            exponent: s.exponent,
         })
         .collect();
     // Converged for good: the first update after the last one with a wide cloud.

@@ -105,6 +105,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         )));
     }
     filters::check_particles(&info, args.particles.is_some())?;
+    if args.poses.is_some() && info.name != "known-poses" {
+        return Err(CliError::InvalidArgument(format!(
+            "--poses applies to --filter known-poses, not `{}`",
+            info.name
+        )));
+    }
+    let given_poses = match &args.poses {
+        Some(p) => Some(slam_io::tum::read_tum(p)?),
+        None => None,
+    };
     // Fail on a missing config file before loading a possibly large dataset.
     if let Some(c) = &args.config {
         if !c.is_file() {
@@ -141,6 +151,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
         ("--ground-truth", &args.ground_truth),
         ("--relations", &args.relations),
         ("--config", &args.config),
+        ("--poses", &args.poses),
     ] {
         if let Some(p) = path {
             inputs.push((option, p.as_path()));
@@ -170,7 +181,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     }
     let staging = OutDir::prepare(&out_dir, Owner::Run, args.force, &inputs)?;
     let laser_odometry = filters::laser_odometry_config(&info, args.config.as_deref())?;
-    let input = load_input(args, &laser_odometry)?;
+    let mut input = load_input(args, &laser_odometry)?;
+    if let (Some(poses), Some(path)) = (&given_poses, &args.poses) {
+        let InputData::Laser(dataset) = &mut input.data else {
+            return Err(CliError::InvalidArgument(format!(
+                "--poses {}: known-poses maps laser data",
+                path.display()
+            )));
+        };
+        dataset.records = crate::poses::apply_poses(&dataset.records, poses, path)?;
+    }
     let _ = writeln!(out, "input: {}", input.description);
     let info = slam_eval::factory::find_for(info.name, input.kind()).unwrap_or(info);
     if both {

@@ -65,7 +65,7 @@ fn assert_localized(site: &str) -> Option<slam_cli::localize::LocalizeReport> {
     Some(r)
 }
 
-/// Intel. Measured (seed 0): converged after 0.7 m, ATE 0.063 m (max 0.29 m), 500–5000
+/// Intel. Measured (seed 0): converged after 0.8 m, ATE 0.064 m (max 0.25 m), 500–20000
 /// particles.
 #[test]
 fn intel_is_localized_globally_on_its_known_pose_map() {
@@ -79,10 +79,22 @@ fn intel_is_localized_globally_on_its_known_pose_map() {
     );
 }
 
-/// FR101. Measured (seed 0): converged after 0.1 m, ATE 0.058 m.
+/// FR101. Measured (seed 0): converged after 0.15 m, ATE 0.050 m.
 #[test]
 fn freiburg_101_is_localized_globally_on_its_known_pose_map() {
     assert_localized("freiburg-101");
+}
+
+/// Belgioioso. Measured (seed 0): converged after 0.8 m, ATE 0.045 m.
+#[test]
+fn belgioioso_is_localized_globally_on_its_known_pose_map() {
+    assert_localized("belgioioso");
+}
+
+/// Edmonton. Measured (seed 0): converged after 6.1 m, ATE 0.059 m.
+#[test]
+fn edmonton_is_localized_globally_on_its_known_pose_map() {
+    assert_localized("edmonton");
 }
 
 /// A bad start and a missing start are refused with clear errors, not panics.

@@ -58,6 +58,15 @@ pub struct SensorConfig {
     /// noise"). Default 0.2 (on Intel with 60 beams, 1.0 left N_eff at 2–20 of 500 particles
     /// and a global cloud collapsed onto one particle at the first scan).
     pub weight_exponent: f64,
+    /// Adaptive tempering: when the scan weighed with `weight_exponent` would leave fewer
+    /// than this fraction of the particles effective (N_eff / N), the exponent is lowered
+    /// for this update to the largest k ≤ `weight_exponent` that keeps N_eff ≥ this · N
+    /// (bisection; likelihood tempering as in Del Moral et al. 2006's adaptive SMC
+    /// samplers, the rest of the scan's evidence dropped). This stops a sparse global cloud
+    /// from collapsing at the first scans onto whichever particle happens to lie nearest a
+    /// plausible pose. 0 switches it off. Default 0.03 (0.1 kept random particles of a
+    /// recovery heavy enough to widen a converged Intel cloud past 0.5 m at 419 m).
+    pub min_n_eff_ratio: f64,
 }
 
 impl Default for SensorConfig {
@@ -75,6 +84,7 @@ impl Default for SensorConfig {
             min_range: 0.05,
             max_distance: 1.0,
             weight_exponent: 0.2,
+            min_n_eff_ratio: 0.03,
         }
     }
 }
@@ -94,7 +104,9 @@ impl Default for SensorConfig {
 pub struct KldConfig {
     /// Fewest particles. Default 500 (nav2: 500).
     pub min_particles: usize,
-    /// Most particles; global localization starts with this many. Default 5000 (nav2: 2000).
+    /// Most particles; global localization starts with this many. Default 20000 (nav2:
+    /// 2000): Acapulco has 4,100 m² of free space, 5 particles per m², and with 5000 the
+    /// global cloud settled on a wrong place on 3 of 7 bench logs.
     pub max_particles: usize,
     /// ε, the bound on the KL divergence. Default 0.05 (nav2 `pf_err`: 0.05).
     pub epsilon: f64,
@@ -105,17 +117,29 @@ pub struct KldConfig {
     pub bin_xy: f64,
     /// Bin edge in θ, radians. Default 10° (nav2's).
     pub bin_theta: f64,
+    /// A cluster of particles (connected occupied bins) holding at least this fraction of
+    /// the weight is a mode: it is counted (`StepInfo::modes`) and kept alive at
+    /// resampling (clustered particle filtering, Milstein et al. 2002). Default 0.01.
+    pub mode_min_mass: f64,
+    /// Particles each mode keeps at a resampling at least (drawn from its own by weight,
+    /// each cluster's mass kept). Default 100.
+    pub mode_particles: usize,
+    /// At most this many modes (the heaviest) are kept so. Default 8.
+    pub max_modes: usize,
 }
 
 impl Default for KldConfig {
     fn default() -> Self {
         Self {
             min_particles: 500,
-            max_particles: 5000,
+            max_particles: 20000,
             epsilon: 0.05,
             z_quantile: 2.33,
             bin_xy: 0.5,
             bin_theta: 10f64.to_radians(),
+            mode_min_mass: 0.01,
+            mode_particles: 100,
+            max_modes: 8,
         }
     }
 }
@@ -161,6 +185,15 @@ pub struct MclConfig {
     pub update_min_d: f64,
     /// …or turned this much (radians). Default 0.2 rad (nav2 `update_min_a`: 0.2).
     pub update_min_a: f64,
+    /// Roughening (Gordon, Salmond & Smith 1993, §4): each particle copied at a
+    /// resampling is jittered by a zero-mean Gaussian with σ = `roughening` · E · N^(−1/3)
+    /// per axis, E the weighted standard deviation of the cloud along that axis before
+    /// resampling (x, y in metres; θ as the circular deviation √(−2 ln R)), N the count
+    /// drawn. A wide global cloud keeps exploring around its copies so that one near the
+    /// true pose can climb into the likelihood's basin; a converged cloud is hardly
+    /// touched (spread 0.1 m, 500 particles: σ ≈ 2 mm at 0.2). 0 switches it off.
+    /// Default 0.2 (Gordon et al.'s K).
+    pub roughening: f64,
     /// Resample when N_eff < `resample_ratio` · N (N_eff = 1/Σw²; Liu 1996), or when
     /// recovery wants random particles. Default 0.5.
     pub resample_ratio: f64,
@@ -168,6 +201,13 @@ pub struct MclConfig {
     /// where global and random particles are drawn. Default 19 (map_server's free
     /// threshold 0.196).
     pub free_max: i8,
+    /// The map prior p(x | m) of a pose outside the free space (an occupied or unknown
+    /// cell) relative to one in it: each particle's weight is multiplied by this when its
+    /// position is not in a free cell (PR §8.3.1: the robot cannot stand inside a wall or
+    /// where it has never been). It also multiplies the particle's term of augmented MCL's
+    /// average likelihood, so a cloud that drifted out of the map looks lost. 1 switches
+    /// the prior off. Default 1e-6.
+    pub not_free_weight: f64,
 }
 
 impl Default for MclConfig {
@@ -183,7 +223,9 @@ impl Default for MclConfig {
             update_min_d: 0.2,
             update_min_a: 0.2,
             resample_ratio: 0.5,
+            roughening: 0.2,
             free_max: 19,
+            not_free_weight: 1e-6,
         }
     }
 }
@@ -256,6 +298,13 @@ impl MclConfig {
             s.weight_exponent,
             "in (0, 1]",
         )?;
+        ensure_config(
+            (0.0..1.0).contains(&s.min_n_eff_ratio),
+            C,
+            "sensor.min_n_eff_ratio",
+            s.min_n_eff_ratio,
+            "in [0, 1)",
+        )?;
         let k = &self.kld;
         ensure_config(
             k.min_particles >= 1,
@@ -286,6 +335,27 @@ impl MclConfig {
             "kld.bin_theta",
             k.bin_theta,
             "> 0 rad",
+        )?;
+        ensure_config(
+            k.mode_min_mass > 0.0 && k.mode_min_mass <= 1.0,
+            C,
+            "kld.mode_min_mass",
+            k.mode_min_mass,
+            "in (0, 1]",
+        )?;
+        ensure_config(
+            k.mode_particles <= k.max_particles,
+            C,
+            "kld.mode_particles",
+            k.mode_particles as f64,
+            "<= max-particles",
+        )?;
+        ensure_config(
+            k.max_modes <= 1000,
+            C,
+            "kld.max_modes",
+            k.max_modes as f64,
+            "<= 1000",
         )?;
         let r = &self.recovery;
         ensure_config(
@@ -330,6 +400,20 @@ impl MclConfig {
             "free_max",
             self.free_max as f64,
             "in 0 … 99",
+        )?;
+        ensure_config(
+            (0.0..=10.0).contains(&self.roughening),
+            C,
+            "roughening",
+            self.roughening,
+            "in [0, 10]",
+        )?;
+        ensure_config(
+            self.not_free_weight > 0.0 && self.not_free_weight <= 1.0,
+            C,
+            "not_free_weight",
+            self.not_free_weight,
+            "in (0, 1]",
         )?;
         Ok(())
     }

@@ -49,10 +49,18 @@ pub struct StepInfo {
     pub spread: f64,
     /// Random particles drawn from the free space at this resampling (augmented MCL).
     pub injected: usize,
-    /// Short- and long-term averages of the per-beam measurement likelihood.
+    /// Short- and long-term averages of the per-beam measurement likelihood (0 at a record
+    /// without an update).
     pub w_fast: f64,
     /// See `w_fast`.
     pub w_slow: f64,
+    /// The exponent the scan's likelihood was raised to (`weight_exponent`, or lower
+    /// when adaptive tempering kept N_eff up; 0 without an update).
+    pub exponent: f64,
+    /// Modes after the weighting: clusters of particles (connected KLD bins) holding at
+    /// least `kld.mode_min_mass` of the weight. More than one: the filter is unsure
+    /// between places (0 without an update).
+    pub modes: usize,
     /// The estimate after this record.
     pub pose: Pose2,
 }
@@ -150,7 +158,7 @@ impl Mcl {
             trajectory: Vec::new(),
             updates: 0,
         };
-        f.refresh_estimate();
+        let _ = f.refresh_estimate();
         Ok(f)
     }
 
@@ -230,8 +238,10 @@ impl Mcl {
             n_eff: effective_sample_size_log(&self.log_w),
             spread: self.spread(),
             injected: 0,
-            w_fast: self.w_fast,
-            w_slow: self.w_slow,
+            w_fast: 0.0,
+            w_slow: 0.0,
+            exponent: 0.0,
+            modes: 0,
             pose: Pose2::IDENTITY,
         };
         if let Some(scan) = record
@@ -271,47 +281,104 @@ impl Mcl {
         beams: &ScanBeams,
         info: &mut StepInfo,
     ) -> Result<(), MclError> {
-        let k = self.config.sensor.weight_exponent;
+        let k_max = self.config.sensor.weight_exponent;
+        // The map prior p(x | m): a particle outside the free space is down-weighted.
+        let ln_not_free = self.config.not_free_weight.ln();
+        let free_max = self.config.free_max;
         // w_avg (PR table 8.3 line 8) over the prior weights, each likelihood taken as the
         // geometric mean per beam exp(ℓ / n) so that its scale does not depend on the beam
         // count (a product of 60 densities is far outside what α-averages can hold).
         let mut w_avg = 0.0;
+        let mut lls = Vec::with_capacity(self.poses.len());
         for (p, lw) in self.poses.iter().zip(self.log_w.iter_mut()) {
             let (ll, used) = log_likelihood(&self.map, &self.config.sensor, beams, p);
-            if used > 0 {
-                w_avg += lw.exp() * (ll / used as f64).exp();
+            if !self.map.is_free(p.x, p.y, free_max) {
+                *lw += ln_not_free;
             }
+            if used > 0 {
+                w_avg += (*lw + ll / used as f64).exp();
+            }
+            lls.push(ll);
+        }
+        let k = self.tempered_exponent(&lls, k_max);
+        for (lw, ll) in self.log_w.iter_mut().zip(&lls) {
             *lw += k * ll;
         }
+        info.exponent = k;
         normalize_log_weights(&mut self.log_w)?;
         self.updates += 1;
         let r = self.config.recovery;
         if self.w_slow == 0.0 && self.w_fast == 0.0 {
             // First update: start both averages at the first value (nav2 starts them at
-            // 0, which makes the first updates look like a sudden improvement).
+            // 0, which makes the first updates look like a sudden improvement). After a
+            // global start this value is low, so w_slow stays below w_fast, and recovery
+            // does not fire, for about 1/α_slow updates. Reading both averages
+            // bias-corrected from 0 instead (tried) let it fire, but on Acapulco the random
+            // particles then kept w_fast low and the injection fed itself for 200 m.
             self.w_slow = w_avg;
             self.w_fast = w_avg;
         } else {
             self.w_slow += r.alpha_slow * (w_avg - self.w_slow);
             self.w_fast += r.alpha_fast * (w_avg - self.w_fast);
         }
-        let p_inject = if r.alpha_slow > 0.0 && self.w_slow > 0.0 {
-            (1.0 - self.w_fast / self.w_slow).max(0.0)
+        let (w_slow, w_fast) = (self.w_slow, self.w_fast);
+        let p_inject = if r.alpha_slow > 0.0 && w_slow > 0.0 {
+            (1.0 - w_fast / w_slow).max(0.0)
         } else {
             0.0
         };
         info.updated = true;
         info.n_eff = effective_sample_size_log(&self.log_w);
         info.spread = self.spread();
-        info.w_fast = self.w_fast;
-        info.w_slow = self.w_slow;
-        self.refresh_estimate();
+        info.w_fast = w_fast;
+        info.w_slow = w_slow;
+        info.modes = self.refresh_estimate();
         let n = self.poses.len() as f64;
         if info.n_eff < self.config.resample_ratio * n || p_inject > 0.0 {
             info.injected = self.resample(p_inject)?;
             info.resampled = true;
         }
         Ok(())
+    }
+
+    /// The exponent of this update's likelihood: `k_max` unless that leaves
+    /// N_eff < `min_n_eff_ratio`·N, else the largest k in (0, k_max] that keeps N_eff at
+    /// that floor (bisection to 1e-4 relative; N_eff falls as k grows from 0, where it is
+    /// the prior's).
+    fn tempered_exponent(&self, lls: &[f64], k_max: f64) -> f64 {
+        let floor = self.config.sensor.min_n_eff_ratio * lls.len() as f64;
+        let n_eff = |k: f64| -> f64 {
+            let top = self
+                .log_w
+                .iter()
+                .zip(lls)
+                .map(|(w, l)| w + k * l)
+                .fold(f64::NEG_INFINITY, f64::max);
+            let (mut s1, mut s2) = (0.0, 0.0);
+            for (w, l) in self.log_w.iter().zip(lls) {
+                let e = (w + k * l - top).exp();
+                s1 += e;
+                s2 += e * e;
+            }
+            if s2 > 0.0 {
+                s1 * s1 / s2
+            } else {
+                0.0
+            }
+        };
+        if floor <= 0.0 || n_eff(k_max) >= floor || n_eff(0.0) < floor {
+            return k_max;
+        }
+        let (mut lo, mut hi) = (0.0, k_max);
+        while hi - lo > 1e-4 * k_max {
+            let mid = 0.5 * (lo + hi);
+            if n_eff(mid) >= floor {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo.max(1e-6 * k_max)
     }
 
     /// Low-variance (systematic) resampling of `max_particles` ancestors, visited in a
@@ -321,6 +388,21 @@ impl Mcl {
     fn resample(&mut self, p_inject: f64) -> Result<usize, MclError> {
         let kld = self.config.kld;
         let w: Vec<f64> = self.log_w.iter().map(|l| l.exp()).collect();
+        // The cloud's weighted deviation per axis, for roughening.
+        let (mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0);
+        for (p, wi) in self.poses.iter().zip(&w) {
+            mx += wi * p.x;
+            my += wi * p.y;
+            ms += wi * p.theta.sin();
+            mc += wi * p.theta.cos();
+        }
+        let (mut vx, mut vy) = (0.0, 0.0);
+        for (p, wi) in self.poses.iter().zip(&w) {
+            vx += wi * (p.x - mx).powi(2);
+            vy += wi * (p.y - my).powi(2);
+        }
+        let r_len = ms.hypot(mc).clamp(1e-12, 1.0);
+        let spread = [vx.sqrt(), vy.sqrt(), (-2.0 * r_len.ln()).sqrt()];
         let mut ancestors = Vec::with_capacity(kld.max_particles);
         Resampler::Systematic.resample_into(
             &w,
@@ -333,15 +415,20 @@ impl Mcl {
             let j = self.rng.random_range(0..=i);
             ancestors.swap(i, j);
         }
+        let (cluster, mass) = self.clusters();
         let mut bins = HashSet::new();
         let mut out = Vec::with_capacity(kld.max_particles);
+        // The cluster of each new particle's ancestor (usize::MAX: a random particle).
+        let mut out_cluster = Vec::with_capacity(kld.max_particles);
         let mut injected = 0;
         let mut needed = kld.min_particles as f64;
         for a in ancestors {
             let pose = if p_inject > 0.0 && self.rng.random::<f64>() < p_inject {
                 injected += 1;
+                out_cluster.push(usize::MAX);
                 self.map.sample_free(&mut self.rng)
             } else {
+                out_cluster.push(cluster[a]);
                 self.poses[a]
             };
             if bins.insert(bin_of(&pose, &kld)) {
@@ -353,9 +440,67 @@ impl Mcl {
                 break;
             }
         }
+        let n_base = out.len();
+        // Modes (Milstein et al. 2002, clustered particle filtering): every cluster of at
+        // least `mode_min_mass` (the `max_modes` heaviest) keeps `mode_particles`
+        // particles, drawn from its own in proportion to their weights, so that a
+        // second place that explains the scans as well (a symmetric building) is not lost
+        // to resampling noise before the data can tell the two apart.
+        let mut modes: Vec<usize> = (0..mass.len())
+            .filter(|&c| mass[c] >= kld.mode_min_mass)
+            .collect();
+        modes.sort_by(|a, b| mass[*b].total_cmp(&mass[*a]).then(a.cmp(b)));
+        modes.truncate(kld.max_modes);
+        let mut count = vec![0usize; mass.len()];
+        for &c in out_cluster.iter().filter(|&&c| c != usize::MAX) {
+            count[c] += 1;
+        }
+        for &c in &modes {
+            let missing = kld.mode_particles.saturating_sub(count[c]);
+            if missing == 0 {
+                continue;
+            }
+            let members: Vec<usize> = (0..self.poses.len()).filter(|&i| cluster[i] == c).collect();
+            let mw: Vec<f64> = members.iter().map(|&i| w[i]).collect();
+            let mut picks = Vec::with_capacity(missing);
+            Resampler::Systematic.resample_into(&mw, missing, &mut self.rng, &mut picks)?;
+            for j in picks {
+                out.push(self.poses[members[j]]);
+                out_cluster.push(c);
+            }
+            count[c] += missing;
+        }
+        // Weights: each cluster keeps its mass (renormalised over the clusters still
+        // present) shared evenly by its particles; random particles weigh 1/n_base each.
+        let f_inj = injected as f64 / n_base.max(1) as f64;
+        let present: f64 = (0..mass.len())
+            .filter(|&c| count[c] > 0)
+            .map(|c| mass[c])
+            .sum();
+        let log_w: Vec<f64> = out_cluster
+            .iter()
+            .map(|&c| {
+                if c == usize::MAX || present <= 0.0 {
+                    -(n_base as f64).ln()
+                } else {
+                    ((1.0 - f_inj) * mass[c] / present / count[c] as f64).ln()
+                }
+            })
+            .collect();
         let n = out.len();
+        let k = self.config.roughening * (n as f64).powf(-1.0 / 3.0);
+        if k > 0.0 {
+            for p in &mut out {
+                p.x += k * spread[0] * sampling::standard_normal(&mut self.rng);
+                p.y += k * spread[1] * sampling::standard_normal(&mut self.rng);
+                p.theta = slam_models::normalize_angle(
+                    p.theta + k * spread[2] * sampling::standard_normal(&mut self.rng),
+                );
+            }
+        }
         self.poses = out;
-        self.log_w = vec![-(n as f64).ln(); n];
+        self.log_w = log_w;
+        normalize_log_weights(&mut self.log_w)?;
         Ok(injected)
     }
 
@@ -374,10 +519,10 @@ impl Mcl {
         v.max(0.0).sqrt()
     }
 
-    /// The estimate: the weighted mean (circular in θ) of the heaviest cluster of
-    /// particles, a cluster being a connected set of occupied KLD bins (26-neighbourhood,
-    /// headings wrapping), as nav2 AMCL reports its pose.
-    fn refresh_estimate(&mut self) {
+    /// The particles' clusters: connected sets of occupied KLD bins (26-neighbourhood,
+    /// headings wrapping), numbered in order of first appearance (deterministic). Returns
+    /// each particle's cluster and each cluster's weight mass.
+    fn clusters(&self) -> (Vec<usize>, Vec<f64>) {
         let kld = self.config.kld;
         let nt = theta_bins(&kld);
         let mut bin_ids: HashMap<(i32, i32, i32), usize> = HashMap::new();
@@ -392,7 +537,6 @@ impl Mcl {
             });
             of.push(id);
         }
-        // Flood fill over the bins, in order of first appearance (deterministic).
         let mut cluster = vec![usize::MAX; keys.len()];
         let mut n_clusters = 0;
         let mut stack = Vec::new();
@@ -421,15 +565,30 @@ impl Mcl {
             n_clusters += 1;
         }
         let mut mass = vec![0.0; n_clusters];
-        for (i, l) in self.log_w.iter().enumerate() {
-            mass[cluster[of[i]]] += l.exp();
+        let per_particle: Vec<usize> = of.iter().map(|&b| cluster[b]).collect();
+        for (c, l) in per_particle.iter().zip(&self.log_w) {
+            mass[*c] += l.exp();
         }
+        (per_particle, mass)
+    }
+
+    /// The estimate: the weighted mean (circular in θ) of the heaviest cluster of
+    /// particles, a cluster being a connected set of occupied KLD bins (26-neighbourhood,
+    /// headings wrapping), as nav2 AMCL reports its pose.
+    /// Returns the number of clusters of at least `kld.mode_min_mass` (the modes).
+    fn refresh_estimate(&mut self) -> usize {
+        let (cluster, mass) = self.clusters();
+        let n_clusters = mass.len();
+        let modes = mass
+            .iter()
+            .filter(|m| **m >= self.config.kld.mode_min_mass)
+            .count();
         let best = (0..n_clusters)
             .max_by(|a, b| mass[*a].total_cmp(&mass[*b]).then(b.cmp(a)))
             .unwrap_or(0);
         let (mut sw, mut mx, mut my, mut ms, mut mc) = (0.0, 0.0, 0.0, 0.0, 0.0);
         for (i, p) in self.poses.iter().enumerate() {
-            if cluster[of[i]] != best {
+            if cluster[i] != best {
                 continue;
             }
             let w = self.log_w[i].exp();
@@ -440,12 +599,12 @@ impl Mcl {
             mc += w * p.theta.cos();
         }
         if sw <= 0.0 {
-            return;
+            return modes;
         }
         let mean = Pose2::new(mx / sw, my / sw, ms.atan2(mc));
         let mut cov = Matrix3::zeros();
         for (i, p) in self.poses.iter().enumerate() {
-            if cluster[of[i]] != best {
+            if cluster[i] != best {
                 continue;
             }
             let w = self.log_w[i].exp() / sw;
@@ -458,5 +617,6 @@ impl Mcl {
         }
         self.estimate = mean;
         self.estimate_cov = cov;
+        modes
     }
 }

@@ -2,106 +2,102 @@
 //! by the simulator, its odometry unaware) is re-localized, and global localization in a
 //! symmetric world is never confidently wrong for long.
 
-use rand::SeedableRng;
-use rand_pcg::Pcg64Mcg;
 use slam_mcl::{InitialBelief, Mcl, MclConfig, MclMap};
-use slam_models::{Pose2, ScanRecord};
-use slam_sim::laser::{LaserScanner, Segment, World};
+use slam_models::Pose2;
+use slam_sim::laser::{simulate_laser, LaserScanner, LaserSimConfig, Segment, Teleport, World};
 use slam_sim::path::Path;
 use slam_sim::scenario::laser::{office_path, office_world};
 
-/// The robot drives `path` in 0.25 m steps for `length` metres from arc length `s0`; at
-/// arc length `teleport.0` (if any) the simulator moves it to arc length `teleport.1`
-/// without the odometry noticing. Odometry: the true increments with 2 % translation and
-/// 1° per metre heading noise (seeded). Returns, per step, the filter's estimate, its
-/// spread and the truth, with the distance travelled.
+/// One row per record: distance the true robot drove so far (a teleport adds nothing),
+/// the filter's estimate, its cloud spread, the truth, and the modes the filter reported
+/// at its last update.
+type Row = (f64, Pose2, f64, Pose2, usize);
+
+/// slam-sim drives the robot along `path` (0.8 m/s, odometry every 0.1 s, a scan every
+/// third record, odometry α = (0.02, 0.002, 0.02, 0.001), 181 beams over 180°, 20 m,
+/// σ 1 cm), `scans` scans, with the kidnappings `teleports`; every record is fed to the
+/// filter.
 fn drive(
     world: &World,
     path: &Path,
     mcl: &mut Mcl,
-    s0: f64,
-    length: f64,
-    teleport: Option<(f64, f64)>,
-) -> Vec<(f64, Pose2, f64, Pose2)> {
-    let scanner = LaserScanner::default();
-    let mut rng = Pcg64Mcg::seed_from_u64(5);
-    let pose_at = |s: f64| {
-        let s = s.rem_euclid(path.length());
-        let p = path.point_at(s);
-        Pose2::new(p.x, p.y, path.heading_at(s))
+    scans: usize,
+    teleports: &[Teleport],
+) -> Vec<Row> {
+    let cfg = LaserSimConfig {
+        scans,
+        teleports: teleports.to_vec(),
+        scanner: LaserScanner {
+            beams: 181,
+            max_range: 20.0,
+            sigma: 0.01,
+            ..LaserScanner::default()
+        },
+        ..LaserSimConfig::default()
     };
-    let mut odom = Pose2::new(0.0, 0.0, 0.0);
-    let mut s = s0;
-    let mut prev = pose_at(s);
-    let mut out = Vec::new();
+    let run = simulate_laser(world, path, &cfg, 5).unwrap();
+    let gt = run.dataset.ground_truth.as_ref().unwrap();
     let mut travelled = 0.0;
-    let mut k = 0;
-    while travelled < length {
-        let truth = pose_at(s);
-        let d = prev.between(&truth);
-        let noise = 1.0 + 0.02 * slam_models::sampling::standard_normal(&mut rng);
-        let dth = 0.0175 * d.x.hypot(d.y) * slam_models::sampling::standard_normal(&mut rng);
-        odom = odom.compose(&Pose2::new(d.x * noise, d.y * noise, d.theta + dth));
-        let scan = scanner.scan(world, &truth, &mut rng);
-        let info = mcl
-            .process(&ScanRecord {
-                t: k as f64 * 0.25,
-                odometry: odom,
-                scan: Some(scan),
-            })
-            .unwrap();
-        out.push((travelled, info.pose, info.spread, truth));
-        prev = truth;
-        s += 0.25;
-        travelled += 0.25;
-        k += 1;
-        if let Some((at, to)) = teleport {
-            if (s - s0 - at).abs() < 0.125 {
-                s = to;
-                prev = pose_at(s); // the odometry does not see the jump
-            }
+    let mut out = Vec::with_capacity(gt.len());
+    let mut modes = 0;
+    for (k, (r, truth)) in run.dataset.records.iter().zip(gt).enumerate() {
+        if k > 0 && !teleports.iter().any(|t| t.record == k) {
+            travelled += gt[k - 1].pose.distance(&truth.pose);
         }
+        let info = mcl.process(r).unwrap();
+        if info.updated {
+            modes = info.modes;
+        }
+        out.push((travelled, info.pose, info.spread, truth.pose, modes));
     }
     out
 }
 
-/// Kidnapped after 20 m along the office corridor, carried 30 m further along it: the
+/// Kidnapped after 20 m along the office corridor: slam-sim carries the robot to the
+/// path's pose 30 m further on (`Teleport`: the truth jumps, the odometry does not). The
 /// filter, sure of the old place, must notice (w_fast falls below w_slow), spread random
 /// particles and find the robot again. Measured (seed 3): back within 0.3 m after
-/// ≈ 9 m; the bound is 25 m, and it must then stay within 0.3 m.
+/// 5.0 m; the bound is 25 m, and it must then stay within 0.3 m.
 #[test]
 fn a_kidnapped_robot_is_found_again() {
     let world = office_world();
     let path = office_path();
     let config = MclConfig::default();
     let map = MclMap::new(world.rasterize(0.05, 1.0).unwrap(), &config).unwrap();
-    let s0 = 2.0;
-    let p = path.point_at(s0);
-    let start = Pose2::new(p.x, p.y, path.heading_at(s0));
     let mut mcl = Mcl::new(
         config,
         map,
         InitialBelief::Gaussian {
-            mean: start,
+            mean: path.start_pose(),
             sigma: [0.1, 0.1, 0.05],
         },
         3,
     )
     .unwrap();
-    let steps = drive(&world, &path, &mut mcl, s0, 60.0, Some((20.0, s0 + 50.0)));
-    let err = |(_, e, _, t): &(f64, Pose2, f64, Pose2)| e.distance(t);
+    // 0.08 m per record: record 250 is 20 m along.
+    let kidnap = Teleport {
+        record: 250,
+        to: 50.0,
+    };
+    let steps = drive(&world, &path, &mut mcl, 250, &[kidnap]);
+    let err = |(_, e, _, t, _): &Row| e.distance(t);
+    let at = steps[kidnap.record].0;
     // Tracking before the kidnapping.
-    assert!(steps
+    assert!(steps[..kidnap.record]
         .iter()
-        .filter(|s| s.0 > 2.0 && s.0 < 20.0)
+        .filter(|s| s.0 > 2.0)
         .all(|s| err(s) < 0.3));
     // Lost right after it.
-    let after: Vec<_> = steps.iter().filter(|s| s.0 > 20.0).collect();
-    assert!(err(after[1]) > 5.0, "the teleport did not move the robot");
+    let after = &steps[kidnap.record..];
+    assert!(err(&after[1]) > 5.0, "the teleport did not move the robot");
     // Found again: the first step from which the error stays below 0.3 m.
     let last_bad = after.iter().rposition(|s| err(s) >= 0.3).unwrap();
-    let found_after = after[last_bad + 1].0 - 20.0;
-    eprintln!("re-localized {found_after:.1} m after the kidnapping");
+    assert!(last_bad + 1 < after.len(), "not found again by the end");
+    let found_after = after[last_bad + 1].0 - at;
+    eprintln!(
+        "re-localized {found_after:.1} m after the kidnapping ({:.1} m driven after it)",
+        steps.last().unwrap().0 - at
+    );
     assert!(
         found_after <= 25.0,
         "re-localized only after {found_after} m"
@@ -127,14 +123,18 @@ fn symmetric_hall() -> World {
 }
 
 /// Global localization in the symmetric hall, driving a loop around the boxes: at every
-/// step the cloud is either wide (spread ≥ 0.5 m, "multi-modal or unsure") or its estimate
-/// within 0.5 m of the truth; "confident and wrong" may last at most 15 m of travel in
-/// all. KNOWN FAILURE (seed 1): the cloud collapses onto the mirrored mode within the
-/// first metres and stays there, confidently wrong for 87 of 90 m: the small pillar that
-/// breaks the symmetry costs the wrong mode too little with `weight-exponent` 0.2 for
-/// augmented MCL to notice. Kept, ignored, as the target of the open part of issue 35.
+/// step the cloud is either wide (spread ≥ 0.5 m: unsure, or several places at once) or
+/// its estimate within 0.5 m of the truth; "confident and wrong" may last at most 5 m of
+/// travel in all (issue 35's stated distance), and the run must end on the truth. The
+/// modes kept by clustered resampling hold the mirrored place and the true one side by
+/// side until the pillar tells them apart; the filter reports the two (`modes` ≥ 2) on
+/// the way. KNOWN FAILURE with the defaults: seed 2 passes (0 m confidently wrong, up
+/// to 12 modes), seed 1 is confidently wrong for 58.6 of 59.5 m (the mirrored mode wins
+/// the first metres). With `sensor.min-n-eff-ratio` 0.1 both seeds pass (0 m), but then a
+/// recovery on the Intel bench log widens its converged cloud past 0.5 m at 419 m; the
+/// default 0.03 is chosen for the bench logs. Kept, ignored, as the open part of issue 35.
 #[test]
-#[ignore = "known failure: confidently wrong for 87 m of 90 m (issue 35, open)"]
+#[ignore = "known failure: seed 1 confidently wrong for 58.6 m of 59.5 m (issue 35, open)"]
 fn global_localization_in_a_symmetric_world_is_never_confidently_wrong_for_long() {
     let world = symmetric_hall();
     let path = Path::rounded(
@@ -149,21 +149,32 @@ fn global_localization_in_a_symmetric_world_is_never_confidently_wrong_for_long(
         0.05,
     )
     .unwrap();
-    let config = MclConfig::default();
-    let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
-    let mut mcl = Mcl::new(config, map, InitialBelief::Global, 1).unwrap();
-    let steps = drive(&world, &path, &mut mcl, 0.0, 90.0, None);
-    let wrong: f64 = steps
-        .iter()
-        .filter(|(_, e, spread, t)| *spread < 0.5 && e.distance(t) > 0.5)
-        .count() as f64
-        * 0.25;
-    eprintln!("confidently wrong for {wrong:.2} m of 90 m");
-    assert!(wrong <= 15.0, "confidently wrong for {wrong} m");
-    // And it ends converged on the truth.
-    let (_, e, spread, t) = steps.last().unwrap();
-    assert!(
-        *spread < 0.5 && e.distance(t) < 0.3,
-        "{e:?} vs {t:?}, spread {spread}"
-    );
+    for seed in [1, 2] {
+        let config = MclConfig::default();
+        let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
+        let mut mcl = Mcl::new(config, map, InitialBelief::Global, seed).unwrap();
+        // 250 scans, 0.24 m apart: 60 m, the loop once and a half.
+        let steps = drive(&world, &path, &mut mcl, 250, &[]);
+        let wrong: f64 = steps
+            .windows(2)
+            .filter(|w| {
+                let (_, e, spread, t, _) = w[1];
+                spread < 0.5 && e.distance(&t) > 0.5
+            })
+            .map(|w| w[1].0 - w[0].0)
+            .sum();
+        let total = steps.last().unwrap().0;
+        let most_modes = steps.iter().map(|r| r.4).max().unwrap();
+        eprintln!(
+            "seed {seed}: confidently wrong for {wrong:.2} m of {total:.1} m, up to {most_modes} modes"
+        );
+        assert!(wrong <= 5.0, "seed {seed}: confidently wrong for {wrong} m");
+        assert!(most_modes >= 2, "seed {seed}: never reported two places");
+        // And it ends converged on the truth.
+        let (_, e, spread, t, _) = steps.last().unwrap();
+        assert!(
+            *spread < 0.5 && e.distance(t) < 0.3,
+            "seed {seed}: {e:?} vs {t:?}, spread {spread}"
+        );
+    }
 }

@@ -115,6 +115,12 @@ impl Path {
         detmath::atan2(b.y - a.y, b.x - a.x)
     }
 
+    /// The pose at arc length `s` (closed paths wrap), heading along its segment.
+    pub fn pose_at(&self, s: f64) -> Pose2 {
+        let p = self.point_at(s);
+        Pose2::new(p.x, p.y, self.heading_at(s))
+    }
+
     /// The pose at the start of the path, heading along the first segment.
     pub fn start_pose(&self) -> Pose2 {
         let p = self.points[0];
@@ -250,6 +256,17 @@ impl<'a> Follower<'a> {
     /// Arc length the carrot has travelled, metres.
     pub fn progress(&self) -> f64 {
         self.s
+    }
+
+    /// Moves the carrot to arc length `s` (clamped to an open path's length), e.g. after
+    /// the simulator carried the robot there (a kidnapping). Stops any turn on the spot.
+    pub fn jump_to(&mut self, s: f64) {
+        self.s = if self.path.is_closed() {
+            s
+        } else {
+            s.clamp(0.0, self.path.length())
+        };
+        self.spinning = false;
     }
 
     /// True when an open path's end has been reached by the carrot.

@@ -10,5 +10,5 @@ pub mod sim;
 pub mod world;
 
 pub use scanner::LaserScanner;
-pub use sim::{simulate_laser, LaserSimConfig};
+pub use sim::{simulate_laser, LaserSimConfig, Teleport};
 pub use world::{Segment, World};
