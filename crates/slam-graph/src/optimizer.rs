@@ -36,7 +36,10 @@
 //! full weight (ρ = `kernel`), keeps the kernel on the others and optimises again. So correct
 //! edges end at full weight and the result is the least-squares optimum of the edges
 //! accepted, while a false closure (eᵀΩe of thousands) keeps a weight below 1e-4. Odometry
-//! edges are never down-weighted (they carry `kernel`, default none).
+//! edges are never down-weighted (they carry `kernel`, default none). The stage-2 bound
+//! follows the edge's dimension (χ²₂ of the same probability for 2-D point edges), and a
+//! front end may classify the edges itself and mark closures that start stage 1 at full
+//! weight ([`Optimizer::set_closures`]; the landmark front end does).
 
 use crate::error::GraphError;
 use crate::factor::{linearize, retract, Linearized};
@@ -119,7 +122,8 @@ pub struct OptimizerConfig {
     pub closure_kernel: RobustKernel,
     /// Stage 2: a closure whose eᵀΩe at the stage-1 result is at most this is an inlier and
     /// returns to full weight (default 16.27, the χ²(3) 99.9 % quantile: one correct 3-DoF
-    /// edge in a thousand would exceed it).
+    /// edge in a thousand would exceed it). 2-D edges (points) use the χ²(2) quantile of the
+    /// same probability (13.82 for the default).
     pub closure_inlier_chi2: f64,
     /// Start of the refinement (default auto: LAGO when it gives the lower cost).
     pub initialisation: Initialisation,
@@ -355,6 +359,11 @@ pub struct Optimizer {
     edge_kernel: Vec<RobustKernel>,
     /// Whether each edge is a closure (see the module documentation).
     closure: Vec<bool>,
+    /// Closures that start stage 1 at full weight ([`Optimizer::set_closures`]).
+    trusted: Vec<bool>,
+    /// Stage 2's inlier bound on eᵀΩe per edge dimension (index 2 and 3; see
+    /// [`OptimizerConfig::closure_inlier_chi2`]).
+    inlier_chi2: [f64; 4],
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -449,8 +458,30 @@ impl Optimizer {
             iteration: 0,
             n_edges: graph.edges().len(),
             edge_kernel: closure.iter().map(|&c| stage1_kernel(&config, c)).collect(),
+            trusted: vec![false; closure.len()],
             closure,
+            inlier_chi2: inlier_bounds(config.closure_inlier_chi2),
         })
+    }
+
+    /// Replaces the classification of the module documentation: `closure[k]` says whether
+    /// edge k is a closure (under `closure_kernel` in stage 1 and judged in stage 2), and
+    /// `trusted[k]` whether that closure starts stage 1 at full weight anyway (an inlier of
+    /// an earlier optimisation of the same graph; stage 2 judges it again). Errors when a
+    /// slice's length is not the number of edges.
+    pub fn set_closures(&mut self, closure: &[bool], trusted: &[bool]) -> Result<(), GraphError> {
+        if closure.len() != self.n_edges || trusted.len() != self.n_edges {
+            return Err(GraphError::InvalidInput(format!(
+                "closure flags for {} and {} edges, the graph has {}",
+                closure.len(),
+                trusted.len(),
+                self.n_edges
+            )));
+        }
+        self.closure = closure.to_vec();
+        self.trusted = trusted.to_vec();
+        self.set_stage1();
+        Ok(())
     }
 
     /// Number of scalar unknowns.
@@ -667,8 +698,13 @@ impl Optimizer {
 
     fn set_stage1(&mut self) {
         let c = self.config;
-        for (k, &closure) in self.edge_kernel.iter_mut().zip(&self.closure) {
-            *k = stage1_kernel(&c, closure);
+        for ((k, &closure), &trusted) in self
+            .edge_kernel
+            .iter_mut()
+            .zip(&self.closure)
+            .zip(&self.trusted)
+        {
+            *k = stage1_kernel(&c, closure && !trusted);
         }
     }
 
@@ -689,8 +725,12 @@ impl Optimizer {
                 if !self.closure[k] {
                     continue;
                 }
-                let s = linearize(e, &x).ok_or_else(|| degenerate(k))?.chi2();
-                if s <= self.config.closure_inlier_chi2 {
+                let lin = linearize(e, &x).ok_or_else(|| degenerate(k))?;
+                let bound = match lin {
+                    Linearized::Between { .. } => self.inlier_chi2[3],
+                    Linearized::Point { .. } => self.inlier_chi2[2],
+                };
+                if lin.chi2() <= bound {
                     changed |= self.edge_kernel[k] != self.config.kernel;
                     self.edge_kernel[k] = self.config.kernel;
                 } else {
@@ -770,6 +810,19 @@ pub fn is_odometry(graph: &PoseGraph, e: &Edge) -> bool {
         Edge::Between(b) => graph.nodes()[b.from].id.abs_diff(graph.nodes()[b.to].id) == 1,
         _ => false,
     }
+}
+
+/// Stage 2's inlier bounds by edge dimension: `chi2` for 3-D edges, and for 2-D edges the
+/// χ²(2) quantile of the same probability p = P(χ²(3) ≤ `chi2`) (13.82 for the default 16.27,
+/// p = 0.999), so a correct edge of either kind is rejected with the same probability.
+fn inlier_bounds(chi2: f64) -> [f64; 4] {
+    let p = slam_models::chi2::regularized_gamma_p(1.5, 0.5 * chi2);
+    let two = if p < 1.0 {
+        slam_models::chi2::chi2_quantile(2, p)
+    } else {
+        chi2
+    };
+    [chi2, chi2, two, chi2]
 }
 
 /// ρ of an edge in stage 1.

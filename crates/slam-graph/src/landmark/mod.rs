@@ -37,6 +37,15 @@
 //! runs the current pose is the last node's estimate ⊕ the controls since (dead
 //! reckoning), so the online path is coarser than the smoothed one.
 //!
+//! # False associations (loop-closure treatment)
+//! The optimiser's two-stage treatment ([`crate::optimizer`], on by default): stage 1 puts
+//! DCS (Φ = 1) on the *closures*, stage 2 returns every closure with eᵀΩe ≤ χ²₂(0.999) = 13.82
+//! to full weight. Here a closure is a re-observation of a landmark first seen more than
+//! `closure_window` pose nodes before (the observations of a landmark while it first stays in
+//! view are not: DCS would cut their typical χ² ≈ 2 to weight 0.44); a closure kept as an
+//! inlier by one optimisation starts the next one's stage 1 at full weight (stage 2 judges it
+//! again), so the short incremental runs are not spent re-admitting the same edges.
+//!
 //! # Outputs
 //! [`pose`](LandmarkSlam::pose) and [`pose_covariance`](LandmarkSlam::pose_covariance) are
 //! the belief's (after an optimisation: the smoothed latest pose and its marginal);
@@ -118,6 +127,10 @@ pub struct GraphLandmarkSlam {
     nodes_since_optimization: usize,
     associations: Vec<Association>,
     stats: GraphLandmarkStats,
+    /// Per landmark: the id of the pose node that first saw it.
+    first_seen: Vec<u64>,
+    /// Per edge: whether the last optimisation kept it as a closure inlier.
+    inlier: Vec<bool>,
 }
 
 impl GraphLandmarkSlam {
@@ -166,6 +179,8 @@ impl GraphLandmarkSlam {
                 pose_nodes: 1,
                 ..GraphLandmarkStats::default()
             },
+            first_seen: Vec::new(),
+            inlier: Vec::new(),
         })
     }
 
@@ -309,6 +324,7 @@ impl GraphLandmarkSlam {
         debug_assert_eq!(slot, j);
         self.ids.push(id);
         self.index.insert(id, j);
+        self.first_seen.push(self.last_node);
         self.add_observation_edge(j, z)
     }
 
@@ -326,7 +342,17 @@ impl GraphLandmarkSlam {
             return Err(GraphError::Empty("only the fixed initial pose"));
         }
         let mut opt = Optimizer::new(&self.graph, self.config.optimizer)?;
+        let closure = self.closures();
+        self.inlier.resize(closure.len(), false);
+        opt.set_closures(&closure, &self.inlier)?;
         let report = opt.optimize(&mut self.graph)?;
+        self.inlier.clone_from(&closure);
+        for &k in &report.rejected_closures {
+            self.inlier[k] = false;
+        }
+        if self.config.optimizer.closure_kernel == crate::RobustKernel::None {
+            self.inlier.fill(false);
+        }
         self.stats.optimizations += 1;
         self.stats.iterations += report.iterations.len();
         self.stats.last_chi2 = report.final_chi2;
@@ -360,6 +386,26 @@ impl GraphLandmarkSlam {
             cov,
         };
         Ok(report)
+    }
+
+    /// Per edge of the graph: whether it is a closure, i.e. a re-observation of a landmark
+    /// first seen more than `closure_window` pose nodes before the observing one.
+    fn closures(&self) -> Vec<bool> {
+        let nodes = self.graph.nodes();
+        self.graph
+            .edges()
+            .iter()
+            .map(|e| match e {
+                crate::graph::Edge::RangeBearing(rb) => {
+                    let pose = nodes[rb.pose].id;
+                    let j = nodes[rb.point].id.saturating_sub(LANDMARK_NODE_BASE) as usize;
+                    self.first_seen
+                        .get(j)
+                        .is_some_and(|&f| pose.saturating_sub(f) > self.config.closure_window)
+                }
+                _ => false,
+            })
+            .collect()
     }
 
     /// Associates a batch of observations, adds the pose node, edges and landmarks they
