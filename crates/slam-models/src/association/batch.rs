@@ -418,7 +418,7 @@ mod tests {
     #[test]
     fn an_old_flat_key_is_refused_with_a_hint_naming_the_table() {
         let e = toml::from_str::<Holder>("gate-probability = 0.99\n").unwrap_err();
-        let hint = moved_key_hint(e.message()).expect(e.message());
+        let hint = moved_key_hint(e.message()).unwrap_or_else(|| panic!("{}", e.message()));
         assert!(
             hint.contains("[association]") && hint.contains("gate-probability"),
             "{hint}"
