@@ -19,7 +19,7 @@ fn available(kind: filters::DataKind) -> Vec<&'static str> {
         .collect()
 }
 
-const METRIC_KEYS: [&str; 25] = [
+const METRIC_KEYS: [&str; 27] = [
     "filter",
     "dataset",
     "steps",
@@ -45,6 +45,8 @@ const METRIC_KEYS: [&str; 25] = [
     "peak_rss_mb",
     "match_failed",
     "match_recovered",
+    "map_contradicting_fraction",
+    "map_inconsistent",
 ];
 
 /// Reads `metrics.json` and checks it has exactly the contract's keys.
