@@ -13,7 +13,8 @@
 //!   [--keep | --no-run]`: every laser filter's robustness suite (see [`robust::robust`]),
 //!   writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
-//!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
+//!   by Foxglove's own TypeScript readers (see [`mcap_check`]), and `slam localize --mcap` by
+//!   the Python readers, writing into `slam-out/mcap/`.
 //! * `cargo xtask eval hostile`: ROS 1 bags of 2.5 and 5 GiB (sparse, generated) through
 //!   `slam info` and `slam run` under `/usr/bin/time -v`: right counts, peak RSS bounded
 //!   (see [`hostile::hostile`]).
@@ -780,5 +781,60 @@ fn mcap_check() -> Result<(), String> {
             )?;
         }
     }
-    Ok(())
+    localize_mcap_check(&exe, &python, out, bag)
+}
+
+/// `slam localize --mcap` on the `intel-tf` bag, localized on its own known-poses map from
+/// its first pose, checked by `scripts/check_mcap.py` (the map's files are copied beside
+/// the localization's outputs, where the script looks for them).
+fn localize_mcap_check(
+    exe: &std::path::Path,
+    python: &std::path::Path,
+    out: &std::path::Path,
+    bag: &str,
+) -> Result<(), String> {
+    let map_dir = out.join("known-poses-intel-tf");
+    run(
+        "slam run known-poses intel-tf",
+        Command::new(exe)
+            .args([
+                "run",
+                "--filter",
+                "known-poses",
+                "--dataset",
+                bag,
+                "--quiet",
+            ])
+            .arg("--out")
+            .arg(&map_dir),
+    )?;
+    let (dir, file) = (
+        out.join("localize-intel-tf"),
+        out.join("localize-intel-tf.mcap"),
+    );
+    run(
+        "slam localize intel-tf --mcap",
+        Command::new(exe)
+            .args(["localize", "--dataset", bag, "--global", "--force", "--map"])
+            .arg(map_dir.join("map.yaml"))
+            .arg("--out")
+            .arg(&dir)
+            .arg("--mcap")
+            .arg(&file),
+    )?;
+    for f in ["map.yaml", "map.pgm"] {
+        std::fs::copy(map_dir.join(f), dir.join(f)).map_err(|e| format!("{f}: {e}"))?;
+    }
+    run(
+        "check localize-intel-tf",
+        Command::new(python)
+            .arg("scripts/check_mcap.py")
+            .arg(&file)
+            .arg("--out")
+            .arg(&dir)
+            .args([
+                "--topics",
+                "/map,/particles,/pose,/scan,/tf,/tf_static,/trajectory",
+            ]),
+    )
 }
