@@ -6,6 +6,23 @@ mod common;
 use common::{dataset, scratch, slam};
 use slam_cli::Outcome;
 
+/// `slam run --filter known-poses` of `log` into `<dir>/map`; returns that folder.
+fn map_with_known_poses(log: &str, dir: &std::path::Path) -> std::path::PathBuf {
+    let map_dir = dir.join("map");
+    let (r, text) = slam(&[
+        "run",
+        "--filter",
+        "known-poses",
+        "--dataset",
+        log,
+        "--out",
+        map_dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(r.is_ok(), "{r:?} {text}");
+    map_dir
+}
+
 /// Maps `<site>-corrected.log.gz` with `known-poses`, localizes `bench/<site>.log` with
 /// `--global`; returns the report.
 fn map_then_localize(site: &str) -> Option<slam_cli::localize::LocalizeReport> {
@@ -13,18 +30,7 @@ fn map_then_localize(site: &str) -> Option<slam_cli::localize::LocalizeReport> {
     let log = dataset(&format!("bench/{site}.log"))?;
     let reference = dataset(&format!("bench/{site}.ref.tum"))?;
     let dir = scratch(&format!("localize-{site}"));
-    let map_dir = dir.join("map");
-    let (r, text) = slam(&[
-        "run",
-        "--filter",
-        "known-poses",
-        "--dataset",
-        corrected.to_str().unwrap(),
-        "--out",
-        map_dir.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(r.is_ok(), "{r:?} {text}");
+    let map_dir = map_with_known_poses(corrected.to_str().unwrap(), &dir);
     let out = dir.join("loc");
     let (r, text) = slam(&[
         "localize",
@@ -166,18 +172,7 @@ fn localize_writes_mcap_and_a_picture_with_the_particles() {
         .count();
     let o = input.dataset.records[0].odometry;
     let dir = scratch("localize-mcap");
-    let map_dir = dir.join("map");
-    let (r, text) = slam(&[
-        "run",
-        "--filter",
-        "known-poses",
-        "--dataset",
-        &bag,
-        "--out",
-        map_dir.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert!(r.is_ok(), "{r:?} {text}");
+    let map_dir = map_with_known_poses(&bag, &dir);
     let mcap = dir.join("loc.mcap");
     // Few particles keep the test (and the file) small.
     let config = dir.join("small.toml");
