@@ -145,10 +145,18 @@ impl<'a> Line<'a> {
 
     /// The next field, or an error saying what was expected there.
     pub fn word(&mut self, expected: &str) -> Result<&'a str, IoError> {
-        match self.fields.next() {
-            Some(w) => Ok(w),
-            None => Err(self.error(format!("{expected} (line ended early)"), self.text.trim())),
-        }
+        self.next_word().ok_or_else(|| self.ended_early(expected))
+    }
+
+    /// The next field, if any: [`Line::word`] without building the description of the
+    /// field (readers of large files build it only on error, with [`Line::ended_early`]).
+    pub fn next_word(&mut self) -> Option<&'a str> {
+        self.fields.next()
+    }
+
+    /// The error of a line that ended where `expected` should have been.
+    pub fn ended_early(&self, expected: &str) -> IoError {
+        self.error(format!("{expected} (line ended early)"), self.text.trim())
     }
 
     /// The next field as a finite f64 of magnitude at most [`bounds::MAX_MAGNITUDE`] (the
