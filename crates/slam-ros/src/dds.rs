@@ -192,20 +192,36 @@ impl Participant {
         })
     }
 
+    /// The DDS topic `dds_topic` (shown as `shown` in errors) of `ros_type`.
     fn topic(
         &self,
-        ros_topic: &str,
+        dds_topic: String,
+        shown: &str,
         ros_type: &str,
         profile: Profile,
     ) -> Result<rustdds::Topic, RosError> {
         self.dp
             .create_topic(
-                dds_topic_name(ros_topic),
+                dds_topic,
                 slam_io::ros_msg::dds_type_name(ros_type),
                 &profile.qos(),
                 TopicKind::NoKey,
             )
-            .map_err(|e| RosError::Dds(format!("topic {ros_topic}: {e}")))
+            .map_err(|e| RosError::Dds(format!("topic {shown}: {e}")))
+    }
+
+    /// A writer of DDS topic `dds_topic` (shown as `shown` in errors).
+    fn dds_writer(
+        &self,
+        dds_topic: String,
+        shown: &str,
+        ros_type: &str,
+        profile: Profile,
+    ) -> Result<Writer, RosError> {
+        let topic = self.topic(dds_topic, shown, ros_type, profile)?;
+        self.publisher
+            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
+            .map_err(|e| RosError::Dds(format!("writer of {shown}: {e}")))
     }
 
     /// The participant's GUID (RTPS: 12-byte prefix, 4-byte entity id), ROS 2's gid of it.
@@ -217,19 +233,9 @@ impl Participant {
     /// `rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_`, reliable, keep last 1,
     /// transient local, as `rmw_dds_common`'s graph cache publishes it).
     pub fn discovery_info_writer(&self) -> Result<Writer, RosError> {
-        let profile = Profile::Latched;
-        let topic = self
-            .dp
-            .create_topic(
-                crate::graph::DISCOVERY_TOPIC.to_string(),
-                slam_io::ros_msg::dds_type_name(crate::graph::DISCOVERY_TYPE),
-                &profile.qos(),
-                TopicKind::NoKey,
-            )
-            .map_err(|e| RosError::Dds(format!("topic ros_discovery_info: {e}")))?;
-        self.publisher
-            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
-            .map_err(|e| RosError::Dds(format!("writer of ros_discovery_info: {e}")))
+        use crate::graph::{DISCOVERY_TOPIC, DISCOVERY_TYPE};
+        let topic = DISCOVERY_TOPIC.to_string();
+        self.dds_writer(topic, DISCOVERY_TOPIC, DISCOVERY_TYPE, Profile::Latched)
     }
 
     /// A writer of `ros_topic` (type `pkg/msg/Type`) with `profile`.
@@ -239,10 +245,7 @@ impl Participant {
         ros_type: &str,
         profile: Profile,
     ) -> Result<Writer, RosError> {
-        let topic = self.topic(ros_topic, ros_type, profile)?;
-        self.publisher
-            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
-            .map_err(|e| RosError::Dds(format!("writer of {ros_topic}: {e}")))
+        self.dds_writer(dds_topic_name(ros_topic), ros_topic, ros_type, profile)
     }
 
     /// A reader of `ros_topic` (type `pkg/msg/Type`) with `profile`.
@@ -252,7 +255,7 @@ impl Participant {
         ros_type: &str,
         profile: Profile,
     ) -> Result<Reader, RosError> {
-        let topic = self.topic(ros_topic, ros_type, profile)?;
+        let topic = self.topic(dds_topic_name(ros_topic), ros_topic, ros_type, profile)?;
         self.subscriber
             .create_datareader_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
             .map_err(|e| RosError::Dds(format!("reader of {ros_topic}: {e}")))
