@@ -562,8 +562,10 @@ fn eval(extra: &[String]) -> Result<(), String> {
     Ok(())
 }
 
-/// The Python of a throwaway venv (`$ENV_VAR`, default `default`), made with `packages`
-/// (pinned) on first use.
+/// The Python of a throwaway venv (`$ENV_VAR`, default `default`) holding `packages`
+/// (pinned). The venv is made on first use; the packages are installed unless the venv's
+/// `slam-packages.txt` (written only after pip succeeded) lists exactly them, so a failed or
+/// interrupted install is retried rather than leaving a venv without them.
 fn python_venv(
     env_var: &str,
     default: &str,
@@ -578,12 +580,17 @@ fn python_venv(
             "make the Python venv",
             Command::new("python3").args(["-m", "venv"]).arg(&venv),
         )?;
+    }
+    let marker = venv.join("slam-packages.txt");
+    let want = packages.join("\n") + "\n";
+    if std::fs::read_to_string(&marker).ok().as_deref() != Some(want.as_str()) {
         run(
             &format!("install {}", packages.join(", ")),
             Command::new(&python)
                 .args(["-m", "pip", "install", "--quiet"])
                 .args(packages),
         )?;
+        std::fs::write(&marker, want).map_err(|e| format!("{}: {e}", marker.display()))?;
     }
     Ok(python)
 }

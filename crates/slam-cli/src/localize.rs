@@ -65,6 +65,9 @@ pub struct LocalizeArgs {
     /// 127.0.0.1:8765) while it runs (docs/ros2.md).
     #[arg(long, value_name = "ADDRESS", num_args = 0..=1, default_missing_value = slam_ros::live::DEFAULT_ADDRESS)]
     pub live: Option<String>,
+    /// With --live: after the localization, keep serving its last state until Ctrl-C.
+    #[arg(long, requires = "live")]
+    pub live_hold: bool,
 }
 
 /// `x,y,theta[,sx,sy,stheta]`: finite numbers, σ ≥ 0.
@@ -255,6 +258,7 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
         source: e,
     })?;
     staging.commit(&names)?;
+    crate::hold_live(args.live_hold, live.as_ref().map(|v| v.server()));
     let _ = writeln!(
         out,
         "{} records, {} updates, {:.1} m travelled, particles {}–{}, converged after {}",
@@ -318,7 +322,13 @@ pub(crate) fn run_log(
         prev = Some(r.odometry);
         let info = mcl.process(r).map_err(CliError::from)?;
         if let Some(v) = live.as_deref_mut() {
-            v.localize_step(r, mcl.pose(), &mcl.particles(), mcl.map().grid_map());
+            v.localize_step(
+                r,
+                mcl.pose(),
+                &mcl.particles(),
+                mcl.map().grid_map(),
+                mcl.trajectory(),
+            );
         }
         if let Some(m) = mcap.as_deref_mut() {
             let cloud = info.updated.then(|| mcl.particles());
