@@ -67,6 +67,12 @@ pub struct SensorConfig {
     /// plausible pose. 0 switches it off. Default 0.03 (0.1 kept random particles of a
     /// recovery heavy enough to widen a converged Intel cloud past 0.5 m at 419 m).
     pub min_n_eff_ratio: f64,
+    /// The same floor while a global start converges (`MclConfig::converge_min_travel`);
+    /// the larger of the two applies then. A global cloud holds several look-alike places
+    /// at once; a higher floor keeps any one scan from deciding between them by sampling
+    /// luck before the robot has seen what tells them apart. 0 = `min_n_eff_ratio` only.
+    /// Default 0.1 (the 0.03 afterwards keeps a recovery's random particles light).
+    pub global_min_n_eff_ratio: f64,
 }
 
 impl Default for SensorConfig {
@@ -85,6 +91,7 @@ impl Default for SensorConfig {
             max_distance: 1.0,
             weight_exponent: 0.2,
             min_n_eff_ratio: 0.03,
+            global_min_n_eff_ratio: 0.1,
         }
     }
 }
@@ -242,8 +249,8 @@ impl Default for MclConfig {
             roughening: 0.2,
             free_max: 19,
             not_free_weight: 1e-6,
-            evidence_distance: 0.5,
-            converge_min_travel: 2.0,
+            evidence_distance: 0.2,
+            converge_min_travel: 5.0,
             converge_mode_mass: 0.9,
         }
     }
@@ -322,6 +329,13 @@ impl MclConfig {
             C,
             "sensor.min_n_eff_ratio",
             s.min_n_eff_ratio,
+            "in [0, 1)",
+        )?;
+        ensure_config(
+            (0.0..1.0).contains(&s.global_min_n_eff_ratio),
+            C,
+            "sensor.global_min_n_eff_ratio",
+            s.global_min_n_eff_ratio,
             "in [0, 1)",
         )?;
         let k = &self.kld;

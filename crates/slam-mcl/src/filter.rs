@@ -378,7 +378,13 @@ impl Mcl {
     /// that floor (bisection to 1e-4 relative; N_eff falls as k grows from 0, where it is
     /// the prior's).
     fn tempered_exponent(&self, lls: &[f64], k_max: f64) -> f64 {
-        let floor = self.config.sensor.min_n_eff_ratio * lls.len() as f64;
+        let s = &self.config.sensor;
+        let ratio = if self.converging {
+            s.min_n_eff_ratio.max(s.global_min_n_eff_ratio)
+        } else {
+            s.min_n_eff_ratio
+        };
+        let floor = ratio * lls.len() as f64;
         let n_eff = |k: f64| -> f64 {
             let top = self
                 .log_w
