@@ -110,6 +110,9 @@ pub struct UpdateRow {
     /// The exponent the scan's likelihood was raised to (below `weight-exponent` when
     /// adaptive tempering kept N_eff up).
     pub exponent: f64,
+    /// A global start not yet converged by the filter's own test (slam-mcl's
+    /// `StepInfo::converging`): the evidence of each update is scaled by its translation.
+    pub converging: bool,
 }
 
 /// What `slam localize` measured (metrics.json).
@@ -383,6 +386,7 @@ fn summarise(
             resampled: s.resampled,
             injected: s.injected,
             exponent: s.exponent,
+            converging: s.converging,
         })
         .collect();
     // Converged for good: the first update after the last one with a wide cloud.
