@@ -86,10 +86,13 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// model widened by the window, N(x', R + W) with
 /// W = diag((w_xy/2)², (w_xy/2)², (w_θ/2)²): the broad component of a mixture that admits
 /// odometry errors of the window's size. Hill climbing from its best pose replaces the
-/// local match when more beams find the map there; the samples τⱼ then use that widened
-/// motion density, so that the recovered particle is neither favoured nor punished for the
-/// distance from its prediction beyond what the window allows. The wide search's match is
-/// taken only when it is not poor itself.
+/// local match when more beams find the map there; the samples τⱼ then use the mixture
+/// (1 − ε)·N(x′, R) + ε·N(x′, R + W) ([`MotionDensity`]), so that the recovered particle
+/// pays the prior odds ε of an odometry outlier and nothing more for the distance from its
+/// prediction within the window. The wide search's match is taken only when it is not
+/// poor itself and fits `accept-fraction` of the beams. On a step whose odometry turned
+/// (`turn-trigger`), a poor match the wide window did not recover is searched again over
+/// every heading at the predicted position ([`recover`]).
 ///
 /// When the match still has too few inliers (empty or unrelated map) the particle falls
 /// back to [`motion_and_likelihood`] and the failure is reported.
@@ -214,10 +217,13 @@ pub(crate) fn improved_fit(
 /// proposal, η = Σⱼ p(z | m, xⱼ)·p(xⱼ | xₜ₋₁, uₜ) (Grisetti et al. 2007, eqs. 12, 18), with
 /// that mixture as p(xⱼ | …). A particle whose match was not recovered weighs its samples
 /// (within 1 cm / 0.3° of a mode the hill climber reached from x′) by the first component
-/// alone: the broad one adds at most ε/(1 − ε)·√(det R / det(R + W)) relative to it at
-/// x′ (about 10⁻⁶ for a 0.1 m / 0.1 rad odometry σ and the indoor window), less wherever
-/// e = x − x′ is small against R. A recovered particle's samples lie where the broad
-/// component can dominate, so it weighs them by both, exactly.
+/// alone: the broad one adds at most ε/(1 − ε)·√(det R / det(R + W)) relative to it (for
+/// a 0.1 m / 0.1 rad odometry σ, 4·10⁻⁵ with the indoor wide window, 2·10⁻⁴ with the
+/// turn search's), so ln η moves by less than 2·10⁻⁴ nats; leaving it out keeps every
+/// step without a recovery as it was. W is the window of the search that recovered (the
+/// wide window, or the turn search's on a step that turned). A recovered particle's
+/// samples lie where the broad component can dominate, so it weighs them by both,
+/// exactly.
 pub(crate) struct MotionDensity {
     /// x′ = xₜ₋₁ ⊕ uₜ.
     pub predicted: Pose2,
@@ -278,9 +284,9 @@ fn climb(
     }
 }
 
-/// The answer to a poor match `m`: the wide search's match and the widened covariance
-/// R + W, when they replace `m` (see [`improved`]); `None` when `m` is not poor or the
-/// wide match is not taken.
+/// The answer to a poor match `m`: the wide search's match, or on a step that turned the
+/// turn search's, and the widened covariance R + W of the window searched, when they
+/// replace `m` (see [`improved`]); `None` when `m` is not poor or neither match is taken.
 fn recover(
     map: &slam_grid::OccupancyGrid,
     field: &DistanceField<'_>,
