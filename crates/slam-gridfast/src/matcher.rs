@@ -110,8 +110,9 @@ pub(crate) mod tests {
         assert_eq!(tight.inliers, 0);
     }
 
-    #[test]
-    fn hill_climbing_recovers_an_offset_pose() {
+    /// The room of [`room_scan`] mapped from three poses that see it from different
+    /// places and headings.
+    pub(crate) fn room_map() -> OccupancyGrid {
         let mut map = empty_map();
         for p in [
             Pose2::new(0.0, 0.0, 0.0),
@@ -120,6 +121,12 @@ pub(crate) mod tests {
         ] {
             map.integrate_scan(&p, &room_scan(&p));
         }
+        map
+    }
+
+    #[test]
+    fn hill_climbing_recovers_an_offset_pose() {
+        let map = room_map();
         let truth = Pose2::new(0.3, 0.4, 0.3);
         let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
         let lk = EndpointModel {
