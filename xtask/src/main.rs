@@ -80,6 +80,23 @@ fn cargo() -> Command {
     Command::new(cargo_path())
 }
 
+/// The cargo target folder: `$CARGO_TARGET_DIR` when set (cargo itself honours it), else
+/// `target`.
+fn target_dir() -> std::path::PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"))
+}
+
+/// Builds the `slam` program (release) and returns its path, `<target>/release/slam`.
+fn build_slam() -> Result<std::path::PathBuf, String> {
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    Ok(target_dir().join("release").join("slam"))
+}
+
 /// The cargo program (`$CARGO`, else `cargo` on the path).
 fn cargo_path() -> String {
     std::env::var("CARGO").unwrap_or_else(|_| "cargo".into())
@@ -534,10 +551,7 @@ fn gridfast_intel() -> Result<(), String> {
 }
 
 fn eval(extra: &[String]) -> Result<(), String> {
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
+    let exe = build_slam()?;
     let plan = std::path::Path::new("configs/eval.txt");
     let text = std::fs::read_to_string(plan).map_err(|e| {
         format!(
@@ -545,11 +559,6 @@ fn eval(extra: &[String]) -> Result<(), String> {
             plan.display()
         )
     })?;
-    // Honour CARGO_TARGET_DIR, as cargo itself does.
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
-    let exe = target.join("release").join("slam");
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
@@ -619,16 +628,9 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
         "/tmp/slam-ros2-venv",
         &["cyclonedds==11.0.1", "websockets==17.4"],
     )?;
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
     let exe = std::env::current_dir()
         .map_err(|e| format!("current folder: {e}"))?
-        .join(target.join("release").join("slam"));
+        .join(build_slam()?);
     let log = "../shared/datasets/bench/intel.log";
     if !std::path::Path::new(log).is_file() {
         return Err(format!(
@@ -688,14 +690,8 @@ fn mcap_check() -> Result<(), String> {
         "/tmp/slam-mcap-venv",
         &["mcap==1.6.0", "mcap-ros2-support==0.6.0", "rosbags==0.11.9"],
     )?;
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
-    let exe = target.join("release").join("slam");
+    let exe = build_slam()?;
+    let target = target_dir();
     // Foxglove's readers, installed once under the target folder.
     let node_dir = std::env::current_dir()
         .map_err(|e| format!("current folder: {e}"))?

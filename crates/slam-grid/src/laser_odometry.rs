@@ -247,7 +247,12 @@ impl LaserOdometry {
         scan: &LaserScan,
         turn: Option<f64>,
     ) -> Result<(Pose2, MatchOutcome), GridError> {
-        let prepared = PreparedScan::with_limits(scan, 0.0, self.matcher.match_max_range)?;
+        let prepared = PreparedScan::with_limits(
+            scan,
+            &self.matcher.sensor_model,
+            0.0,
+            self.matcher.match_max_range,
+        )?;
         let (Some((last, velocity)), Some(map)) = (self.last, self.submaps.first()) else {
             self.insert(&Pose2::IDENTITY, &prepared)?;
             self.last = Some((Pose2::IDENTITY, Pose2::IDENTITY));
@@ -677,8 +682,9 @@ mod tests {
             let (pose, _) = lo.process(b, None).unwrap();
             assert!(near(&pose, truth), "{pose:?} vs {truth:?}");
 
-            let b = PreparedScan::with_limits(b, 0.0, config.match_max_range).unwrap();
-            let a = PreparedScan::with_limits(a, 0.0, config.match_max_range).unwrap();
+            let model = config.matcher_config().sensor_model;
+            let b = PreparedScan::with_limits(b, &model, 0.0, config.match_max_range).unwrap();
+            let a = PreparedScan::with_limits(a, &model, 0.0, config.match_max_range).unwrap();
             let mut missed = 0;
             for offset in [
                 Pose2::new(1.0, 0.0, 0.5),

@@ -11,7 +11,7 @@ use crate::matcher::endpoint::{
 use crate::scan::PreparedScan;
 use crate::{InverseSensorModel, MAX_DISTANCE_RADIUS};
 use serde::{Deserialize, Serialize};
-use slam_models::{normalize_angle, FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam};
+use slam_models::{normalize_angle, FilterError, GridMap, Pose2, ScanRecord, ScanSlam};
 use slam_models::{ConfigError, Vector3};
 use slam_models::{Matrix3, OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
 
@@ -486,7 +486,12 @@ impl ScanMatchOdometry {
                 || moved >= self.config.linear_update
                 || turned >= self.config.angular_update;
             if due {
-                let prepared = PreparedScan::with_limits(scan, 0.0, self.config.match_max_range)?;
+                let prepared = PreparedScan::with_limits(
+                    scan,
+                    &self.config.sensor_model,
+                    0.0,
+                    self.config.match_max_range,
+                )?;
                 let pose = if self.map_has_scan {
                     match self.match_scan(&prepared, &predicted)? {
                         Some(pose) => pose,
@@ -514,18 +519,7 @@ impl ScanMatchOdometry {
     }
 }
 
-impl FromConfig for ScanMatchOdometry {
-    type Config = ScanMatchConfig;
-    type Error = GridError;
-
-    fn from_config(
-        config: ScanMatchConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GridError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(ScanMatchOdometry, ScanMatchConfig, GridError);
 
 impl ScanSlam for ScanMatchOdometry {
     fn name(&self) -> &str {

@@ -24,7 +24,7 @@ pub(crate) mod tests {
     use slam_grid::matcher::endpoint::{
         hill_climb, score, score_scan, EndpointModel, HillClimbSteps,
     };
-    use slam_grid::{InverseSensorModel, LaserScan, OccupancyGrid, Point2, Pose2, PreparedScan};
+    use slam_grid::{InverseSensorModel, LaserScan, OccupancyGrid, Point2, Pose2, RangeData};
 
     pub(crate) fn empty_map() -> OccupancyGrid {
         let model = InverseSensorModel {
@@ -128,7 +128,8 @@ pub(crate) mod tests {
     fn hill_climbing_recovers_an_offset_pose() {
         let map = room_map();
         let truth = Pose2::new(0.3, 0.4, 0.3);
-        let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
+        let scan =
+            RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
         let lk = EndpointModel {
             k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
             radius: 0.2,

@@ -189,7 +189,7 @@ mod tests {
                 .unwrap();
         }
         let scan = box_scan(0.0, hx, hy, open_ends);
-        let prepared = PreparedScan::with_limits(&scan, 0.0, 20.0).unwrap();
+        let prepared = PreparedScan::with_limits(&scan, grid.sensor_model(), 0.0, 20.0).unwrap();
         let sampling = ResponseSampling {
             linear_window: 0.3,
             angular_window: 0.02,

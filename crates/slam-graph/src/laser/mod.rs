@@ -54,8 +54,8 @@ use crate::graph::PoseGraph;
 use crate::optimizer::Optimizer;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, PreparedScan};
 use slam_models::{
-    normalize_angle, FilterError, FromConfig, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2,
-    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
+    normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
+    ScanSlam, ScanUpdateInfo, TimedPose,
 };
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -191,8 +191,8 @@ impl Clone for LaserGraphSlam {
 
 impl LaserGraphSlam {
     /// A front end with no data yet, in the one constructor shape of every filter
-    /// ([`FromConfig`]); rejects an invalid configuration (the error names the field and
-    /// its bound).
+    /// ([`slam_models::FromConfig`]); rejects an invalid configuration (the error names the
+    /// field and its bound).
     ///
     /// `initial_pose` is the pose of the odometry frame in the world, as for grid FastSLAM:
     /// every odometry reading o is taken as the world pose `initial_pose ⊕ o`, so the map
@@ -285,6 +285,7 @@ impl LaserGraphSlam {
         let prepared = match &record.scan {
             Some(s) => Some(PreparedScan::with_limits(
                 s,
+                &self.config.sensor_model,
                 0.0,
                 self.config.match_max_range,
             )?),
@@ -932,18 +933,7 @@ fn invert(cov: &Matrix3) -> Matrix3 {
     (m + m.transpose()) * 0.5
 }
 
-impl FromConfig for LaserGraphSlam {
-    type Config = LaserGraphConfig;
-    type Error = GraphError;
-
-    fn from_config(
-        config: LaserGraphConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GraphError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(LaserGraphSlam, LaserGraphConfig, GraphError);
 
 impl ScanSlam for LaserGraphSlam {
     fn name(&self) -> &str {

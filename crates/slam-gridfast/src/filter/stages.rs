@@ -18,10 +18,11 @@ use crate::matcher::field;
 use crate::proposal::{improved_fit, motion_and_likelihood, Drawn, Step};
 use crate::setup::Setup;
 use slam_grid::matcher::endpoint::{grid_search, hill_climb};
-use slam_grid::PreparedScan;
+use slam_grid::RangeData;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights, PathNode};
 use slam_models::{OdometryControl, Pose2, ScanUpdateInfo};
+use std::sync::Arc;
 
 /// What one processed scan's match on the best particle's map gives every particle.
 pub(super) struct Shared {
@@ -60,7 +61,7 @@ impl GridFastSlam {
     pub(super) fn update(
         &mut self,
         k: usize,
-        prepared: PreparedScan,
+        prepared: Arc<RangeData>,
     ) -> Result<ScanUpdateInfo, GridFastError> {
         let r_prev = self.scan_records[k - 1];
         let odo_now = *self.odometry.last().unwrap_or(&Pose2::IDENTITY);
@@ -87,7 +88,7 @@ impl GridFastSlam {
     fn match_and_draw(
         &mut self,
         k: usize,
-        prepared: &PreparedScan,
+        prepared: &RangeData,
         u: OdometryControl,
     ) -> Result<(Shared, Vec<Drawn>), GridFastError> {
         let (setup, seed, m) = (&self.setup, self.seed, self.particles.len());
@@ -238,7 +239,7 @@ impl GridFastSlam {
     fn queue_integration(
         &mut self,
         k: usize,
-        prepared: PreparedScan,
+        prepared: Arc<RangeData>,
         regrouped: Regrouped,
     ) -> Result<(), GridFastError> {
         let Regrouped { groups, best, dead } = regrouped;
@@ -286,7 +287,7 @@ fn particles_len(groups: &[(Particle, usize)]) -> usize {
 fn shared_match(
     setup: &Setup,
     best: &Particle,
-    scan: &PreparedScan,
+    scan: &RangeData,
     u: OdometryControl,
     m: usize,
 ) -> Shared {

@@ -17,7 +17,8 @@ fn the_gain_tempers_the_weight_not_the_proposal() {
         map.integrate_scan(&p, &room_scan(&p));
     }
     let truth = Pose2::new(0.3, 0.4, 0.3);
-    let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
+    let scan =
+        PreparedScan::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
     let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
     let previous = Pose2::new(0.0, 0.0, 0.0);
     // Odometry that overshoots the true pose by a few centimetres.
@@ -218,7 +219,9 @@ fn corridor_draw(
     }
     let truth = Pose2::new(1.9, 0.1, 0.05);
     let previous = Pose2::new(1.1, 0.05, 0.0);
-    let scan = PreparedScan::with_limits(&corridor_scan(&truth, 30.0), 0.0, 29.9).unwrap();
+    let scan =
+        PreparedScan::with_limits(&corridor_scan(&truth, 30.0), &Default::default(), 0.0, 29.9)
+            .unwrap();
     let setup = indoor_setup(|c| {
         c.matching.min_inlier_fraction = 0.05;
         c.matching.start_choice = start_choice;
@@ -329,7 +332,13 @@ fn a_wide_match_in_unmapped_space_needs_most_beams_on_the_map() {
     }
     let truth = Pose2::new(0.0, 0.0, 0.0);
     let previous = Pose2::new(-1.0, 0.0, 0.0);
-    let scan = PreparedScan::with_limits(&ribbed_corridor_scan(&truth), 0.0, 2.999).unwrap();
+    let scan = PreparedScan::with_limits(
+        &ribbed_corridor_scan(&truth),
+        &Default::default(),
+        0.0,
+        2.999,
+    )
+    .unwrap();
     // The trigger counted among all the beams (`observed-only` off), so that the wide
     // search runs and only the acceptance rule is tested.
     let draw = |accept_fraction: f64| {
