@@ -367,7 +367,8 @@ fn missed_turn_draw(edit: impl FnOnce(&mut crate::GridFastConfig)) -> (Pose2, Dr
     let previous = Pose2::new(-0.5, 0.4, 0.3);
     let truth = Pose2::new(-0.5, 0.4, 0.3 - 0.35);
     let measured = Pose2::new(-0.5, 0.4, 0.3 + 0.89);
-    let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 29.9).unwrap();
+    let scan =
+        PreparedScan::with_limits(&room_scan(&truth), &Default::default(), 0.0, 29.9).unwrap();
     let setup = indoor_setup(edit);
     let drawn = indoor_draw(&map, &scan, (previous, measured), Pose2::IDENTITY, &setup);
     (truth, drawn)
