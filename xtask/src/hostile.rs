@@ -23,12 +23,11 @@ const BLOB_BYTES: u64 = 64 << 20;
 /// The largest peak RSS accepted, MiB.
 const RSS_BOUND_MIB: u64 = 512;
 
-/// slam-io's ROS 1 record writer, included from its one source rather than linked (xtask
-/// does not depend on the workspace's crates).
+// slam-io's ROS 1 record writer, compiled from its one source rather than linked (xtask
+// does not depend on the workspace's crates).
 #[allow(dead_code)] // `ros1_record`: the bags here stream their data after the head.
-mod record {
-    include!("../../crates/slam-io/src/rosbag/ros1_record.rs");
-}
+#[path = "../../crates/slam-io/src/rosbag/ros1_record.rs"]
+mod record;
 use record::ros1_record_head as record_head;
 
 /// A connection record: `id`, `topic`, type and md5sum.

@@ -1,6 +1,6 @@
-// The one writer of ROS 1 bag records, for the bags tests and the xtask write (slam-io reads
-// bags only). xtask includes this file (`include!`) rather than depend on slam-io, so it
-// holds plain functions only: no inner attributes, no paths into the crate.
+//! The one writer of ROS 1 bag records, for the bags tests and the xtask write (slam-io reads
+//! bags only). xtask compiles this file as a module of its own (`#[path]`) rather than
+//! depend on slam-io, so it holds plain functions only: no paths into the crate.
 
 /// One ROS 1 bag record (format 2.0, wiki.ros.org/Bags/Format/2.0): the header (each field
 /// `name=value` after its u32 little-endian length, the whole after its length), then the
