@@ -19,10 +19,10 @@ subscriber receives `rt/map` and `rt/tf`. Then, after Ctrl-C (SIGINT) to the nod
   node's name and namespace, and its readers and writers among them those that matched
   Cyclone's (by the gids Cyclone's own discovery reports for them).
 
-On a private DDS domain (100 + pid % 100) on this machine's own interface: not loopback
-only, because RustDDS 0.13.1 ignores the loopback locators a peer announces
-(`rtps_reader_proxy.rs` `not_loopback`, `transmit.rs`), so it cannot reach a Cyclone held to
-127.0.0.1 (docs/ros2.md). Exits non-zero on any failed check; prints the figures as JSON on
+On a private DDS domain (100 + pid % 100). `cargo xtask eval ros2` runs it inside a network
+namespace of its own (a veth pair, no route out), so nothing leaves the machine; plain
+loopback does not work because RustDDS 0.13.1 ignores the loopback locators a peer announces
+(`rtps_reader_proxy.rs` `not_loopback`, `transmit.rs`; docs/ros2.md). Exits non-zero on any failed check; prints the figures as JSON on
 the last line.
 """
 

@@ -619,8 +619,10 @@ fn python_venv(
 ///    `websockets` client with Cyclone's CDR decoder (every channel decodes; map and
 ///    trajectory against the run's files).
 ///
-/// Everything runs on loopback on a private DDS domain; each script starts and stops its
-/// processes. Outputs in `slam-out/ros2/`.
+/// The DDS runs (1 and 2) are confined to this machine: each runs in a network namespace
+/// of its own ([`isolated_network`]), so no packet leaves the machine and no other DDS
+/// participant on the network can join; each script starts and stops its processes.
+/// Outputs in `slam-out/ros2/`.
 fn ros2_check(extra: &[String]) -> Result<(), String> {
     let scans = extra.first().map(String::as_str).unwrap_or("300");
     let python = python_venv(
@@ -649,7 +651,10 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
         if !compare {
             cmd.arg("--no-compare");
         }
-        run(&format!("ROS 2 node with Cyclone DDS, {name}"), &mut cmd)?;
+        run(
+            &format!("ROS 2 node with Cyclone DDS, {name}"),
+            &mut isolated_network(cmd)?,
+        )?;
     }
     run(
         "Foxglove live view, independent client",
@@ -665,6 +670,50 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
             ]),
     )?;
     Ok(())
+}
+
+/// `cmd` run inside a network namespace of its own (`unshare -rn`, an unprivileged user
+/// namespace), whose only network is a veth pair 10.99.0.1 ↔ 10.99.0.2 with the multicast
+/// route on it, and loopback: DDS discovery (multicast) and traffic stay inside it, which
+/// RustDDS needs because it ignores the 127.0.0.1 locators a peer announces (so plain
+/// loopback does not work). Errors when the namespace cannot be made, unless
+/// `SLAM_ROS2_HOST_NETWORK=1` asks to run on the host's network instead.
+fn isolated_network(cmd: Command) -> Result<Command, String> {
+    let host = std::env::var("SLAM_ROS2_HOST_NETWORK").is_ok_and(|v| v == "1");
+    let probe = Command::new("unshare")
+        .args(["-rn", "true"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !probe {
+        if host {
+            eprintln!("xtask: no network namespace (unshare -rn failed): on the host's network");
+            return Ok(cmd);
+        }
+        return Err(
+            "unshare -rn failed: cannot confine DDS to this machine (user \
+                    namespaces off?); SLAM_ROS2_HOST_NETWORK=1 runs on the host's network"
+                .into(),
+        );
+    }
+    let setup = "ip link add v0 type veth peer name v1 && \
+                 ip addr add 10.99.0.1/24 dev v0 && ip addr add 10.99.0.2/24 dev v1 && \
+                 ip link set lo up && ip link set v0 up && ip link set v1 up && \
+                 ip route add 224.0.0.0/4 dev v0 && exec \"$@\"";
+    let mut wrapped = Command::new("unshare");
+    wrapped
+        .args(["-rn", "sh", "-c", setup, "sh"])
+        .arg(cmd.get_program())
+        .args(cmd.get_args());
+    if let Some(dir) = cmd.get_current_dir() {
+        wrapped.current_dir(dir);
+    }
+    for (k, v) in cmd.get_envs() {
+        match v {
+            Some(v) => wrapped.env(k, v),
+            None => wrapped.env_remove(k),
+        };
+    }
+    Ok(wrapped)
 }
 
 /// `cargo xtask eval mcap`: the MCAP files `slam run --mcap` writes, read back by
