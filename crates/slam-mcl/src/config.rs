@@ -129,7 +129,8 @@ pub struct KldConfig {
     /// resampling (clustered particle filtering, Milstein et al. 2002). Default 0.01.
     pub mode_min_mass: f64,
     /// Particles each mode keeps at a resampling at least (drawn from its own by weight,
-    /// each cluster's mass kept). Default 100.
+    /// each cluster's mass kept), as far as `max_particles` leaves room: the count never
+    /// passes `max_particles`. Default 100.
     pub mode_particles: usize,
     /// At most this many modes (the heaviest) are kept so. Default 8.
     pub max_modes: usize,

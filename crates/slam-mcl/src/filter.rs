@@ -494,7 +494,9 @@ impl Mcl {
             count[c] += 1;
         }
         for &c in &modes {
-            let missing = kld.mode_particles.saturating_sub(count[c]);
+            // Never past `max_particles`: the top-up takes what the KLD draw left.
+            let room = kld.max_particles.saturating_sub(out.len());
+            let missing = kld.mode_particles.saturating_sub(count[c]).min(room);
             if missing == 0 {
                 continue;
             }

@@ -173,3 +173,40 @@ fn scans_from_one_place_count_once_while_a_global_start_converges() {
     });
     assert!(tracked.iter().all(|(k, c)| !c && *k > 0.0), "{tracked:?}");
 }
+
+/// `max_particles` bounds the particle count at every step, the modes' top-up included:
+/// from a global start (the count starts at the bound) with mode top-ups large enough to
+/// pass it (8 modes × 400 particles against a bound of 1,000), no step reports more.
+#[test]
+fn the_particle_count_never_passes_max_particles() {
+    let world = room();
+    let mut config = MclConfig::default();
+    config.kld.max_particles = 1000;
+    config.kld.min_particles = 100;
+    config.kld.mode_particles = 400;
+    config.kld.mode_min_mass = 0.001;
+    let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
+    let mut mcl = Mcl::new(config, map, InitialBelief::Global, 3).unwrap();
+    let scanner = LaserScanner::default();
+    let mut rng = Pcg64Mcg::seed_from_u64(1);
+    let mut resampled = 0;
+    for k in 0..40 {
+        let truth = Pose2::new(1.5 + 0.15 * k as f64, 1.5, 0.0);
+        let scan = scanner.scan(&world, &truth, &mut rng);
+        let info = mcl
+            .process(&ScanRecord {
+                t: k as f64,
+                odometry: truth,
+                scan: Some(scan),
+            })
+            .unwrap();
+        resampled += usize::from(info.resampled);
+        assert!(
+            info.particles <= 1000,
+            "step {k}: {} particles",
+            info.particles
+        );
+        assert_eq!(info.particles, mcl.particle_count());
+    }
+    assert!(resampled > 0, "the check must see resamplings");
+}
