@@ -380,3 +380,45 @@ fn slam_localize_live_serves_every_output() {
     assert!(dir.join("loc/trajectory.tum").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `slam ros2` stopped by SIGTERM (what systemd and `ros2 launch`'s escalation send) before
+/// any scan arrived: it exits 0 and writes node.json with 0 scans processed, and no map or
+/// trajectory (there is none yet), instead of failing on an empty grid.
+#[test]
+fn slam_ros2_stops_on_sigterm_before_any_scan() {
+    let dir = scratch("ros2-sigterm");
+    let out = dir.join("node");
+    let domain = (230 + std::process::id() % 2).to_string();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_slam"))
+        .args([
+            "ros2",
+            "--domain-id",
+            &domain,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-TERM", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(Instant::now() < deadline, "no exit 60 s after SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("node.json")).unwrap()).unwrap();
+    assert_eq!(report["processed"], 0);
+    assert!(!out.join("map.pgm").exists());
+}

@@ -547,10 +547,19 @@ pub fn run_node(
         crate::graph::encode_participant_entities_info(&dp.gid(), &[]),
     );
     result?;
-    // Shutdown: the final map out, and everything on disk.
-    let stamp = node.now_stamp(&inbox);
-    node.publish_map(filter.as_ref(), stamp)?;
-    node.report.files = save(filter.as_ref(), &opts.out)?;
+    // Shutdown: the final map out, and everything on disk (no map exists before the first
+    // scan: then only node.json, and the log says so).
+    if node.report.processed > 0 {
+        let stamp = node.now_stamp(&inbox);
+        node.publish_map(filter.as_ref(), stamp)?;
+        node.report.files = save(filter.as_ref(), &opts.out)?;
+    } else {
+        std::fs::create_dir_all(&opts.out).map_err(|e| RosError::Write {
+            path: opts.out.clone(),
+            source: Box::new(e),
+        })?;
+        log("slam ros2: no scan processed, so no map or trajectory to save");
+    }
     node.report.latency = Latency::of(&node.latencies);
     if let Some(rss) = current_rss_mb() {
         node.report.rss_mb.push(rss);
