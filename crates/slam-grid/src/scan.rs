@@ -189,6 +189,16 @@ impl RangeData {
         })
     }
 
+    /// Frees the matching points ([`RangeData::points`] and its subsets) of a scan whose
+    /// matching is over, keeping what map integration reads (origin, returns, misses): a
+    /// filter that keeps its scans to re-render maps keeps them at the size of the raw
+    /// beams. Matching this scan afterwards finds no points.
+    pub fn release_matching_points(&mut self) {
+        self.points = Vec::new();
+        self.coarse = Vec::new();
+        self.half = Vec::new();
+    }
+
     /// Hit end points in the robot frame (metres) used for matching.
     #[inline]
     pub fn points(&self) -> &[Point2] {

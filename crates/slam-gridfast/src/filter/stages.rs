@@ -93,6 +93,7 @@ impl GridFastSlam {
     ) -> Result<(Shared, Vec<Drawn>), GridFastError> {
         let (setup, seed, m) = (&self.setup, self.seed, self.particles.len());
         let share_fits = self.shares_fits();
+        let integrated = self.pending.as_ref().map(|p| p.k);
         let stepped = schedule::step_groups(
             &mut self.particles,
             self.best,
@@ -110,6 +111,13 @@ impl GridFastSlam {
                 draw_group(&step, (seed, k), group, start, shared, share_fits)
             },
         );
+        // The scan the maps just took is kept only to re-render maps: its matching points
+        // go (the Arc is unique once step_groups dropped the pending scan).
+        if let Some(scan) = integrated.and_then(|j| self.scans.get_mut(j)) {
+            if let Some(scan) = Arc::get_mut(scan) {
+                scan.release_matching_points();
+            }
+        }
         stepped.inspect_err(|e| {
             // The maps no longer all hold the same scans: refuse further records.
             self.failed = Some(e.to_string());
