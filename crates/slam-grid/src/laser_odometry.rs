@@ -50,7 +50,7 @@
 
 use crate::error::{ensure_config, GridError};
 use crate::matcher::endpoint::{EndpointMatch, SearchWindow};
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use crate::scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
 use serde::{Deserialize, Serialize};
 use slam_models::{normalize_angle, LaserScan, Pose2, ScanRecord, YawRate};
@@ -313,7 +313,7 @@ impl LaserOdometry {
 
     /// Writes `scan` at `pose` into the active submaps, starting a new one when the newer
     /// is full and dropping the older then (Cartographer's `ActiveSubmaps2D`).
-    fn insert(&mut self, pose: &Pose2, scan: &PreparedScan) -> Result<(), GridError> {
+    fn insert(&mut self, pose: &Pose2, scan: &RangeData) -> Result<(), GridError> {
         let n = self.config.submap_scans;
         let full = self.submaps.last().is_some_and(|s| n > 0 && s.scans >= n);
         if self.submaps.is_empty() || full {
@@ -340,7 +340,7 @@ impl LaserOdometry {
         scan: &LaserScan,
         turn: Option<f64>,
     ) -> Result<(Pose2, MatchOutcome), GridError> {
-        let prepared = PreparedScan::with_limits(
+        let prepared = RangeData::with_limits(
             scan,
             &self.matcher.sensor_model,
             0.0,
@@ -468,7 +468,7 @@ impl LaserOdometry {
     /// `None`: failed, `fallback` kept) and writes the scan into the map when due.
     fn finish(
         &mut self,
-        prepared: &PreparedScan,
+        prepared: &RangeData,
         last: Pose2,
         fallback: Pose2,
         matched: Option<(usize, Pose2)>,
@@ -874,8 +874,8 @@ mod tests {
             assert!(near(&pose, truth), "{pose:?} vs {truth:?}");
 
             let model = config.matcher_config().sensor_model;
-            let b = PreparedScan::with_limits(b, &model, 0.0, config.match_max_range).unwrap();
-            let a = PreparedScan::with_limits(a, &model, 0.0, config.match_max_range).unwrap();
+            let b = RangeData::with_limits(b, &model, 0.0, config.match_max_range).unwrap();
+            let a = RangeData::with_limits(a, &model, 0.0, config.match_max_range).unwrap();
             let mut missed = 0;
             for offset in [
                 Pose2::new(1.0, 0.0, 0.5),

@@ -50,7 +50,7 @@ pub use grid::sensor_model::InverseSensorModel;
 pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
 pub use grid::{CopyStats, OccupancyGrid, MAX_MAP_CELLS, MAX_MAP_EXTENT_CELLS};
 pub use likelihood::{LikelihoodField, LikelihoodParams};
-pub use scan::{PreparedScan, RangeData};
+pub use scan::RangeData;
 pub mod matcher;
 
 #[cfg(test)]

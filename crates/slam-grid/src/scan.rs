@@ -100,9 +100,6 @@ pub struct RangeData {
     pub(crate) max_point_range: f64,
 }
 
-/// The former name of [`RangeData`], kept while the branches that name it merge.
-pub type PreparedScan = RangeData;
-
 /// The coarse subset keeps every `COARSE_STRIDE`-th matching point.
 const COARSE_STRIDE: usize = 4;
 

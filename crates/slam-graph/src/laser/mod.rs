@@ -52,7 +52,7 @@ pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SC
 use crate::error::GraphError;
 use crate::graph::PoseGraph;
 use crate::optimizer::Optimizer;
-use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, PreparedScan};
+use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
     normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
     ScanSlam, ScanUpdateInfo, TimedPose,
@@ -85,7 +85,7 @@ struct LoopMap {
 #[derive(Debug, Clone)]
 struct Keyframe {
     record: usize,
-    scan: PreparedScan,
+    scan: RangeData,
     /// Pose in the local (scan-matching) frame.
     local: Pose2,
     /// Current estimate in the world frame (the optimised keyframe graph).
@@ -283,7 +283,7 @@ impl LaserGraphSlam {
         // Prepare the scan before anything changes, so that a bad scan leaves the state as
         // it was.
         let prepared = match &record.scan {
-            Some(s) => Some(PreparedScan::with_limits(
+            Some(s) => Some(RangeData::with_limits(
                 s,
                 &self.config.sensor_model,
                 0.0,
@@ -334,7 +334,7 @@ impl LaserGraphSlam {
     fn add_keyframe(
         &mut self,
         i: usize,
-        scan: PreparedScan,
+        scan: RangeData,
         info: &mut ScanUpdateInfo,
     ) -> Result<(), GraphError> {
         let odometry = self.odometry[i];
@@ -441,7 +441,7 @@ impl LaserGraphSlam {
     /// True when the response of `scan` on `grid` around `pose` is flat along one
     /// direction: the translational block of its sampled covariance
     /// ([`covariance::response_covariance`]) has σ_max / σ_min above `loop-max-anisotropy`.
-    fn flat_match(&self, grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> bool {
+    fn flat_match(&self, grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> bool {
         let sampling = match self.config.match_covariance {
             MatchCovariance::Response {
                 linear_window,
@@ -471,7 +471,7 @@ impl LaserGraphSlam {
 
     /// Local scan-to-submap match from `predicted`: pose and covariance, or `None` when
     /// there is no submap yet, the match failed or scored below `local-min-score`.
-    fn local_match(&self, scan: &PreparedScan, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
+    fn local_match(&self, scan: &RangeData, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
         let &oldest = self.active.first()?;
         let grid = self.submaps[oldest].grid.as_ref()?;
         match self
@@ -492,7 +492,7 @@ impl LaserGraphSlam {
     fn match_covariance(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         pose: &Pose2,
         matcher: Matrix3,
     ) -> Matrix3 {
@@ -561,7 +561,7 @@ impl LaserGraphSlam {
         &mut self,
         k: usize,
         local: &Pose2,
-        scan: &PreparedScan,
+        scan: &RangeData,
     ) -> Result<(), GraphError> {
         let n = self.config.submap_scans;
         let start_new = match self.active.last() {
@@ -721,13 +721,7 @@ impl LaserGraphSlam {
     /// followed by a small branch-and-bound search of ±0.1 m, ±0.2 m, ±0.2 m and
     /// ±0.05 rad) scores at least
     /// `loop-ambiguity-ratio` × `score`: the match is not unique.
-    fn ambiguous(
-        &self,
-        pyramid: &MaxPyramid,
-        scan: &PreparedScan,
-        best: &Pose2,
-        score: f64,
-    ) -> bool {
+    fn ambiguous(&self, pyramid: &MaxPyramid, scan: &RangeData, best: &Pose2, score: f64) -> bool {
         let bar = self.config.loop_ambiguity_ratio * score;
         let local = BranchBoundMatcher {
             linear_window: 0.2,

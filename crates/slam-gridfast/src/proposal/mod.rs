@@ -10,7 +10,7 @@ use slam_grid::matcher::endpoint::{
     EndpointModel,
 };
 use slam_grid::DistanceField;
-use slam_grid::PreparedScan;
+use slam_grid::RangeData;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 
@@ -18,7 +18,7 @@ use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 /// odometry increment and the best particle's coarse correction.
 pub(crate) struct Step<'a> {
     pub setup: &'a Setup,
-    pub scan: &'a PreparedScan,
+    pub scan: &'a RangeData,
     /// The odometry increment since the last processed scan.
     pub u: OdometryControl,
     /// The correction x̂_best ⊖ x'_best that the shared coarse search found for the best
@@ -484,7 +484,7 @@ fn log_add(a: f64, b: f64) -> f64 {
 pub(crate) fn observed_beams(
     map: &slam_grid::OccupancyGrid,
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
     model: &EndpointModel,
 ) -> usize {
@@ -512,12 +512,12 @@ pub(crate) fn observed_beams(
 }
 
 /// The end points the K samples of the improved proposal score: every 2nd
-/// ([`PreparedScan::half_points`]), and the factor n / n_half that scales their
+/// ([`RangeData::half_points`]), and the factor n / n_half that scales their
 /// log-likelihood to the whole scan's. The samples are close to one another (±1 cm, ±0.3°
 /// by default), so half the beams still tell them apart, at half the cost (they were about
 /// a third of a particle's evaluations). Measured on Intel (5 seeds, relations) and
 /// Freiburg-101 (3 seeds, ATE): docs/results/gridfast-speed.md.
-fn sample_points(scan: &PreparedScan) -> (&[slam_models::Point2], f64) {
+fn sample_points(scan: &RangeData) -> (&[slam_models::Point2], f64) {
     let points = scan.half_points();
     (
         points,

@@ -17,8 +17,7 @@ fn the_gain_tempers_the_weight_not_the_proposal() {
         map.integrate_scan(&p, &room_scan(&p));
     }
     let truth = Pose2::new(0.3, 0.4, 0.3);
-    let scan =
-        PreparedScan::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
+    let scan = RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
     let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
     let previous = Pose2::new(0.0, 0.0, 0.0);
     // Odometry that overshoots the true pose by a few centimetres.
@@ -167,7 +166,7 @@ fn indoor_setup(edit: impl FnOnce(&mut crate::GridFastConfig)) -> Setup {
 /// says, `to`, with the best particle's coarse correction `correction`.
 fn indoor_draw(
     map: &slam_grid::OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     (previous, to): (Pose2, Pose2),
     correction: Pose2,
     setup: &Setup,
@@ -219,9 +218,8 @@ fn corridor_draw(
     }
     let truth = Pose2::new(1.9, 0.1, 0.05);
     let previous = Pose2::new(1.1, 0.05, 0.0);
-    let scan =
-        PreparedScan::with_limits(&corridor_scan(&truth, 30.0), &Default::default(), 0.0, 29.9)
-            .unwrap();
+    let scan = RangeData::with_limits(&corridor_scan(&truth, 30.0), &Default::default(), 0.0, 29.9)
+        .unwrap();
     let setup = indoor_setup(|c| {
         c.matching.min_inlier_fraction = 0.05;
         c.matching.start_choice = start_choice;
@@ -332,7 +330,7 @@ fn a_wide_match_in_unmapped_space_needs_most_beams_on_the_map() {
     }
     let truth = Pose2::new(0.0, 0.0, 0.0);
     let previous = Pose2::new(-1.0, 0.0, 0.0);
-    let scan = PreparedScan::with_limits(
+    let scan = RangeData::with_limits(
         &ribbed_corridor_scan(&truth),
         &Default::default(),
         0.0,
@@ -367,8 +365,7 @@ fn missed_turn_draw(edit: impl FnOnce(&mut crate::GridFastConfig)) -> (Pose2, Dr
     let previous = Pose2::new(-0.5, 0.4, 0.3);
     let truth = Pose2::new(-0.5, 0.4, 0.3 - 0.35);
     let measured = Pose2::new(-0.5, 0.4, 0.3 + 0.89);
-    let scan =
-        PreparedScan::with_limits(&room_scan(&truth), &Default::default(), 0.0, 29.9).unwrap();
+    let scan = RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 29.9).unwrap();
     let setup = indoor_setup(edit);
     let drawn = indoor_draw(&map, &scan, (previous, measured), Pose2::IDENTITY, &setup);
     (truth, drawn)
