@@ -73,3 +73,8 @@ impl TimeSpan {
 /// size (all members). Reading stops at this many bytes, so a small "gzip bomb" cannot
 /// exhaust memory; a larger input is [`crate::IoError::TooLarge`].
 pub const MAX_TEXT_BYTES: u64 = 2 << 30;
+
+/// Longest line of a text input, bytes (16 MiB). The longest legitimate line is a CARMEN
+/// scan of [`MAX_BEAMS`] readings, about 2 MB; a longer one (a gzip of one endless line)
+/// is refused while it is being decompressed, so it never costs [`MAX_TEXT_BYTES`] of memory.
+pub const MAX_LINE_BYTES: usize = 16 << 20;

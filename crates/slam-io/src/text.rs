@@ -19,6 +19,12 @@ pub(crate) struct TextFile {
 /// an error. At most [`bounds::MAX_TEXT_BYTES`] are read, plain or decompressed
 /// ([`IoError::TooLarge`] beyond). A UTF-8 byte-order mark at the start is skipped; CRLF
 /// line ends are handled by the line iterator. Non-UTF-8 content is an error naming the line.
+///
+/// Text holds no NUL byte and no line longer than [`bounds::MAX_LINE_BYTES`]: either is an
+/// [`IoError::Parse`] naming the line and the byte offset (in the decompressed data for
+/// gzip). Decompressed data is checked block by block as it arrives (1 MiB), so a gzip of
+/// zeros or of one endless line is refused after its first block or its first 16 MiB, not
+/// after [`bounds::MAX_TEXT_BYTES`] of memory.
 pub(crate) fn read_text(path: &Path) -> Result<TextFile, IoError> {
     read_text_limited(path, bounds::MAX_TEXT_BYTES)
 }
@@ -28,13 +34,23 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoE
     let bytes = read_bytes_limited(path, limit)?;
     let bytes = if bytes.len() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b {
         let mut out = Vec::with_capacity(bytes.len().saturating_mul(4).min(limit as usize));
-        flate2::read::MultiGzDecoder::new(&bytes[..])
-            .take(limit.saturating_add(1))
-            .read_to_end(&mut out)
-            .map_err(|source| IoError::Decompress {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let mut decoder =
+            flate2::read::MultiGzDecoder::new(&bytes[..]).take(limit.saturating_add(1));
+        let mut check = TextCheck::default();
+        loop {
+            let start = out.len();
+            let n = (&mut decoder)
+                .take(BLOCK)
+                .read_to_end(&mut out)
+                .map_err(|source| IoError::Decompress {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+            check.feed(path, &out, start)?;
+            if n == 0 {
+                break;
+            }
+        }
         if out.len() as u64 > limit {
             return Err(IoError::TooLarge {
                 path: path.to_path_buf(),
@@ -44,6 +60,7 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoE
         }
         out
     } else {
+        TextCheck::default().feed(path, &bytes, 0)?;
         bytes
     };
     let mut bytes = bytes;
@@ -64,6 +81,85 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<TextFile, IoE
         path: path.to_path_buf(),
         text,
     })
+}
+
+/// Decompressed data is read and checked in blocks of this many bytes.
+const BLOCK: u64 = 1 << 20;
+const _: () = assert!((BLOCK as usize) < bounds::MAX_LINE_BYTES);
+
+/// The running check of [`read_text_limited`]: no NUL byte, no line longer than
+/// [`bounds::MAX_LINE_BYTES`], over data that arrives in blocks.
+#[derive(Default)]
+struct TextCheck {
+    /// Bytes since the last line end (the current line's length so far).
+    run: usize,
+}
+
+impl TextCheck {
+    /// Checks `data[start..]` block by block (`data[..start]` was checked before).
+    fn feed(&mut self, path: &Path, data: &[u8], start: usize) -> Result<(), IoError> {
+        let mut at = start;
+        while at < data.len() {
+            let end = (at + BLOCK as usize).min(data.len());
+            self.feed_block(path, data, at, end)?;
+            at = end;
+        }
+        Ok(())
+    }
+
+    /// Checks the block `data[start..end]`; a line longer than the cap within it is found as
+    /// long as blocks are shorter than the cap.
+    fn feed_block(
+        &mut self,
+        path: &Path,
+        data: &[u8],
+        start: usize,
+        end: usize,
+    ) -> Result<(), IoError> {
+        let block = &data[start..end];
+        let error = |offset: usize, expected: String, found: String| {
+            let line = data[..offset].iter().filter(|&&b| b == b'\n').count() + 1;
+            IoError::Parse {
+                path: path.to_path_buf(),
+                line,
+                expected,
+                found,
+            }
+        };
+        if let Some(i) = block.iter().position(|&b| b == 0) {
+            return Err(error(
+                start + i,
+                "text (binary data is not a text file)".into(),
+                format!("a NUL byte at byte offset {}", start + i),
+            ));
+        }
+        let too_long = |at: usize| {
+            error(
+                at,
+                format!("a line of at most {} bytes", bounds::MAX_LINE_BYTES),
+                format!(
+                    "a line that goes on past byte offset {}",
+                    at + bounds::MAX_LINE_BYTES
+                ),
+            )
+        };
+        match block.iter().position(|&b| b == b'\n') {
+            None => {
+                self.run += block.len();
+                if self.run > bounds::MAX_LINE_BYTES {
+                    return Err(too_long(start + block.len() - self.run));
+                }
+            }
+            Some(first) => {
+                if self.run + first > bounds::MAX_LINE_BYTES {
+                    return Err(too_long(start - self.run));
+                }
+                let last = block.iter().rposition(|&b| b == b'\n').unwrap_or(first);
+                self.run = block.len() - last - 1;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The UTF-8 encoding of U+FEFF, which some editors put at the start of a text file.
@@ -386,6 +482,66 @@ mod tests {
         // A member followed by garbage is an error, not a silently shortened log.
         std::fs::write(&p, [gz(&a), b"garbage".to_vec()].concat()).unwrap();
         assert!(matches!(read_text(&p), Err(IoError::Decompress { .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// Compresses `data` (fast level) into `path`.
+    fn write_gz(path: &Path, data: &[u8]) {
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        e.write_all(data).unwrap();
+        std::fs::write(path, e.finish().unwrap()).unwrap();
+    }
+
+    #[test]
+    fn nul_bytes_and_endless_lines_are_refused_with_line_and_offset() {
+        let dir = std::env::temp_dir().join(format!("slam-io-text-nul-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A NUL byte on line 3, at byte offset 11 + 11 + 4 = 26, plain and gzip.
+        let mut data = b"ODOM 1 0 0\nODOM 2 0 0\nODOM".to_vec();
+        data.extend_from_slice(&[0, b' ', b'3', b'\n']);
+        for (name, gz) in [("nul.log", false), ("nul.log.gz", true)] {
+            let p = dir.join(name);
+            if gz {
+                write_gz(&p, &data);
+            } else {
+                std::fs::write(&p, &data).unwrap();
+            }
+            let e = read_text(&p).unwrap_err();
+            assert!(matches!(e, IoError::Parse { line: 3, .. }), "{e}");
+            let e = e.to_string();
+            assert!(
+                e.contains(name) && e.contains("NUL byte at byte offset 26"),
+                "{e}"
+            );
+        }
+        // A line one byte longer than the cap after two short lines (22 bytes), as one gzip
+        // stream (the check spans the 1 MiB blocks) and as a plain file; a line of exactly the
+        // cap is accepted.
+        let cap = bounds::MAX_LINE_BYTES;
+        for len in [cap, cap + 1] {
+            let mut long = b"ODOM 1 0 0\nODOM 2 0 0\n".to_vec();
+            long.resize(22 + len, b'7');
+            long.push(b'\n');
+            for gz in [false, true] {
+                let p = dir.join(if gz { "long.log.gz" } else { "long.log" });
+                if gz {
+                    write_gz(&p, &long);
+                } else {
+                    std::fs::write(&p, &long).unwrap();
+                }
+                let r = read_text(&p);
+                if len == cap {
+                    assert_eq!(r.unwrap().text.len(), long.len());
+                } else {
+                    let e = r.unwrap_err();
+                    assert!(matches!(e, IoError::Parse { line: 3, .. }), "{e}");
+                    assert!(
+                        e.to_string().contains(&format!("at most {cap} bytes")),
+                        "{e}"
+                    );
+                }
+            }
+        }
         std::fs::remove_dir_all(&dir).ok();
     }
 
