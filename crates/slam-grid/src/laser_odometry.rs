@@ -16,11 +16,11 @@
 //!    yaw rate integrated over the scan interval, [`integrate_yaw_rate`]) one more, the
 //!    constant-velocity translation with the prior's heading change. Hypotheses closer
 //!    than one search step to an earlier one are searched once.
-//! 2. **Search**, optionally narrow first (Olson, ICRA 2009: the wide search only when
-//!    the narrow one fails; off by default, `narrow-range-xy` / `-theta` 0). With it, the
-//!    prediction (the rotation prior's hypothesis, else constant velocity's) is searched
-//!    over a narrow window (e.g. ±0.3 m, ±0.25 rad) and climbed; when `good-fit` of the
-//!    end points fit the map there (default 95 %) that is the pose. Otherwise the exact optimum of the truncated endpoint model over a wide window
+//! 2. **Search**, narrow first (Olson, ICRA 2009): the prediction (the rotation prior's
+//!    hypothesis, else constant velocity's) is searched over a narrow window (default
+//!    ±0.3 m, ±0.25 rad; 0 switches it off) and climbed; when `good-fit` of the end points
+//!    fit the map there that is the pose (by default never: `good-fit` above 1, the wide
+//!    search runs on every scan). Then the exact optimum of the truncated endpoint model over a wide window
 //!    (default ±1.5 m, ±0.8 rad; with the rotation prior's hypothesis ±`prior-range-theta`
 //!    in θ) is found around each hypothesis by branch and bound over precomputed max-pooled
 //!    grids ([`crate::matcher::endpoint::wide_search`]: Olson 2009, §IV-C; Cartographer's
@@ -104,19 +104,21 @@ pub struct LaserOdometryConfig {
     pub submap_scans: usize,
     /// The narrow search around the prediction tried first: ± this in x and y, metres
     /// (at most `search-range-xy`); 0 with `narrow-range-theta` 0: no narrow search, the
-    /// wide one on every scan. Default 0 (off: on 2026-12-03, 0.3 m / 0.25 rad with
-    /// `good-fit` 0.95 made laser odometry cheaper but less accurate on Intel and the
-    /// simulated office, docs/results.md).
+    /// wide one on every scan. Default 0.3 m, with `good-fit` above 1 (the wide search on
+    /// every scan too) and `wide-margin` 0.03: the narrow match kept unless a wide one fits
+    /// clearly better (on 2026-12-03: graph on Intel without odometry 0.351 → 0.278 m,
+    /// the office's worst of seeds 0–4 0.87 → 0.41 m for gridfast, docs/results.md; with
+    /// `good-fit` 0.95 it was cheaper but less accurate).
     pub narrow_range_xy: f64,
     /// … and ± this in θ, radians, in [0, π] (at most the prediction's own θ range).
-    /// Default 0 (off).
+    /// Default 0.25 rad.
     pub narrow_range_theta: f64,
     /// The narrow search's match is taken, without the wide search, when at least this
     /// fraction of the end points fit the map (end within `likelihood-radius` of an
-    /// occupied cell), ≥ 0; above 1 the wide search always runs. Default 0.95: on real
-    /// scans (Intel's keyframes, ~1 m apart) a narrow match around a poor prediction
-    /// often fits 80–90 % of the beams at a wrong pose, while simulated scans matched
-    /// right fit nearly all.
+    /// occupied cell), ≥ 0; above 1 the wide search always runs. Default 1.5 (always): on
+    /// real scans (Intel's keyframes, ~1 m apart) a narrow match around a poor prediction
+    /// often fits 80–90 % of the beams at a wrong pose, so a good fit alone does not make
+    /// the wide search unnecessary (0.95 made laser odometry less accurate there).
     pub good_fit: f64,
     /// Standard deviations (metres, radians) of the motion prior around the prediction
     /// that weighs the wide search's results against each other and against the narrow
@@ -146,9 +148,9 @@ impl Default for LaserOdometryConfig {
             ],
             prior_range_theta: 0.1,
             submap_scans: 20,
-            narrow_range_xy: 0.0,
-            narrow_range_theta: 0.0,
-            good_fit: 0.95,
+            narrow_range_xy: 0.3,
+            narrow_range_theta: 0.25,
+            good_fit: 1.5,
             motion_prior_std: [0.0, 0.0],
             wide_margin: 0.03,
         }
