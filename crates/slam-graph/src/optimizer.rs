@@ -53,7 +53,7 @@ use crate::factor::{linearize, retract, Linearized};
 use crate::graph::{Edge, NodeValue, PoseGraph};
 use crate::kernel::RobustKernel;
 use crate::lago;
-use crate::linear::{BlockPattern, Factorization, Ordering, SparseLlt};
+use crate::linear::{block_amd_rank, BlockPattern, Factorization, Ordering, SparseLlt};
 use serde::{Deserialize, Serialize};
 
 mod gnc;
@@ -431,6 +431,26 @@ impl Optimizer {
         if dims.is_empty() {
             return Err(GraphError::Empty("every node is fixed"));
         }
+        if config.ordering == Ordering::Amd {
+            // Blocks numbered in the AMD order of the block graph: H is assembled already
+            // permuted, and LAGO's systems share the order (crate::linear::block_amd_rank).
+            let pairs = graph.edges().iter().filter_map(|e| {
+                let (i, j) = e.nodes();
+                Some((block_of[i]?, block_of[j]?))
+            });
+            let rank = block_amd_rank(dims.len(), pairs)?;
+            let mut nodes = vec![0; dims.len()];
+            let mut sizes = vec![0; dims.len()];
+            for (b, &r) in rank.iter().enumerate() {
+                nodes[r] = node_of_block[b];
+                sizes[r] = dims[b];
+            }
+            for (r, &i) in nodes.iter().enumerate() {
+                block_of[i] = Some(r);
+            }
+            node_of_block = nodes;
+            dims = sizes;
+        }
         let pairs = graph.edges().iter().filter_map(|e| {
             let (i, j) = e.nodes();
             Some((block_of[i]?, block_of[j]?))
@@ -453,7 +473,8 @@ impl Optimizer {
                 }
             })
             .collect();
-        let llt = SparseLlt::analyse(&pattern, config.ordering, config.factorization)?;
+        // The blocks are in the fill-reducing order already (or natural, as asked).
+        let llt = SparseLlt::analyse(&pattern, Ordering::Natural, config.factorization)?;
         let closure: Vec<bool> = graph
             .edges()
             .iter()
@@ -703,7 +724,8 @@ impl Optimizer {
             return Ok(report);
         }
         let fixed = fixed_nodes(graph);
-        let Some(x) = lago::estimate(graph, &fixed)? else {
+        let order = (self.config.ordering == Ordering::Amd).then_some(self.block_of.as_slice());
+        let Some(x) = lago::estimate_in_order(graph, &fixed, order)? else {
             return Ok(report);
         };
         let (_, lago_cost) = self.evaluate(graph.edges(), &x)?;
