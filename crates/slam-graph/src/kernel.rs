@@ -35,6 +35,21 @@ pub enum RobustKernel {
         /// Φ > 0, the squared error at which scaling starts (the paper uses Φ = 1).
         phi: f64,
     },
+    /// Truncated least squares ρ(s) = min(s, c²) under graduated non-convexity (Yang,
+    /// Antonante, Tzoumas and Carlone, "Graduated non-convexity for robust spatial
+    /// perception", RA-L 2020, eq. 13 and Prop. 5, written in s = r²): the surrogate
+    /// ρ_μ(s) = s for s ≤ μ/(μ+1)·c², 2c√(μ(μ+1)s) − μ(c² + s) up to (μ+1)/μ·c², and c²
+    /// beyond, whose weight w = ρ′_μ(s) is 1, c√(μ(μ+1)/s) − μ and 0 on the three pieces.
+    /// Small μ makes ρ_μ nearly convex; μ → ∞ gives the truncated cost. The optimiser's GNC
+    /// stage sets it on the closures with a growing μ; it is not a configuration choice (not
+    /// read or written).
+    #[serde(skip)]
+    GncTls {
+        /// c² > 0, the squared error beyond which an edge counts as an outlier.
+        c2: f64,
+        /// μ > 0, the continuation parameter.
+        mu: f64,
+    },
 }
 
 impl RobustKernel {
@@ -64,6 +79,17 @@ impl RobustKernel {
                     (3.0 * phi - 4.0 * phi * phi / (phi + s), scale * scale)
                 }
             }
+            RobustKernel::GncTls { c2, mu } => {
+                if s <= mu / (mu + 1.0) * c2 {
+                    (s, 1.0)
+                } else if s >= (mu + 1.0) / mu * c2 {
+                    (c2, 0.0)
+                } else {
+                    let m = (mu * (mu + 1.0)).sqrt();
+                    let root = (c2 * s).sqrt();
+                    (2.0 * m * root - mu * (c2 + s), m * (c2 / s).sqrt() - mu)
+                }
+            }
         }
     }
 
@@ -74,6 +100,7 @@ impl RobustKernel {
             RobustKernel::Huber { delta } => Some(delta),
             RobustKernel::Cauchy { c } => Some(c),
             RobustKernel::Dcs { phi } => Some(phi),
+            RobustKernel::GncTls { c2, .. } => Some(c2),
         }
     }
 }
@@ -90,6 +117,11 @@ mod tests {
             RobustKernel::Huber { delta: 1.5 },
             RobustKernel::Cauchy { c: 2.0 },
             RobustKernel::Dcs { phi: 1.0 },
+            RobustKernel::GncTls { c2: 2.0, mu: 0.5 },
+            RobustKernel::GncTls {
+                c2: 16.27,
+                mu: 0.01,
+            },
         ] {
             for s in [0.01f64, 0.5, 0.99, 1.01, 2.2, 2.3, 7.0, 100.0, 1e4] {
                 let h = 1e-6 * s.max(1.0);
@@ -111,6 +143,22 @@ mod tests {
                 k.robustify(edge * (1.0 + 1e-12)).0,
             );
             assert!((a - b).abs() < 1e-9, "{k:?} jumps at {edge}");
+        }
+        // GNC-TLS: continuous at both ends of its middle piece, ρ_μ → min(s, c²) as μ grows.
+        for (c2, mu) in [(2.0f64, 0.5f64), (16.27, 0.01), (16.27, 40.0)] {
+            let k = RobustKernel::GncTls { c2, mu };
+            for edge in [mu / (mu + 1.0) * c2, (mu + 1.0) / mu * c2] {
+                let (a, b) = (
+                    k.robustify(edge * (1.0 - 1e-12)),
+                    k.robustify(edge * (1.0 + 1e-12)),
+                );
+                assert!((a.0 - b.0).abs() < 1e-9, "{k:?} jumps at {edge}");
+                assert!((a.1 - b.1).abs() < 1e-5, "{k:?}: weight jumps at {edge}");
+            }
+        }
+        let tls = RobustKernel::GncTls { c2: 16.27, mu: 1e6 };
+        for s in [1.0, 16.0, 16.5, 1e4] {
+            assert!((tls.robustify(s).0 - s.min(16.27)).abs() < 1e-3 * s.min(16.27));
         }
     }
 

@@ -30,6 +30,18 @@ use std::f64::consts::TAU;
 /// Errors only when a linear system is not positive definite (an information matrix whose
 /// marginal variances are not finite and positive).
 pub fn estimate(graph: &PoseGraph, fixed: &[bool]) -> Result<Option<Vec<NodeValue>>, GraphError> {
+    estimate_in_order(graph, fixed, None)
+}
+
+/// [`estimate`] with the unknowns numbered by `order` (per node: its position in a
+/// fill-reducing order, `None` exactly for the nodes marked in `fixed`; the optimiser's block
+/// numbering), so that both systems are factorised in that order without an AMD of their own;
+/// without `order`, natural numbering and AMD on each system.
+pub(crate) fn estimate_in_order(
+    graph: &PoseGraph,
+    fixed: &[bool],
+    order: Option<&[Option<usize>]>,
+) -> Result<Option<Vec<NodeValue>>, GraphError> {
     let nodes = graph.nodes();
     let n = nodes.len();
     let mut poses = Vec::with_capacity(n);
@@ -89,6 +101,13 @@ pub fn estimate(graph: &PoseGraph, fixed: &[bool]) -> Result<Option<Vec<NodeValu
             m += 1;
         }
     }
+    let ordering = match order {
+        Some(o) if o.len() == n && o.iter().zip(fixed).all(|(v, &f)| v.is_none() == f) => {
+            var.copy_from_slice(o);
+            Ordering::Natural
+        }
+        _ => Ordering::Amd,
+    };
     if m == 0 {
         return Ok(None);
     }
@@ -107,7 +126,7 @@ pub fn estimate(graph: &PoseGraph, fixed: &[bool]) -> Result<Option<Vec<NodeValu
         .iter()
         .filter_map(|e| Some((var[e.from]?, var[e.to]?)))
         .collect();
-    let mut solver = Linear::new(&vec![1; m], pairs.iter().copied())?;
+    let mut solver = Linear::new(&vec![1; m], pairs.iter().copied(), ordering)?;
     for (e, s) in edges.iter().zip(&sigma) {
         let d = e.measurement.theta;
         let k = ((tree_theta[e.to] - tree_theta[e.from] - d) / TAU).round();
@@ -130,7 +149,7 @@ pub fn estimate(graph: &PoseGraph, fixed: &[bool]) -> Result<Option<Vec<NodeValu
     };
 
     // 2. Positions.
-    let mut solver = Linear::new(&vec![2; m], pairs.iter().copied())?;
+    let mut solver = Linear::new(&vec![2; m], pairs.iter().copied(), ordering)?;
     for (e, s) in edges.iter().zip(&sigma) {
         let stt = Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]);
         let lambda = stt
@@ -174,18 +193,21 @@ struct Linear {
     pattern: BlockPattern,
     h: Vec<f64>,
     b: Vec<f64>,
+    ordering: Ordering,
 }
 
 impl Linear {
     fn new(
         dims: &[usize],
         pairs: impl IntoIterator<Item = (usize, usize)>,
+        ordering: Ordering,
     ) -> Result<Self, GraphError> {
         let pattern = BlockPattern::new(dims, pairs);
         Ok(Self {
             h: vec![0.0; pattern.nnz()],
             b: vec![0.0; pattern.n()],
             pattern,
+            ordering,
         })
     }
 
@@ -257,7 +279,7 @@ impl Linear {
     }
 
     fn solve(self) -> Result<Vec<f64>, GraphError> {
-        let mut llt = SparseLlt::analyse(&self.pattern, Ordering::Amd, Factorization::Auto)?;
+        let mut llt = SparseLlt::analyse(&self.pattern, self.ordering, Factorization::Auto)?;
         if !llt.factorize(&self.pattern, &self.h) {
             return Err(GraphError::NotPositiveDefinite { iteration: 0 });
         }

@@ -40,8 +40,12 @@
 //! edges end at full weight and the result is the least-squares optimum of the edges
 //! accepted, while a false closure (eᵀΩe of thousands) keeps a weight below 1e-4. Odometry
 //! edges are never down-weighted (they carry `kernel`, default none). The stage-2 bound
-//! follows the edge's dimension (χ²₂ of the same probability for 2-D point edges), and a
-//! front end may classify the edges itself and mark closures that start stage 1 at full
+//! follows the edge's dimension (χ²₂ of the same probability for 2-D point edges). When
+//! closures are still rejected, one innovation round (each closure judged against the
+//! uncertainty of the path between its nodes, guarded by joint compatibility) and then
+//! graduated non-convexity with truncated least squares on the closures (the `gnc`
+//! submodule; truncation `closure_gnc_chi2`; its estimate kept only when its truncated
+//! cost is lower) look for a better accepted set. A front end may classify the edges itself and mark closures that start stage 1 at full
 //! weight ([`Optimizer::set_closures`]; the landmark front end does).
 
 use crate::error::GraphError;
@@ -49,8 +53,10 @@ use crate::factor::{linearize, retract, Linearized};
 use crate::graph::{Edge, NodeValue, PoseGraph};
 use crate::kernel::RobustKernel;
 use crate::lago;
-use crate::linear::{BlockPattern, Factorization, Ordering, SparseLlt};
+use crate::linear::{block_amd_rank, BlockPattern, Factorization, Ordering, SparseLlt};
 use serde::{Deserialize, Serialize};
+
+mod gnc;
 
 /// The nonlinear solver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -128,6 +134,10 @@ pub struct OptimizerConfig {
     /// edge in a thousand would exceed it). 2-D edges (points) use the χ²(2) quantile of the
     /// same probability (13.82 for the default).
     pub closure_inlier_chi2: f64,
+    /// The GNC stage's truncation c² (see the module documentation): a closure is kept when including it raises the least-squares cost by less than this
+    /// (default 21.11, the χ²(3) 99.99 % quantile; 2-D edges use the χ²(2) quantile of the
+    /// same probability, 18.42). Only used when the χ² stages leave closures rejected.
+    pub closure_gnc_chi2: f64,
     /// Start of the refinement (default auto: LAGO when it gives the lower cost).
     pub initialisation: Initialisation,
     /// LM damping term (default λI).
@@ -158,6 +168,7 @@ impl Default for OptimizerConfig {
             kernel: RobustKernel::None,
             closure_kernel: RobustKernel::Dcs { phi: 1.0 },
             closure_inlier_chi2: 16.27,
+            closure_gnc_chi2: 21.11,
             initialisation: Initialisation::Auto,
             damping: Damping::Identity,
             max_iterations: 100,
@@ -228,12 +239,13 @@ impl OptimizerConfig {
                 }
             }
         }
-        if !(self.closure_inlier_chi2 > 0.0 && self.closure_inlier_chi2.is_finite()) {
-            return bad(
-                "closure_inlier_chi2",
-                self.closure_inlier_chi2,
-                "finite and > 0",
-            );
+        for (f, v) in [
+            ("closure_inlier_chi2", self.closure_inlier_chi2),
+            ("closure_gnc_chi2", self.closure_gnc_chi2),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(f, v, "finite and > 0");
+            }
         }
         Ok(())
     }
@@ -369,6 +381,8 @@ pub struct Optimizer {
     /// Stage 2's inlier bound on eᵀΩe per edge dimension (index 2 and 3; see
     /// [`OptimizerConfig::closure_inlier_chi2`]).
     inlier_chi2: [f64; 4],
+    /// The GNC stage's truncation per edge dimension ([`OptimizerConfig::closure_gnc_chi2`]).
+    gnc_chi2: [f64; 4],
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -417,6 +431,26 @@ impl Optimizer {
         if dims.is_empty() {
             return Err(GraphError::Empty("every node is fixed"));
         }
+        if config.ordering == Ordering::Amd {
+            // Blocks numbered in the AMD order of the block graph: H is assembled already
+            // permuted, and LAGO's systems share the order (crate::linear::block_amd_rank).
+            let pairs = graph.edges().iter().filter_map(|e| {
+                let (i, j) = e.nodes();
+                Some((block_of[i]?, block_of[j]?))
+            });
+            let rank = block_amd_rank(dims.len(), pairs)?;
+            let mut nodes = vec![0; dims.len()];
+            let mut sizes = vec![0; dims.len()];
+            for (b, &r) in rank.iter().enumerate() {
+                nodes[r] = node_of_block[b];
+                sizes[r] = dims[b];
+            }
+            for (r, &i) in nodes.iter().enumerate() {
+                block_of[i] = Some(r);
+            }
+            node_of_block = nodes;
+            dims = sizes;
+        }
         let pairs = graph.edges().iter().filter_map(|e| {
             let (i, j) = e.nodes();
             Some((block_of[i]?, block_of[j]?))
@@ -439,7 +473,8 @@ impl Optimizer {
                 }
             })
             .collect();
-        let llt = SparseLlt::analyse(&pattern, config.ordering, config.factorization)?;
+        // The blocks are in the fill-reducing order already (or natural, as asked).
+        let llt = SparseLlt::analyse(&pattern, Ordering::Natural, config.factorization)?;
         let closure: Vec<bool> = graph
             .edges()
             .iter()
@@ -467,6 +502,7 @@ impl Optimizer {
             last_kernel: Vec::new(),
             closure,
             inlier_chi2: inlier_bounds(config.closure_inlier_chi2),
+            gnc_chi2: inlier_bounds(config.closure_gnc_chi2),
         })
     }
 
@@ -688,7 +724,8 @@ impl Optimizer {
             return Ok(report);
         }
         let fixed = fixed_nodes(graph);
-        let Some(x) = lago::estimate(graph, &fixed)? else {
+        let order = (self.config.ordering == Ordering::Amd).then_some(self.block_of.as_slice());
+        let Some(x) = lago::estimate_in_order(graph, &fixed, order)? else {
             return Ok(report);
         };
         let (_, lago_cost) = self.evaluate(graph.edges(), &x)?;
@@ -734,10 +771,33 @@ impl Optimizer {
                 stop =
                     self.innovation_round(graph, &mut iterations, &mut rejected_closures, stop)?;
             }
+            if !stop.failed() && !rejected_closures.is_empty() {
+                stop = self.gnc_round(graph, &mut iterations, &mut rejected_closures, stop)?;
+            }
         }
+        self.report(
+            graph,
+            &start,
+            iterations,
+            stop,
+            stage1_iterations,
+            rejected_closures,
+        )
+    }
+
+    /// The report of [`Optimizer::refine`] at the graph's estimate.
+    fn report(
+        &self,
+        graph: &PoseGraph,
+        start: &[NodeValue],
+        iterations: Vec<IterationInfo>,
+        stop: Termination,
+        stage1_iterations: usize,
+        rejected_closures: Vec<usize>,
+    ) -> Result<OptimizeReport, GraphError> {
         let (final_chi2, final_cost) = self.cost(graph)?;
         // The start's cost under the final kernels, so that the two costs compare.
-        let (initial_chi2, initial_cost) = self.evaluate(graph.edges(), &start)?;
+        let (initial_chi2, initial_cost) = self.evaluate(graph.edges(), start)?;
         Ok(OptimizeReport {
             initial_chi2,
             final_chi2,

@@ -379,40 +379,32 @@ fn robust_kernels_reject_false_loop_closures() {
     assert!(err < bad && err > oracle + 0.1, "Huber: {err}");
 }
 
-/// The default treatment (stage 1 DCS Φ = 1, then stage 2 repeated until stable, then one
-/// guarded innovation round) on the survey with 10 false closures, against the oracle (the
-/// same correct edges without the false ones, plain least squares): every false closure is
-/// rejected, at most 5 % of the correct closures stay rejected, and the mean position error
-/// is within 20 % of the oracle's, for three seeds. With a single stage-2 test, 11–18 correct
-/// closures stayed rejected and the error reached 2.3× the oracle's (seed 11: 0.217 m
-/// against 0.095 m).
+/// The default treatment (stage 1 DCS Φ = 1, stage 2 repeated until stable, a guarded
+/// innovation round, then graduated non-convexity with truncated least squares when closures
+/// are still rejected) on the survey with 10 false closures, seeds 11–20, against the
+/// simulator's truth: every false closure (the 10 edges added last) is rejected and no correct
+/// one, and the mean position error is within 2 % of the oracle's (least squares on the same
+/// correct edges without the false ones), for every seed. Without the GNC stage, seeds 12 and
+/// 13 kept 5 correct closures rejected each (seed 12: 0.1848 m against the oracle's 0.1596 m).
 #[test]
 fn default_treatment_keeps_the_correct_closures() {
-    for seed in [11, 12, 13] {
+    for seed in 11..=20 {
         let (mut clean, truth) = survey(0, seed);
         optimize(&mut clean, lm());
         let oracle = mean_error(&clean, &truth);
         let (mut g, _) = survey(10, seed);
         let n = g.edges().len();
-        let closures = (0..n).filter(|&k| match &g.edges()[k] {
-            slam_graph::Edge::Between(b) => b.from.abs_diff(b.to) != 1,
-            _ => true,
-        });
-        let n_correct = closures.count() - 10;
         let r = optimize(&mut g, OptimizerConfig::default());
         let err = mean_error(&g, &truth);
         let wrongly = r.rejected_closures.iter().filter(|&&k| k < n - 10).count();
-        eprintln!("seed {seed}: {err} m (oracle {oracle} m), {wrongly} of {n_correct} correct closures rejected");
+        eprintln!("seed {seed}: {err} m (oracle {oracle} m), {wrongly} correct closures rejected");
         assert!(
             (n - 10..n).all(|k| r.rejected_closures.contains(&k)),
             "seed {seed}"
         );
+        assert_eq!(wrongly, 0, "seed {seed}: {:?}", r.rejected_closures);
         assert!(
-            wrongly * 20 <= n_correct,
-            "seed {seed}: {wrongly} of {n_correct}"
-        );
-        assert!(
-            err <= 1.2 * oracle,
+            err <= 1.02 * oracle,
             "seed {seed}: {err} m against the oracle's {oracle} m"
         );
     }
