@@ -57,6 +57,7 @@ use slam_models::{
     normalize_angle, FilterError, FromConfig, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2,
     ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
 };
+use std::cmp::Reverse;
 use std::collections::VecDeque;
 use std::sync::Mutex;
 
@@ -113,6 +114,9 @@ pub struct LaserGraphStats {
     pub local_match_failures: usize,
     /// Branch-and-bound loop-closure searches run.
     pub loop_searches: usize,
+    /// Of those, wide searches (radius above `loop-wide-radius`, at most one per
+    /// `loop-wide-interval` keyframes).
+    pub loop_wide_searches: usize,
     /// Loop-closure matches rejected as ambiguous (`loop-ambiguity-ratio`).
     pub loop_ambiguous: usize,
     /// Loop-closure matches rejected because their score surface is flat along one
@@ -162,6 +166,8 @@ pub struct LaserGraphSlam {
     pending_span: (usize, usize),
     /// Finished submaps' grids and pyramids for loop closure, most recently used last.
     loop_maps: VecDeque<LoopMap>,
+    /// The keyframe of the last wide loop search (the per-scan budget).
+    last_wide_search: Option<usize>,
     stats: LaserGraphStats,
     /// The smoothed trajectory and the number of records it covers.
     smoothed: Mutex<Option<(usize, Vec<Pose2>)>>,
@@ -183,6 +189,7 @@ impl Clone for LaserGraphSlam {
             pending: self.pending.clone(),
             pending_span: self.pending_span,
             loop_maps: self.loop_maps.clone(),
+            last_wide_search: self.last_wide_search,
             stats: self.stats,
             smoothed: Mutex::new(self.smoothed.lock().map(|s| s.clone()).unwrap_or(None)),
         }
@@ -233,6 +240,7 @@ impl LaserGraphSlam {
             pending: Vec::new(),
             pending_span: (0, 0),
             loop_maps: VecDeque::new(),
+            last_wide_search: None,
             stats: LaserGraphStats::default(),
             smoothed: Mutex::new(None),
         })
@@ -388,7 +396,7 @@ impl LaserGraphSlam {
         self.stats.keyframes += 1;
         if self.config.loop_max_candidates > 0 {
             self.search_loops(k)?;
-            if self.settle_group(k) {
+            if self.settle_group(k, false) {
                 self.optimize_keyframes()?;
             }
         }
@@ -397,12 +405,14 @@ impl LaserGraphSlam {
 
     /// Once the pending group of candidate closures is complete (`loop-group-span`
     /// keyframes since its first candidate, or `loop-group-gap` keyframes without one),
-    /// checks it for mutual consistency ([`consistency::dominant_group`]) and adds the
-    /// dominant cluster's closures to the graph; true when some were added.
-    fn settle_group(&mut self, k: usize) -> bool {
+    /// or at once when `now`), checks it for mutual consistency
+    /// ([`consistency::dominant_group`]) and adds the dominant cluster's closures to the
+    /// graph; true when some were added.
+    fn settle_group(&mut self, k: usize, now: bool) -> bool {
         let c = &self.config;
         let (first, last) = self.pending_span;
-        if self.pending.is_empty() || (k < first + c.loop_group_span && k < last + c.loop_group_gap)
+        if self.pending.is_empty()
+            || (!now && k < first + c.loop_group_span && k < last + c.loop_group_gap)
         {
             return false;
         }
@@ -605,11 +615,13 @@ impl LaserGraphSlam {
     /// the pending group (`settle_group` decides which enter the graph); true when one was
     /// found.
     fn search_loops(&mut self, k: usize) -> Result<bool, GraphError> {
+        let distances = self.graph_distances(k);
         let c = &self.config;
         let kf = &self.keyframes[k];
         let position = kf.global.translation();
-        // Candidates: finished submaps old enough, by their nearest keyframe's distance.
-        let mut candidates: Vec<(f64, usize)> = Vec::new();
+        // Candidates: finished submaps old enough whose nearest keyframe lies within the
+        // submap's search window (plus half the matching range) of the predicted position.
+        let mut candidates: Vec<(f64, usize, f64, f64)> = Vec::new();
         for (s, submap) in self.submaps.iter().enumerate() {
             let Some(&last) = submap.keyframes.last() else {
                 continue;
@@ -622,26 +634,45 @@ impl LaserGraphSlam {
                 .iter()
                 .map(|&j| (self.keyframes[j].global.translation() - position).norm())
                 .fold(f64::INFINITY, f64::min);
+            // The window grows with the graph distance between the submap and keyframe k:
+            // the uncertainty of their relative pose before this closure (metres of the
+            // scan-matching chain, closures counting nothing).
+            let d = submap
+                .keyframes
+                .iter()
+                .map(|&j| distances[j])
+                .fold(f64::INFINITY, f64::min);
+            let (radius, angle) = loop_window(c, d);
             // The scan overlaps the submap when some of its keyframes is within the
-            // matching range (plus the largest search radius) of the predicted position.
-            if nearest <= c.loop_max_radius + 0.5 * c.match_max_range {
-                candidates.push((nearest, s));
+            // matching range (plus the search radius) of the predicted position.
+            if nearest <= radius + 0.5 * c.match_max_range {
+                candidates.push((nearest, s, radius, angle));
             }
         }
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        candidates.truncate(c.loop_max_candidates);
+        // The per-keyframe budget: at most `loop-max-candidates` searches, nearest first,
+        // of which at most one wide one (radius above `loop-wide-radius`), and that only
+        // once every `loop-wide-interval` keyframes.
+        let mut wide_left = match self.last_wide_search {
+            Some(w) if k < w + c.loop_wide_interval => 0,
+            _ => 1,
+        };
+        let mut searched = 0;
         let mut found = false;
-        for (_, s) in candidates {
-            // The window grows with the path travelled between the submap and keyframe k:
-            // the uncertainty of their relative pose before this closure.
+        for (_, s, radius, angle) in candidates {
             let c = &self.config;
-            let last = *self.submaps[s]
-                .keyframes
-                .last()
-                .expect("candidates are not empty");
-            let travelled = self.keyframes[k].path - self.keyframes[last].path;
-            let radius = (c.loop_radius + c.loop_radius_growth * travelled).min(c.loop_max_radius);
-            let angle = (c.loop_angle + c.loop_angle_growth * travelled).min(c.loop_max_angle);
+            if searched >= c.loop_max_candidates {
+                break;
+            }
+            if radius > c.loop_wide_radius {
+                if wide_left == 0 {
+                    continue;
+                }
+                wide_left -= 1;
+                self.last_wide_search = Some(k);
+                self.stats.loop_wide_searches += 1;
+            }
+            searched += 1;
             let matcher = BranchBoundMatcher {
                 linear_window: radius,
                 angular_window: angle,
@@ -714,6 +745,62 @@ impl LaserGraphSlam {
             found = true;
         }
         Ok(found)
+    }
+
+    /// Ends the run: the pending group of candidate closures (collected over fewer than
+    /// `loop-group-span` keyframes when the data ended) is checked and its consistent
+    /// closures enter the graph, which is then optimised, instead of being dropped.
+    /// Records may still follow (the group is simply settled early).
+    pub fn finish_run(&mut self) -> Result<(), GraphError> {
+        let Some(k) = self.keyframes.len().checked_sub(1) else {
+            return Ok(());
+        };
+        if self.settle_group(k, true) {
+            self.optimize_keyframes()?;
+        }
+        Ok(())
+    }
+
+    /// The graph distance of every keyframe from keyframe `k`, metres (Dijkstra over the
+    /// keyframe graph): a scan-matching or odometry edge costs the path its ends are apart,
+    /// a loop closure nothing. The shortest such path is the chain of local matches whose
+    /// drift the relative pose of the two keyframes still carries: it is the path since
+    /// the closures that last joined their neighbourhoods. Unreachable keyframes (none
+    /// in a connected graph) are at infinity.
+    fn graph_distances(&self, k: usize) -> Vec<f64> {
+        let n = self.keyframes.len();
+        let mut adjacent: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        for c in self.constraints.iter().chain(&self.pending) {
+            if c.from >= n || c.to >= n {
+                continue;
+            }
+            let w = if c.loop_closure {
+                0.0
+            } else {
+                (self.keyframes[c.to].path - self.keyframes[c.from].path).abs()
+            };
+            adjacent[c.from].push((c.to, w));
+            adjacent[c.to].push((c.from, w));
+        }
+        let mut distance = vec![f64::INFINITY; n];
+        let mut heap = std::collections::BinaryHeap::new();
+        if k < n {
+            distance[k] = 0.0;
+            heap.push(Reverse(Ordered(0.0, k)));
+        }
+        while let Some(Reverse(Ordered(d, i))) = heap.pop() {
+            if d > distance[i] {
+                continue;
+            }
+            for &(j, w) in &adjacent[i] {
+                let e = d + w;
+                if e < distance[j] {
+                    distance[j] = e;
+                    heap.push(Reverse(Ordered(e, j)));
+                }
+            }
+        }
+        distance
     }
 
     /// True when some pose 0.25 m, 0.5 m or 1 m away from `best` (8 directions, each
@@ -804,6 +891,10 @@ impl LaserGraphSlam {
             kf.global = p;
         }
         self.stats.optimizations += 1;
+        // The smoothed trajectory (cached per record count) no longer holds.
+        if let Ok(cached) = self.smoothed.get_mut() {
+            *cached = None;
+        }
         Ok(())
     }
 
@@ -891,6 +982,35 @@ impl LaserGraphSlam {
     }
 }
 
+/// The loop-closure search window (radius in metres, rotation half-width in radians) for
+/// a relative pose carried by `d` metres of scan-matching chain: `loop-radius` +
+/// `loop-radius-growth`·d and `loop-angle` + `loop-angle-growth`·d (a 3σ bound on a drift
+/// whose standard deviation grows linearly with the path), capped at `loop-max-radius`
+/// and `loop-max-angle`.
+fn loop_window(c: &LaserGraphConfig, d: f64) -> (f64, f64) {
+    let radius = (c.loop_radius + c.loop_radius_growth * d).min(c.loop_max_radius);
+    let angle = (c.loop_angle + c.loop_angle_growth * d).min(c.loop_max_angle);
+    (radius, angle)
+}
+
+/// A (distance, keyframe) pair ordered by the distance (total order), for the Dijkstra heap.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Ordered(f64, usize);
+
+impl Eq for Ordered {}
+
+impl PartialOrd for Ordered {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Ordered {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+    }
+}
+
 /// The loop-closure pyramid of a submap grid over the cells where its likelihood field
 /// is not the far value: the obstacles' bounding box grown by the field's reach
 /// (`max-distance`, plus two cells for the sub-cell hit positions). Outside it the
@@ -952,6 +1072,10 @@ impl ScanSlam for LaserGraphSlam {
 
     fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
         self.step(record).map_err(FilterError::other)
+    }
+
+    fn finish(&mut self) -> Result<(), FilterError> {
+        self.finish_run().map_err(FilterError::other)
     }
 
     fn pose(&self) -> Pose2 {
