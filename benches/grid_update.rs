@@ -4,7 +4,7 @@
 #![allow(missing_docs)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use slam_grid::{InverseSensorModel, OccupancyGrid, PreparedScan};
+use slam_grid::{InverseSensorModel, OccupancyGrid, RangeData};
 use slam_models::{LaserScan, Pose2};
 use std::hint::black_box;
 
@@ -29,7 +29,7 @@ fn room_scan(h: f64, n: usize) -> LaserScan {
 
 fn integrate(c: &mut Criterion) {
     let scan = room_scan(4.0, 360);
-    let prepared = PreparedScan::new(&scan).expect("valid scan");
+    let prepared = RangeData::new(&scan, &InverseSensorModel::default()).expect("valid scan");
     let mut grid = OccupancyGrid::new(0.05, InverseSensorModel::default());
     let mut g = c.benchmark_group("grid_update");
     g.throughput(Throughput::Elements(1));

@@ -13,7 +13,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use slam_grid::{
     CellIndex, CorrelativeMatcher, GaussNewtonMatcher, HillClimbMatcher, InverseSensorModel,
-    LikelihoodField, LikelihoodParams, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher,
+    LikelihoodField, LikelihoodParams, OccupancyGrid, RangeData, RefinedCorrelativeMatcher,
 };
 use slam_models::{LaserScan, Pose2};
 use std::hint::black_box;
@@ -89,7 +89,11 @@ fn matching(c: &mut Criterion) {
     };
     let grid_lines = room_grid(lines);
     let truth = Pose2::new(5.2, 2.9, 0.4);
-    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    let scan = RangeData::new(
+        &scan_at(&truth, 180, std::f64::consts::PI),
+        &Default::default(),
+    )
+    .expect("scan");
     let initial = Pose2::new(5.4, 2.75, 0.4 + 0.12);
     let refined = RefinedCorrelativeMatcher::default();
     // Warm the per-tile field cache (as it is after the first match in a filter).
@@ -152,9 +156,13 @@ fn room_with_field() -> OccupancyGrid {
 }
 
 /// The pose the endpoint benches match and its 180-beam, 180° scan.
-fn scan_in_room() -> (Pose2, PreparedScan) {
+fn scan_in_room() -> (Pose2, RangeData) {
     let truth = Pose2::new(5.2, 2.9, 0.4);
-    let scan = PreparedScan::new(&scan_at(&truth, 180, std::f64::consts::PI)).expect("scan");
+    let scan = RangeData::new(
+        &scan_at(&truth, 180, std::f64::consts::PI),
+        &Default::default(),
+    )
+    .expect("scan");
     (truth, scan)
 }
 

@@ -46,13 +46,14 @@ def run_ours(binary, path):
     return json.loads(out)
 
 
-def run_slam_process(slam, path, out_dir):
+def run_slam_process(slam, path, out_dir, config=None):
     """The whole `slam optimize` process (read, set-up, initialise, optimise, write): wall
     seconds and the child's user + system CPU seconds (getrusage of the reaped child)."""
     import resource
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run([slam, "optimize", path, "--out", out_dir], check=True,
+    subprocess.run([slam, "optimize", path, "--out", out_dir]
+                   + (["--config", config] if config else []), check=True,
                    capture_output=True, text=True)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -67,6 +68,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=7)
     ap.add_argument("--slam", help="path of the `slam` binary: also time the whole "
                     "`slam optimize` process against GTSAM's optimise call alone")
+    ap.add_argument("--slam-config", help="an optimiser configuration (TOML) for that process")
     a = ap.parse_args()
     import tempfile
     scratch = tempfile.mkdtemp(prefix="gtsam-compare-")
@@ -75,7 +77,7 @@ def main():
         g.append(run_gtsam(a.g2o))
         o.append(run_ours(a.ours, a.g2o))
         if a.slam:
-            p.append(run_slam_process(a.slam, a.g2o, scratch))
+            p.append(run_slam_process(a.slam, a.g2o, scratch, a.slam_config))
     med = statistics.median
     gt_total = med(r["seconds_total"] for r in g)
     gt_iter = med(r["seconds_total"] / r["iterations"] for r in g)

@@ -3,7 +3,7 @@
 # PyPI in $GTSAM_VENV (default /tmp/gtsam-venv), builds examples/graph_optimize in release and
 # runs scripts/gtsam_compare.py. Not part of the test suite; the figures go to
 # docs/results/graph.md and the GTSAM chi2 to crates/slam-graph/tests/fixtures/.
-#   scripts/gtsam_compare.sh [FILE.g2o] [--rounds N] [--slam target/release/slam]
+#   scripts/gtsam_compare.sh [FILE.g2o] [--rounds N] [--slam target/release/slam [--slam-config C.toml]]
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 venv=${GTSAM_VENV:-/tmp/gtsam-venv}

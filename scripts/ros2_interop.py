@@ -14,8 +14,16 @@ subscriber receives `rt/map` and `rt/tf`. Then, after Ctrl-C (SIGINT) to the nod
 * the last `map → odom` Cyclone received against the offline run's final pose composed with
   the inverse of the final odometry.
 
-Loopback only (Cyclone and RustDDS on a private DDS domain, multicast on lo). Exits non-zero
-on any failed check; prints the figures as JSON on the last line.
+* the node in the ROS 2 graph: the `rmw_dds_common/msg/ParticipantEntitiesInfo` it
+  publishes on `ros_discovery_info` (what `ros2 node list` reads), decoded by Cyclone: the
+  node's name and namespace, and its readers and writers among them those that matched
+  Cyclone's (by the gids Cyclone's own discovery reports for them).
+
+On a private DDS domain (100 + pid % 100). `cargo xtask eval ros2` runs it inside a network
+namespace of its own (a veth pair, no route out), so nothing leaves the machine; plain
+loopback does not work because RustDDS 0.13.1 ignores the loopback locators a peer announces
+(`rtps_reader_proxy.rs` `not_loopback`, `transmit.rs`; docs/ros2.md). Exits non-zero on any failed check; prints the figures as JSON on
+the last line.
 """
 
 import argparse
@@ -167,7 +175,7 @@ def main():
     figures.update(
         received=report["received"], processed=report["processed"], skipped=report["skipped"],
         latency_ms=report["latency"], rss_mb=report["rss_mb"], sent=len(sent),
-        rate=a.rate, decode_errors=report["decode_errors"],
+        rate=a.rate, decode_errors=report["decode_errors"], dropped=report["dropped"],
     )
     failures = []
     if report["decode_errors"]:
@@ -188,6 +196,18 @@ def main():
             abs(g[3] - origin[0]), abs(g[4] - origin[1])
         ) > 1e-6:
             failures.append(f"/map {g} but map.yaml/pgm {w}x{h} res {res} origin {origin}")
+    graph, matched = figures.pop("graph"), figures.pop("matched")
+    if graph is None:
+        failures.append("Cyclone received no ros_discovery_info node entry")
+    else:
+        figures["graph"] = dict(name=graph["name"], namespace=graph["namespace"],
+                                readers=len(graph["readers"]), writers=len(graph["writers"]))
+        if (graph["name"], graph["namespace"]) != ("slam", "/"):
+            failures.append(f"ros_discovery_info names node {graph['namespace']}{graph['name']}")
+        for what, gids in matched.items():
+            have = graph["readers"] if "reader" in what else graph["writers"]
+            if not gids or not all(g in have for g in gids):
+                failures.append(f"ros_discovery_info: the node's {what} {gids} not in {have}")
     tf = figures.get("last_map_to_odom")
     if tf is None:
         failures.append("Cyclone received no map → odom on /tf")
@@ -239,8 +259,10 @@ def run_cyclone(a, node, sent, range_max, angle_min, inc):
     odom_w = DataWriter(dp, Topic(dp, "rt/odom", m.Odometry), qos=q_default)
     static_w = DataWriter(dp, Topic(dp, "rt/tf_static", m.TFMessage), qos=q_latched)
     map_r = DataReader(dp, Topic(dp, "rt/map", m.OccupancyGrid), qos=q_latched)
+    graph_r = DataReader(dp, Topic(dp, "ros_discovery_info", m.ParticipantEntitiesInfo),
+                         qos=q_latched)
     tf_r = DataReader(dp, Topic(dp, "rt/tf", m.TFMessage), qos=q_tf)
-    got = {"map": None, "maps": 0, "tf": None, "tfs": 0}
+    got = {"map": None, "maps": 0, "tf": None, "tfs": 0, "graph": None}
     done = threading.Event()
 
     def listen():
@@ -252,6 +274,13 @@ def run_cyclone(a, node, sent, range_max, angle_min, inc):
                 i = g.info
                 got["map"] = (i.width, i.height, i.resolution, i.origin.position.x,
                               i.origin.position.y, len(g.data))
+            for info in graph_r.take(N=10):
+                for n in getattr(info, "node_entities_info_seq", []):
+                    got["graph"] = dict(
+                        name=n.node_name, namespace=n.node_namespace,
+                        participant=bytes(info.gid.data).hex(),
+                        readers=[bytes(g.data).hex() for g in n.reader_gid_seq],
+                        writers=[bytes(g.data).hex() for g in n.writer_gid_seq])
             for msg in tf_r.take(N=100):
                 for t in getattr(msg, "transforms", []):
                     if t.header.frame_id == "map" and t.child_frame_id == "odom":
@@ -294,6 +323,17 @@ def run_cyclone(a, node, sent, range_max, angle_min, inc):
             angle_max=angle_min + (len(ranges) - 1) * inc, angle_increment=inc,
             range_min=0.0, range_max=range_max, ranges=ranges))
     replay_s = time.time() - start
+    # The node's endpoints as Cyclone's own discovery sees them (RTPS GUIDs = ROS gids).
+    def gids(entity, handles, data):
+        return [getattr(data(h), "key").hex for h in handles]
+    matched = {
+        "scan reader": gids(scan_w, scan_w.get_matched_subscriptions(),
+                            scan_w.get_matched_subscription_data),
+        "map writer": gids(map_r, map_r.get_matched_publications(),
+                           map_r.get_matched_publication_data),
+        "tf writer": gids(tf_r, tf_r.get_matched_publications(),
+                          tf_r.get_matched_publication_data),
+    }
     time.sleep(3.0)
     node.send_signal(signal.SIGINT)
     try:
@@ -307,7 +347,8 @@ def run_cyclone(a, node, sent, range_max, angle_min, inc):
     if node.returncode != 0:
         raise SystemExit(f"the node exited with {node.returncode}")
     return {"replay_s": replay_s, "last_map": got["map"], "maps_received": got["maps"],
-            "last_map_to_odom": got["tf"], "tf_received": got["tfs"]}
+            "last_map_to_odom": got["tf"], "tf_received": got["tfs"], "graph": got["graph"],
+            "matched": matched}
 
 
 if __name__ == "__main__":

@@ -159,6 +159,28 @@ class Path(IdlStruct, typename="nav_msgs::msg::dds_::Path_"):
     poses: t.sequence[PoseStamped] = field(default_factory=list)
 
 
+@dataclass
+class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    # Iron and newer (Humble: 24 bytes).
+    data: t.array[t.uint8, 16] = field(default_factory=lambda: [0] * 16)
+
+
+@dataclass
+class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    node_namespace: t.bounded_str[256] = ""
+    node_name: t.bounded_str[256] = ""
+    reader_gid_seq: t.sequence[Gid] = field(default_factory=list)
+    writer_gid_seq: t.sequence[Gid] = field(default_factory=list)
+
+
+@dataclass
+class ParticipantEntitiesInfo(
+    IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"
+):
+    gid: Gid = field(default_factory=Gid)
+    node_entities_info_seq: t.sequence[NodeEntitiesInfo] = field(default_factory=list)
+
+
 # The ROS 2 type names (`pkg/msg/Type`) of the Foxglove channels, to decode them with.
 BY_ROS_NAME = {
     "nav_msgs/msg/OccupancyGrid": OccupancyGrid,

@@ -6,7 +6,7 @@ mod common;
 
 use rand::{Rng, SeedableRng};
 use slam::grid::{
-    InverseSensorModel, LikelihoodParams, OccupancyGrid, PreparedScan, RefinedCorrelativeMatcher,
+    InverseSensorModel, LikelihoodParams, OccupancyGrid, RangeData, RefinedCorrelativeMatcher,
     ScanMatchConfig, ScanMatchOdometry,
 };
 use slam::models::{normalize_angle, Pose2, TimedPose};
@@ -74,7 +74,8 @@ fn office_trials(res: f64, n: usize, seed: u64) -> Trials {
                 truth.y + r * a.sin(),
                 truth.theta + dth,
             );
-            let prepared = PreparedScan::new(&scan).expect("valid simulated scan");
+            let prepared =
+                RangeData::new(&scan, grid.sensor_model()).expect("valid simulated scan");
             let m = matcher
                 .match_prepared(&grid, &prepared, &initial)
                 .expect("match");

@@ -13,7 +13,8 @@
 //!   [--keep | --no-run]`: every laser filter's robustness suite (see [`robust::robust`]),
 //!   writing into `slam-out/robust/`.
 //! * `cargo xtask eval mcap`: `slam run --mcap` read back by independent Python readers and
-//!   by Foxglove's own TypeScript readers (see [`mcap_check`]), writing into `slam-out/mcap/`.
+//!   by Foxglove's own TypeScript readers (see [`mcap_check`]), and `slam localize --mcap` by
+//!   the Python readers, writing into `slam-out/mcap/`.
 //! * `cargo xtask eval hostile`: ROS 1 bags of 2.5 and 5 GiB (sparse, generated) through
 //!   `slam info` and `slam run` under `/usr/bin/time -v`: right counts, peak RSS bounded
 //!   (see [`hostile::hostile`]).
@@ -77,6 +78,23 @@ fn main() -> ExitCode {
 
 fn cargo() -> Command {
     Command::new(cargo_path())
+}
+
+/// The cargo target folder: `$CARGO_TARGET_DIR` when set (cargo itself honours it), else
+/// `target`.
+fn target_dir() -> std::path::PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::path::PathBuf::from("target"))
+}
+
+/// Builds the `slam` program (release) and returns its path, `<target>/release/slam`.
+fn build_slam() -> Result<std::path::PathBuf, String> {
+    run(
+        "build slam",
+        cargo().args(["build", "--release", "-p", "slam-cli"]),
+    )?;
+    Ok(target_dir().join("release").join("slam"))
 }
 
 /// The cargo program (`$CARGO`, else `cargo` on the path).
@@ -533,10 +551,7 @@ fn gridfast_intel() -> Result<(), String> {
 }
 
 fn eval(extra: &[String]) -> Result<(), String> {
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
+    let exe = build_slam()?;
     let plan = std::path::Path::new("configs/eval.txt");
     let text = std::fs::read_to_string(plan).map_err(|e| {
         format!(
@@ -544,11 +559,6 @@ fn eval(extra: &[String]) -> Result<(), String> {
             plan.display()
         )
     })?;
-    // Honour CARGO_TARGET_DIR, as cargo itself does.
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
-    let exe = target.join("release").join("slam");
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
@@ -561,8 +571,10 @@ fn eval(extra: &[String]) -> Result<(), String> {
     Ok(())
 }
 
-/// The Python of a throwaway venv (`$ENV_VAR`, default `default`), made with `packages`
-/// (pinned) on first use.
+/// The Python of a throwaway venv (`$ENV_VAR`, default `default`) holding `packages`
+/// (pinned). The venv is made on first use; the packages are installed unless the venv's
+/// `slam-packages.txt` (written only after pip succeeded) lists exactly them, so a failed or
+/// interrupted install is retried rather than leaving a venv without them.
 fn python_venv(
     env_var: &str,
     default: &str,
@@ -577,12 +589,17 @@ fn python_venv(
             "make the Python venv",
             Command::new("python3").args(["-m", "venv"]).arg(&venv),
         )?;
+    }
+    let marker = venv.join("slam-packages.txt");
+    let want = packages.join("\n") + "\n";
+    if std::fs::read_to_string(&marker).ok().as_deref() != Some(want.as_str()) {
         run(
             &format!("install {}", packages.join(", ")),
             Command::new(&python)
                 .args(["-m", "pip", "install", "--quiet"])
                 .args(packages),
         )?;
+        std::fs::write(&marker, want).map_err(|e| format!("{}: {e}", marker.display()))?;
     }
     Ok(python)
 }
@@ -602,8 +619,10 @@ fn python_venv(
 ///    `websockets` client with Cyclone's CDR decoder (every channel decodes; map and
 ///    trajectory against the run's files).
 ///
-/// Everything runs on loopback on a private DDS domain; each script starts and stops its
-/// processes. Outputs in `slam-out/ros2/`.
+/// The DDS runs (1 and 2) are confined to this machine: each runs in a network namespace
+/// of its own ([`isolated_network`]), so no packet leaves the machine and no other DDS
+/// participant on the network can join; each script starts and stops its processes.
+/// Outputs in `slam-out/ros2/`.
 fn ros2_check(extra: &[String]) -> Result<(), String> {
     let scans = extra.first().map(String::as_str).unwrap_or("300");
     let python = python_venv(
@@ -611,16 +630,9 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
         "/tmp/slam-ros2-venv",
         &["cyclonedds==11.0.1", "websockets==17.4"],
     )?;
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
     let exe = std::env::current_dir()
         .map_err(|e| format!("current folder: {e}"))?
-        .join(target.join("release").join("slam"));
+        .join(build_slam()?);
     let log = "../shared/datasets/bench/intel.log";
     if !std::path::Path::new(log).is_file() {
         return Err(format!(
@@ -639,7 +651,10 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
         if !compare {
             cmd.arg("--no-compare");
         }
-        run(&format!("ROS 2 node with Cyclone DDS, {name}"), &mut cmd)?;
+        run(
+            &format!("ROS 2 node with Cyclone DDS, {name}"),
+            &mut isolated_network(cmd)?,
+        )?;
     }
     run(
         "Foxglove live view, independent client",
@@ -655,6 +670,50 @@ fn ros2_check(extra: &[String]) -> Result<(), String> {
             ]),
     )?;
     Ok(())
+}
+
+/// `cmd` run inside a network namespace of its own (`unshare -rn`, an unprivileged user
+/// namespace), whose only network is a veth pair 10.99.0.1 ↔ 10.99.0.2 with the multicast
+/// route on it, and loopback: DDS discovery (multicast) and traffic stay inside it, which
+/// RustDDS needs because it ignores the 127.0.0.1 locators a peer announces (so plain
+/// loopback does not work). Errors when the namespace cannot be made, unless
+/// `SLAM_ROS2_HOST_NETWORK=1` asks to run on the host's network instead.
+fn isolated_network(cmd: Command) -> Result<Command, String> {
+    let host = std::env::var("SLAM_ROS2_HOST_NETWORK").is_ok_and(|v| v == "1");
+    let probe = Command::new("unshare")
+        .args(["-rn", "true"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !probe {
+        if host {
+            eprintln!("xtask: no network namespace (unshare -rn failed): on the host's network");
+            return Ok(cmd);
+        }
+        return Err(
+            "unshare -rn failed: cannot confine DDS to this machine (user \
+                    namespaces off?); SLAM_ROS2_HOST_NETWORK=1 runs on the host's network"
+                .into(),
+        );
+    }
+    let setup = "ip link add v0 type veth peer name v1 && \
+                 ip addr add 10.99.0.1/24 dev v0 && ip addr add 10.99.0.2/24 dev v1 && \
+                 ip link set lo up && ip link set v0 up && ip link set v1 up && \
+                 ip route add 224.0.0.0/4 dev v0 && exec \"$@\"";
+    let mut wrapped = Command::new("unshare");
+    wrapped
+        .args(["-rn", "sh", "-c", setup, "sh"])
+        .arg(cmd.get_program())
+        .args(cmd.get_args());
+    if let Some(dir) = cmd.get_current_dir() {
+        wrapped.current_dir(dir);
+    }
+    for (k, v) in cmd.get_envs() {
+        match v {
+            Some(v) => wrapped.env(k, v),
+            None => wrapped.env_remove(k),
+        };
+    }
+    Ok(wrapped)
 }
 
 /// `cargo xtask eval mcap`: the MCAP files `slam run --mcap` writes, read back by
@@ -680,14 +739,8 @@ fn mcap_check() -> Result<(), String> {
         "/tmp/slam-mcap-venv",
         &["mcap==1.6.0", "mcap-ros2-support==0.6.0", "rosbags==0.11.9"],
     )?;
-    run(
-        "build slam",
-        cargo().args(["build", "--release", "-p", "slam-cli"]),
-    )?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| std::path::PathBuf::from("target"));
-    let exe = target.join("release").join("slam");
+    let exe = build_slam()?;
+    let target = target_dir();
     // Foxglove's readers, installed once under the target folder.
     let node_dir = std::env::current_dir()
         .map_err(|e| format!("current folder: {e}"))?
@@ -780,5 +833,60 @@ fn mcap_check() -> Result<(), String> {
             )?;
         }
     }
-    Ok(())
+    localize_mcap_check(&exe, &python, out, bag)
+}
+
+/// `slam localize --mcap` on the `intel-tf` bag, localized on its own known-poses map from
+/// its first pose, checked by `scripts/check_mcap.py` (the map's files are copied beside
+/// the localization's outputs, where the script looks for them).
+fn localize_mcap_check(
+    exe: &std::path::Path,
+    python: &std::path::Path,
+    out: &std::path::Path,
+    bag: &str,
+) -> Result<(), String> {
+    let map_dir = out.join("known-poses-intel-tf");
+    run(
+        "slam run known-poses intel-tf",
+        Command::new(exe)
+            .args([
+                "run",
+                "--filter",
+                "known-poses",
+                "--dataset",
+                bag,
+                "--quiet",
+            ])
+            .arg("--out")
+            .arg(&map_dir),
+    )?;
+    let (dir, file) = (
+        out.join("localize-intel-tf"),
+        out.join("localize-intel-tf.mcap"),
+    );
+    run(
+        "slam localize intel-tf --mcap",
+        Command::new(exe)
+            .args(["localize", "--dataset", bag, "--global", "--force", "--map"])
+            .arg(map_dir.join("map.yaml"))
+            .arg("--out")
+            .arg(&dir)
+            .arg("--mcap")
+            .arg(&file),
+    )?;
+    for f in ["map.yaml", "map.pgm"] {
+        std::fs::copy(map_dir.join(f), dir.join(f)).map_err(|e| format!("{f}: {e}"))?;
+    }
+    run(
+        "check localize-intel-tf",
+        Command::new(python)
+            .arg("scripts/check_mcap.py")
+            .arg(&file)
+            .arg("--out")
+            .arg(&dir)
+            .args([
+                "--topics",
+                "/map,/particles,/pose,/scan,/tf,/tf_static,/trajectory",
+            ]),
+    )
 }

@@ -1,7 +1,7 @@
 //! `cargo xtask eval robust`: every laser filter on every input the project can score,
 //! with the runs counted lost (see [`robust`]).
 
-use crate::{cargo, run};
+use crate::{build_slam, run};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -134,17 +134,7 @@ pub(crate) fn robust(extra: &[String]) -> Result<(), String> {
     }
     let exe = match std::env::var_os("SLAM_BIN") {
         Some(bin) => PathBuf::from(bin),
-        None => {
-            run(
-                "build slam",
-                cargo().args(["build", "--release", "-p", "slam-cli"]),
-            )?;
-            std::env::var_os("CARGO_TARGET_DIR")
-                .map(PathBuf::from)
-                .unwrap_or_else(|| PathBuf::from("target"))
-                .join("release")
-                .join("slam")
-        }
+        None => build_slam()?,
     };
     let out = Path::new("slam-out/robust");
     let cases = cases(&o, &data, &exe, out)?;

@@ -9,7 +9,7 @@
 //! `--install-peers` runs that script). A peer that is missing is named, with how to get it,
 //! and left out.
 
-use crate::{cargo, run};
+use crate::{build_slam, run, target_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
@@ -109,9 +109,7 @@ pub(crate) fn speed(extra: &[String]) -> Result<(), String> {
     let data = std::env::var_os("SLAM_DATASETS")
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("../shared/datasets"));
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("target"));
+    let target = target_dir();
     let scratch = target.join("speed");
     std::fs::create_dir_all(&scratch).map_err(|e| format!("{}: {e}", scratch.display()))?;
     let time = Path::new("/usr/bin/time");
@@ -174,13 +172,7 @@ pub(crate) fn speed(extra: &[String]) -> Result<(), String> {
     }
     let slam = match std::env::var_os("SLAM_BIN") {
         Some(bin) => PathBuf::from(bin),
-        None => {
-            run(
-                "build slam",
-                cargo().args(["build", "--release", "-p", "slam-cli"]),
-            )?;
-            target.join("release").join("slam")
-        }
+        None => build_slam()?,
     };
 
     let mut logs: Vec<PathBuf> = std::fs::read_dir(data.join("bench"))

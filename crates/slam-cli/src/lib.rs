@@ -98,6 +98,20 @@ pub(crate) fn start_live(
     Ok(Some(server))
 }
 
+/// `--live-hold` (`hold`): the finished run or localization stays on the live view until
+/// Ctrl-C.
+pub(crate) fn hold_live(hold: bool, live: Option<&slam_ros::LiveServer>) {
+    if let (true, Some(server)) = (hold, live) {
+        eprintln!(
+            "live: the run is done; serving its last state on ws://{} until Ctrl-C",
+            server.address()
+        );
+        while !stop_requested() {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
+}
+
 /// What a successful command did.
 #[derive(Debug)]
 pub enum Outcome {

@@ -1,6 +1,7 @@
 //! `slam localize`: Monte Carlo localization (slam-mcl) of a log on a saved map.
 
 use crate::error::CliError;
+use crate::mcap::McapRecorder;
 use crate::outdir::{OutDir, Owner};
 use clap::Args;
 use serde::Serialize;
@@ -51,13 +52,22 @@ pub struct LocalizeArgs {
     /// Output folder: trajectory.tum, metrics.json, localization.png, config.toml.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Write into a non-empty --out that slam localize did not make.
+    /// Write into a non-empty --out that slam localize did not make (and let --mcap
+    /// replace an MCAP file slam did not write).
     #[arg(long)]
     pub force: bool,
+    /// Also write the localization as an MCAP file of ROS 2 messages (as `slam run
+    /// --mcap`): /map once, /pose, /tf, /scan per record, /particles at each update,
+    /// /trajectory snapshots, /ground_truth with --ground-truth.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// Serve the localization to Foxglove over its WebSocket protocol on ADDRESS (default
     /// 127.0.0.1:8765) while it runs (docs/ros2.md).
     #[arg(long, value_name = "ADDRESS", num_args = 0..=1, default_missing_value = slam_ros::live::DEFAULT_ADDRESS)]
     pub live: Option<String>,
+    /// With --live: after the localization, keep serving its last state until Ctrl-C.
+    #[arg(long, requires = "live")]
+    pub live_hold: bool,
 }
 
 /// `x,y,theta[,sx,sy,stheta]`: finite numbers, σ ≥ 0.
@@ -100,6 +110,9 @@ pub struct UpdateRow {
     /// The exponent the scan's likelihood was raised to (below `weight-exponent` when
     /// adaptive tempering kept N_eff up).
     pub exponent: f64,
+    /// A global start not yet converged by the filter's own test (slam-mcl's
+    /// `StepInfo::converging`): the evidence of each update is scaled by its translation.
+    pub converging: bool,
 }
 
 /// What `slam localize` measured (metrics.json).
@@ -160,6 +173,9 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
             inputs.push((o, p.as_path()));
         }
     }
+    if let Some(mcap) = &args.mcap {
+        crate::mcap::check_path(mcap, &inputs, &args.out, args.force)?;
+    }
     let staging = OutDir::prepare(&args.out, Owner::Localize, args.force, &inputs)?;
     let grid_map = slam_io::ros_map::read_ros_map(&args.map)?;
     let options = slam_io::DatasetOptions {
@@ -187,13 +203,27 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
     let mut mcl = Mcl::new(config, map, init, args.seed)?;
     let mut live = crate::start_live(args.live.as_deref(), |o| o.default_topic().into(), out)?
         .map(slam_ros::live::RunView::new);
+    let mut mcap = match &args.mcap {
+        Some(p) => Some(McapRecorder::open(p, None, dataset.records.len(), None)?),
+        None => None,
+    };
     let (steps, clouds) = run_log(
         &mut mcl,
         &dataset.records,
         args.clouds.as_deref(),
         live.as_mut(),
+        mcap.as_mut(),
     )?;
     let mut report = summarise(args, &steps, mcl.trajectory(), ground_truth.as_deref());
+    let mcap_note = match mcap {
+        Some(r) => Some(r.finish(
+            mcl.trajectory(),
+            Some(mcl.map().grid_map()),
+            None,
+            ground_truth.as_deref(),
+        )?),
+        None => None,
+    };
     let dir = staging.stage();
     let p = dir.join("trajectory.tum");
     slam_io::tum::write_tum(&p, mcl.trajectory())?;
@@ -231,6 +261,7 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
         source: e,
     })?;
     staging.commit(&names)?;
+    crate::hold_live(args.live_hold, live.as_ref().map(|v| v.server()));
     let _ = writeln!(
         out,
         "{} records, {} updates, {:.1} m travelled, particles {}–{}, converged after {}",
@@ -248,6 +279,9 @@ pub fn localize(args: &LocalizeArgs, out: &mut dyn Write) -> Result<LocalizeRepo
             out,
             "ATE (no alignment): {a:.3} m; after convergence {c:.3} m"
         );
+    }
+    if let Some(note) = mcap_note {
+        let _ = writeln!(out, "{note}");
     }
     let _ = writeln!(out, "wrote {}", args.out.display());
     Ok(report)
@@ -267,12 +301,14 @@ pub struct Update {
 
 /// Feeds every record to the filter; returns each update's info with the distance
 /// travelled, and the particle clouds at the chosen distances (default: first update,
-/// convergence, end). With `live`, the state after each record also goes to the live view.
-pub fn run_log(
+/// convergence, end). With `live`, the state after each record also goes to the live view;
+/// with `mcap`, to the MCAP file (the cloud at each update).
+pub(crate) fn run_log(
     mcl: &mut Mcl,
     records: &[slam_models::ScanRecord],
     clouds_at: Option<&[f64]>,
     mut live: Option<&mut slam_ros::live::RunView>,
+    mut mcap: Option<&mut McapRecorder>,
 ) -> Result<(Vec<Update>, Vec<WeightedPose>), CliError> {
     let mut steps = Vec::new();
     let mut clouds = Vec::new();
@@ -289,7 +325,17 @@ pub fn run_log(
         prev = Some(r.odometry);
         let info = mcl.process(r).map_err(CliError::from)?;
         if let Some(v) = live.as_deref_mut() {
-            v.localize_step(r, mcl.pose(), &mcl.particles(), mcl.map().grid_map());
+            v.localize_step(
+                r,
+                mcl.pose(),
+                &mcl.particles(),
+                mcl.map().grid_map(),
+                mcl.trajectory(),
+            );
+        }
+        if let Some(m) = mcap.as_deref_mut() {
+            let cloud = info.updated.then(|| mcl.particles());
+            m.localize_step(r, mcl.pose(), cloud.as_deref(), mcl.map().grid_map())?;
         }
         if info.updated {
             let first = steps.is_empty() && clouds_at.is_none();
@@ -340,6 +386,7 @@ fn summarise(
             resampled: s.resampled,
             injected: s.injected,
             exponent: s.exponent,
+            converging: s.converging,
         })
         .collect();
     // Converged for good: the first update after the last one with a wide cloud.

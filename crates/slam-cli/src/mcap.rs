@@ -1,9 +1,9 @@
-//! `slam run --mcap FILE`: the run as an MCAP file of ROS 2 messages (slam-io's
-//! [`McapRunWriter`]), fed by the run loops one step at a time.
+//! `slam run --mcap FILE` and `slam localize --mcap FILE`: the run as an MCAP file of ROS 2
+//! messages (slam-io's [`McapRunWriter`]), fed by the run loops one step at a time.
 //!
-//! [`McapRecorder`] is the whole hook: the run loops call [`McapRecorder::scan_step`] or
-//! [`McapRecorder::landmark_step`] after each filter step and [`McapRecorder::finish`] with
-//! the run's result. Snapshots (`/trajectory`, `/map`, `/landmarks`) are taken every
+//! [`McapRecorder`] is the whole hook: the run loops call [`McapRecorder::scan_step`],
+//! [`McapRecorder::landmark_step`] or [`McapRecorder::localize_step`] after each filter step
+//! and [`McapRecorder::finish`] with the run's result. Snapshots (`/trajectory`, `/map`, `/landmarks`) are taken every
 //! `--mcap-every` steps, by default about 100 per run; the time spent writing is output,
 //! not filtering, and is taken off the run's wall time (the recorder runs in the run's
 //! observer, whose time slam-eval does not count).
@@ -137,10 +137,21 @@ impl McapRecorder {
         steps: usize,
         true_landmarks: Option<&[Point2]>,
     ) -> Result<Option<Self>, CliError> {
-        let Some(path) = &args.mcap else {
-            return Ok(None);
-        };
-        let every = match args.mcap_every {
+        match &args.mcap {
+            Some(path) => Self::open(path, args.mcap_every, steps, true_landmarks).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// The recorder of a run of `steps` steps written to `path`, a snapshot every `every`
+    /// steps (default: about [`DEFAULT_SNAPSHOTS`] per run).
+    pub fn open(
+        path: &Path,
+        every: Option<u64>,
+        steps: usize,
+        true_landmarks: Option<&[Point2]>,
+    ) -> Result<Self, CliError> {
+        let every = match every {
             Some(k) => k as usize,
             None => steps.div_ceil(DEFAULT_SNAPSHOTS).max(1),
         };
@@ -148,10 +159,33 @@ impl McapRecorder {
             snapshot_every: every,
             true_landmarks: true_landmarks.map(<[Point2]>::to_vec).unwrap_or_default(),
         };
-        Ok(Some(McapRecorder {
+        Ok(McapRecorder {
             writer: McapRunWriter::create(path, options)?,
-            path: path.clone(),
-        }))
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// After `slam localize`'s filter processed `record`: the estimate, the odometry, the
+    /// scan; the particle cloud `particles` when the filter updated at this record (the
+    /// cloud changes only then); the known `map` at the first step (it does not change).
+    pub fn localize_step(
+        &mut self,
+        record: &ScanRecord,
+        pose: Pose2,
+        particles: Option<&[slam_models::WeightedPose]>,
+        map: &GridMap,
+    ) -> Result<(), CliError> {
+        let first = self.writer.steps() == 0;
+        self.writer.step(&RunStep {
+            t: record.t,
+            pose,
+            odometry: Some(record.odometry),
+            scan: record.scan.as_ref(),
+            particles,
+            map: first.then_some(map),
+            landmarks: None,
+        })?;
+        Ok(())
     }
 
     /// After a laser filter's `process(record)`: pose, odometry, scan, particles, and at

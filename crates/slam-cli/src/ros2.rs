@@ -31,6 +31,9 @@ pub struct Ros2Args {
     #[arg(long, value_name = "ID", default_value_t = 0,
           value_parser = clap::value_parser!(u16).range(0..=232))]
     pub domain_id: u16,
+    /// The node's name in the ROS graph (`ros2 node list`).
+    #[arg(long, value_name = "NAME", default_value = "slam")]
+    pub node_name: String,
     /// The sensor_msgs/msg/LaserScan topic.
     #[arg(long, value_name = "TOPIC", default_value = "/scan")]
     pub scan_topic: String,
@@ -76,6 +79,7 @@ pub struct Ros2Args {
 fn options(a: &Ros2Args) -> Result<NodeOptions, CliError> {
     let mut o = NodeOptions {
         domain_id: a.domain_id,
+        node_name: a.node_name.clone(),
         scan_topic: a.scan_topic.clone(),
         odometry: match a.odom_topic.as_str() {
             "none" => OdomSource::None,
@@ -132,7 +136,9 @@ pub fn ros2(a: &Ros2Args, out: &mut dyn Write) -> Result<NodeReport, CliError> {
             filters::names_of(DataKind::Laser)
         ))
     })?;
-    let opts = options(a)?;
+    let mut opts = options(a)?;
+    // Laser only: the `[laser-odometry]` table of the config, as `slam run` takes it.
+    opts.laser_odometry = filters::laser_odometry_config(&info, a.config.as_deref())?;
     let setup = Setup {
         config_path: a.config.as_deref(),
         particles: a.particles.map(|p| p as usize),

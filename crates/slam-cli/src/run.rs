@@ -57,19 +57,6 @@ pub struct RunReport {
     pub files: Vec<PathBuf>,
 }
 
-/// `--live-hold`: the finished run stays on the live view until Ctrl-C.
-fn hold_live(args: &RunArgs, live: Option<&slam_ros::LiveServer>) {
-    if let (true, Some(server)) = (args.live_hold, live) {
-        eprintln!(
-            "live: the run is done; serving its last state on ws://{} until Ctrl-C",
-            server.address()
-        );
-        while !crate::stop_requested() {
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        }
-    }
-}
-
 /// What a run loop hands back.
 struct Finished {
     metrics: Metrics,
@@ -268,7 +255,7 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<RunReport, CliError> {
     let order: Vec<&str> = order.iter().map(String::as_str).collect();
     let files = staging.commit(&order)?;
     print_summary(out, &metrics, &notes, &out_dir, &files);
-    hold_live(args, live.as_ref().map(|v| v.server()));
+    crate::hold_live(args.live_hold, live.as_ref().map(|v| v.server()));
     Ok(RunReport {
         out_dir,
         metrics,

@@ -6,22 +6,7 @@
 
 mod common;
 use common::{scratch, slam_bin};
-
-/// A record: header fields `name=value`, then the data, each with its length.
-fn record(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
-    let mut h = Vec::new();
-    for (n, v) in fields {
-        h.extend((n.len() as u32 + 1 + v.len() as u32).to_le_bytes());
-        h.extend(n.as_bytes());
-        h.push(b'=');
-        h.extend(*v);
-    }
-    let mut r = (h.len() as u32).to_le_bytes().to_vec();
-    r.extend(h);
-    r.extend((data.len() as u32).to_le_bytes());
-    r.extend(data);
-    r
-}
+use slam_io::rosbag::ros1_record as record;
 
 /// A ROS 1 `sensor_msgs/LaserScan` body at `sec` s with `ranges` (range_max 30 m, 1° apart).
 fn scan(sec: u32, ranges: &[f32]) -> Vec<u8> {

@@ -5,8 +5,8 @@ use crate::error::EkfError;
 use crate::state::State;
 use slam_models::association::{Association, Associator, Linearised, AUTO_ID_BASE};
 use slam_models::{
-    Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix3, Pose2,
-    RangeBearing, UpdateInfo, Vector3,
+    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix3, Pose2, RangeBearing,
+    UpdateInfo, Vector3,
 };
 use std::collections::HashMap;
 
@@ -244,14 +244,7 @@ impl EkfSlam {
     }
 }
 
-impl FromConfig for EkfSlam {
-    type Config = EkfConfig;
-    type Error = EkfError;
-
-    fn from_config(config: EkfConfig, initial_pose: Pose2, seed: u64) -> Result<Self, EkfError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(EkfSlam, EkfConfig, EkfError);
 
 impl LandmarkSlam for EkfSlam {
     fn name(&self) -> &str {
@@ -354,8 +347,9 @@ mod tests {
             association: AssociationMode::KnownIds.into(),
             ..EkfConfig::default()
         };
-        let mut ekf: Box<dyn LandmarkSlam> =
-            Box::new(<EkfSlam as FromConfig>::from_config(cfg, Pose2::IDENTITY, 0).unwrap());
+        let mut ekf: Box<dyn LandmarkSlam> = Box::new(
+            <EkfSlam as slam_models::FromConfig>::from_config(cfg, Pose2::IDENTITY, 0).unwrap(),
+        );
         let e = ekf.update(&[z(1.0, 0.0, None)]).unwrap_err();
         assert!(matches!(e, FilterError::InvalidInput { .. }), "{e:?}");
         assert_eq!(

@@ -401,7 +401,7 @@ pub fn withhold_odometry(
     };
     input.description.push_str(&format!(
         "; odometry: {} — laser odometry (each scan matched against the map of those before \
-         it) over {} scans, {} unmatched, {} local maps{prior}",
+         it) over {} scans, {} unmatched, {} local maps, {} wide searches{prior}",
         match why {
             NoOdometry::InRecording => "none in the recording",
             NoOdometry::Withheld => "withheld (option `laser_only`)",
@@ -409,6 +409,7 @@ pub fn withhold_odometry(
         run.scans,
         run.failures,
         run.submaps,
+        run.wide_searches,
     ));
     Ok(())
 }

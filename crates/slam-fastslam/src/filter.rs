@@ -11,8 +11,8 @@ use slam_models::particle::{
     effective_sample_size_log, normalize_log_weights, ParticlePaths, PathNode,
 };
 use slam_models::{
-    normalize_angle, Control, FilterError, FromConfig, LandmarkEstimate, LandmarkSlam, Matrix3,
-    Pose2, RangeBearing, UpdateInfo, Vector3, WeightedPose,
+    normalize_angle, Control, FilterError, LandmarkEstimate, LandmarkSlam, Matrix3, Pose2,
+    RangeBearing, UpdateInfo, Vector3, WeightedPose,
 };
 
 /// Stream index reserved for the resampler's random draws (particles use 0..M).
@@ -218,18 +218,7 @@ impl FastSlam {
     }
 }
 
-impl FromConfig for FastSlam {
-    type Config = FastSlamConfig;
-    type Error = FastSlamError;
-
-    fn from_config(
-        config: FastSlamConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, FastSlamError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(FastSlam, FastSlamConfig, FastSlamError);
 
 impl LandmarkSlam for FastSlam {
     fn name(&self) -> &str {
@@ -509,8 +498,12 @@ mod tests {
     #[test]
     fn trait_errors_keep_the_typed_source() {
         let mut f: Box<dyn LandmarkSlam> = Box::new(
-            <FastSlam as FromConfig>::from_config(FastSlamConfig::default(), Pose2::IDENTITY, 3)
-                .unwrap(),
+            <FastSlam as slam_models::FromConfig>::from_config(
+                FastSlamConfig::default(),
+                Pose2::IDENTITY,
+                3,
+            )
+            .unwrap(),
         );
         let z = RangeBearing {
             range: f64::NAN,

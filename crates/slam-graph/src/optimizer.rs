@@ -33,7 +33,10 @@
 //! node ids that differ by one) or *closures* (every other edge: loop closures, landmark
 //! observations). Stage 1 puts `closure_kernel` (default DCS, Φ = 1) on the closures; stage 2
 //! puts every closure whose eᵀΩe at the stage-1 result is at most `closure_inlier_chi2` back at
-//! full weight (ρ = `kernel`), keeps the kernel on the others and optimises again. So correct
+//! full weight (ρ = `kernel`), keeps the kernel on the others and optimises again; it repeats
+//! the test at the new estimate (closures accepted stay accepted) until no closure changes, at
+//! most 8 rounds, because the stage-1 estimate, with every closure down-weighted, can put a
+//! correct closure outside the bound that the better estimate puts inside. So correct
 //! edges end at full weight and the result is the least-squares optimum of the edges
 //! accepted, while a false closure (eᵀΩe of thousands) keeps a weight below 1e-4. Odometry
 //! edges are never down-weighted (they carry `kernel`, default none). The stage-2 bound
@@ -361,6 +364,8 @@ pub struct Optimizer {
     closure: Vec<bool>,
     /// Closures that start stage 1 at full weight ([`Optimizer::set_closures`]).
     trusted: Vec<bool>,
+    /// The kernels at the last stage-2 test (to see whether a round changed any).
+    last_kernel: Vec<RobustKernel>,
     /// Stage 2's inlier bound on eᵀΩe per edge dimension (index 2 and 3; see
     /// [`OptimizerConfig::closure_inlier_chi2`]).
     inlier_chi2: [f64; 4],
@@ -459,6 +464,7 @@ impl Optimizer {
             n_edges: graph.edges().len(),
             edge_kernel: closure.iter().map(|&c| stage1_kernel(&config, c)).collect(),
             trusted: vec![false; closure.len()],
+            last_kernel: Vec::new(),
             closure,
             inlier_chi2: inlier_bounds(config.closure_inlier_chi2),
         })
@@ -719,30 +725,14 @@ impl Optimizer {
         let stage1_iterations = iterations.len();
         let mut rejected_closures = Vec::new();
         if self.config.closure_kernel != RobustKernel::None && !stop.failed() {
-            let x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
-            let mut changed = false;
-            for (k, e) in graph.edges().iter().enumerate() {
-                if !self.closure[k] {
-                    continue;
-                }
-                let lin = linearize(e, &x).ok_or_else(|| degenerate(k))?;
-                let bound = match lin {
-                    Linearized::Between { .. } => self.inlier_chi2[3],
-                    Linearized::Point { .. } => self.inlier_chi2[2],
-                };
-                if lin.chi2() <= bound {
-                    changed |= self.edge_kernel[k] != self.config.kernel;
-                    self.edge_kernel[k] = self.config.kernel;
-                } else {
-                    rejected_closures.push(k);
-                }
-            }
-            if changed {
-                self.lambda = self.config.lambda_initial;
-                let budget = self.config.max_iterations.saturating_sub(stage1_iterations);
-                if budget > 0 {
-                    stop = self.run_limited(graph, &mut iterations, budget)?;
-                }
+            // Stage 2, repeated: a correct closure that the stage-1 estimate (distorted by
+            // down-weighting every closure) put outside the bound passes at the better
+            // estimate of the next round; the rounds stop when the accepted set is stable.
+            self.last_kernel.clone_from(&self.edge_kernel);
+            stop = self.stage2_rounds(graph, &mut iterations, &mut rejected_closures, stop)?;
+            if !stop.failed() && !rejected_closures.is_empty() {
+                stop =
+                    self.innovation_round(graph, &mut iterations, &mut rejected_closures, stop)?;
             }
         }
         let (final_chi2, final_cost) = self.cost(graph)?;
@@ -763,6 +753,204 @@ impl Optimizer {
             stage1_iterations,
             rejected_closures,
         })
+    }
+
+    /// Stage-2 rounds with the plain test until no closure changes (at most
+    /// [`MAX_STAGE2_ROUNDS`]); returns the last stop.
+    fn stage2_rounds(
+        &mut self,
+        graph: &mut PoseGraph,
+        iterations: &mut Vec<IterationInfo>,
+        rejected: &mut Vec<usize>,
+        mut stop: Termination,
+    ) -> Result<Termination, GraphError> {
+        for _ in 0..MAX_STAGE2_ROUNDS {
+            if !self.classify_closures(graph, rejected, false)? {
+                break;
+            }
+            self.lambda = self.config.lambda_initial;
+            let budget = self.config.max_iterations.saturating_sub(iterations.len());
+            if budget == 0 {
+                break;
+            }
+            stop = self.run_limited(graph, iterations, budget)?;
+            if stop.failed() {
+                break;
+            }
+        }
+        Ok(stop)
+    }
+
+    /// One guarded round of the innovation test ([`Optimizer::classify_closures`]) on the
+    /// closures the plain rounds left rejected: the closures it accepts go to full weight and
+    /// the plain rounds run again; the round is kept only when it passes the joint test of
+    /// the closures it added (Neira and Tardós 2001's joint compatibility, in cost form): the
+    /// least-squares cost of the full-weight edges grows, from the optimum without them to
+    /// the optimum with them, by at most the χ²(d) quantile of `closure_inlier_chi2`'s
+    /// probability, d the added closures' dimensions. Otherwise (a false closure whose claim
+    /// fell inside a wide relative uncertainty, which bends the graph to fit it) the round is
+    /// undone with everything it moved.
+    fn innovation_round(
+        &mut self,
+        graph: &mut PoseGraph,
+        iterations: &mut Vec<IterationInfo>,
+        rejected: &mut Vec<usize>,
+        stop: Termination,
+    ) -> Result<Termination, GraphError> {
+        let saved_x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+        let saved_kernel = self.edge_kernel.clone();
+        let saved_rejected = rejected.clone();
+        let saved_iterations = iterations.len();
+        let (before, _) = self.full_weight_chi2(graph)?;
+        if !self.classify_closures(graph, rejected, true)? {
+            return Ok(stop);
+        }
+        self.lambda = self.config.lambda_initial;
+        let budget = self.config.max_iterations.saturating_sub(iterations.len());
+        let mut after = stop;
+        if budget > 0 {
+            after = self.run_limited(graph, iterations, budget)?;
+        }
+        if !after.failed() {
+            after = self.stage2_rounds(graph, iterations, rejected, after)?;
+        }
+        let (chi2_after, dims_after) = self.full_weight_chi2(graph)?;
+        let (_, dims_before) = {
+            let now = std::mem::replace(&mut self.edge_kernel, saved_kernel.clone());
+            let r = self.full_weight_chi2(graph);
+            self.edge_kernel = now;
+            r?
+        };
+        let added = dims_after.saturating_sub(dims_before);
+        let p = slam_models::chi2::regularized_gamma_p(1.5, 0.5 * self.config.closure_inlier_chi2);
+        let bound = if added > 0 && p < 1.0 {
+            slam_models::chi2::chi2_quantile(added, p)
+        } else {
+            f64::INFINITY
+        };
+        if after.failed() || chi2_after - before > bound {
+            for (i, v) in saved_x.into_iter().enumerate() {
+                graph.set_value(i, v);
+            }
+            self.edge_kernel = saved_kernel;
+            self.last_kernel.clone_from(&self.edge_kernel);
+            *rejected = saved_rejected;
+            iterations.truncate(saved_iterations);
+            return Ok(stop);
+        }
+        Ok(after)
+    }
+
+    /// The summed eᵀΩe of the edges at full weight (odometry and accepted closures) at the
+    /// current estimate, and the sum of their dimensions.
+    fn full_weight_chi2(&self, graph: &PoseGraph) -> Result<(f64, usize), GraphError> {
+        let x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+        let (mut chi2, mut dims) = (0.0, 0);
+        for (k, e) in graph.edges().iter().enumerate() {
+            if !self.closure[k] || self.edge_kernel[k] == self.config.kernel {
+                let lin = linearize(e, &x).ok_or_else(|| degenerate(k))?;
+                chi2 += lin.chi2();
+                dims += match lin {
+                    Linearized::Between { .. } => 3,
+                    Linearized::Point { .. } => 2,
+                };
+            }
+        }
+        Ok((chi2, dims))
+    }
+
+    /// Stage 2's test at the graph's current estimate. A closure passes when its eᵀΩe is
+    /// within its bound ([`inlier_bounds`]), or else when its innovation form is:
+    /// eᵀS⁻¹e with S = Ω⁻¹ + J Σ Jᵀ, J = [∂e/∂xᵢ ∂e/∂xⱼ] and Σ the joint covariance of the two
+    /// nodes under the current weights (the χ² test of an edge that the estimate did not
+    /// absorb, as in an EKF's gate: a down-weighted correct closure is judged against the
+    /// uncertainty of the path between its nodes, not as if that path were exact). A passing
+    /// closure gets `kernel` (full weight) and keeps it in later rounds (the accepted set only
+    /// grows, so the rounds end); every other keeps its kernel and is listed in `rejected`.
+    /// Returns whether any closure's kernel changed.
+    fn classify_closures(
+        &mut self,
+        graph: &PoseGraph,
+        rejected: &mut Vec<usize>,
+        innovation: bool,
+    ) -> Result<bool, GraphError> {
+        let x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
+        let mut failing = Vec::new();
+        for (k, e) in graph.edges().iter().enumerate() {
+            if !self.closure[k] {
+                continue;
+            }
+            let lin = linearize(e, &x).ok_or_else(|| degenerate(k))?;
+            if lin.chi2() <= self.bound(&lin) {
+                self.edge_kernel[k] = self.config.kernel;
+            } else {
+                failing.push((k, lin));
+            }
+        }
+        rejected.clear();
+        let passed = if innovation {
+            self.innovation_passes(graph, &failing)?
+        } else {
+            vec![false; failing.len()]
+        };
+        for ((k, _), pass) in failing.into_iter().zip(passed) {
+            if pass {
+                self.edge_kernel[k] = self.config.kernel;
+            } else {
+                rejected.push(k);
+            }
+        }
+        let changed = self.stage2_kernel_changed();
+        Ok(changed)
+    }
+
+    /// Whether stage 2 changed any kernel since the last call (and remembers the current ones).
+    fn stage2_kernel_changed(&mut self) -> bool {
+        let changed = self.last_kernel != self.edge_kernel;
+        self.last_kernel.clone_from(&self.edge_kernel);
+        changed
+    }
+
+    /// Stage 2's bound for an edge of this dimension.
+    fn bound(&self, lin: &Linearized) -> f64 {
+        match lin {
+            Linearized::Between { .. } => self.inlier_chi2[3],
+            Linearized::Point { .. } => self.inlier_chi2[2],
+        }
+    }
+
+    /// The innovation test of [`Optimizer::classify_closures`] for each failing closure;
+    /// all false when H at the current weights cannot be factorised.
+    fn innovation_passes(
+        &mut self,
+        graph: &PoseGraph,
+        failing: &[(usize, Linearized)],
+    ) -> Result<Vec<bool>, GraphError> {
+        if failing.is_empty() {
+            return Ok(Vec::new());
+        }
+        if self.factor_undamped(graph).is_err() {
+            return Ok(vec![false; failing.len()]);
+        }
+        let mut out = Vec::with_capacity(failing.len());
+        // A few edges at a time, so the joint covariance stays small.
+        for chunk in failing.chunks(32) {
+            let mut nodes = Vec::with_capacity(2 * chunk.len());
+            for (k, _) in chunk {
+                let (i, j) = graph.edges()[*k].nodes();
+                nodes.extend([i, j]);
+            }
+            let sigma = self.joint_covariance(graph, &nodes)?;
+            let mut row = 0;
+            for (c, (_, lin)) in chunk.iter().enumerate() {
+                let (i, j) = (nodes[2 * c], nodes[2 * c + 1]);
+                let (di, dj) = (graph.nodes()[i].value.dim(), graph.nodes()[j].value.dim());
+                let s = sigma.view((row, row), (di + dj, di + dj)).into_owned();
+                row += di + dj;
+                out.push(innovation_chi2(lin, &s).is_some_and(|m| m <= self.bound(lin)));
+            }
+        }
+        Ok(out)
     }
 
     fn run(
@@ -812,6 +1000,41 @@ pub fn is_odometry(graph: &PoseGraph, e: &Edge) -> bool {
     }
 }
 
+/// eᵀS⁻¹e with S = Ω⁻¹ + J Σ Jᵀ for an edge linearised as `lin` and the joint covariance
+/// `sigma` of its two nodes (first node's coordinates first); None when S is not invertible.
+fn innovation_chi2(lin: &Linearized, sigma: &nalgebra::DMatrix<f64>) -> Option<f64> {
+    use nalgebra::DMatrix;
+    let (e, j, omega) = match lin {
+        Linearized::Between { e, a, b, omega } => {
+            let mut j = DMatrix::zeros(3, 6);
+            j.view_mut((0, 0), (3, 3)).copy_from(a);
+            j.view_mut((0, 3), (3, 3)).copy_from(b);
+            (
+                DMatrix::from_column_slice(3, 1, e.as_slice()),
+                j,
+                DMatrix::from_column_slice(3, 3, omega.as_slice()),
+            )
+        }
+        Linearized::Point { e, a, b, omega } => {
+            let mut j = DMatrix::zeros(2, 5);
+            j.view_mut((0, 0), (2, 3)).copy_from(a);
+            j.view_mut((0, 3), (2, 2)).copy_from(b);
+            (
+                DMatrix::from_column_slice(2, 1, e.as_slice()),
+                j,
+                DMatrix::from_column_slice(2, 2, omega.as_slice()),
+            )
+        }
+    };
+    let s = omega.try_inverse()? + &j * sigma * j.transpose();
+    let m = (e.transpose() * s.cholesky()?.solve(&e))[(0, 0)];
+    m.is_finite().then_some(m)
+}
+
+/// At most this many rounds of stage 2 (re-test every closure, re-optimise); the accepted
+/// set is usually stable after one or two.
+const MAX_STAGE2_ROUNDS: usize = 8;
+
 /// Stage 2's inlier bounds by edge dimension: `chi2` for 3-D edges, and for 2-D edges the
 /// χ²(2) quantile of the same probability p = P(χ²(3) ≤ `chi2`) (13.82 for the default 16.27,
 /// p = 0.999), so a correct edge of either kind is rejected with the same probability.
@@ -852,6 +1075,13 @@ impl Optimizer {
                 "the graph's structure changed since the optimiser was built",
             ));
         }
+        self.factor_undamped(graph)?;
+        self.joint_covariance(graph, nodes)
+    }
+
+    /// Assembles H at the graph's estimate (current kernel weights) and factorises it
+    /// undamped, for [`Optimizer::joint_covariance`].
+    fn factor_undamped(&mut self, graph: &PoseGraph) -> Result<(), GraphError> {
         let x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
         self.assemble(graph.edges(), &x)?;
         if !self.llt.factorize(&self.pattern, &self.h) {
@@ -859,6 +1089,16 @@ impl Optimizer {
                 iteration: self.iteration,
             });
         }
+        Ok(())
+    }
+
+    /// The blocks of H⁻¹ for `nodes` from the factorisation [`Optimizer::factor_undamped`]
+    /// left (see [`Optimizer::marginal_covariance`]).
+    fn joint_covariance(
+        &self,
+        graph: &PoseGraph,
+        nodes: &[usize],
+    ) -> Result<nalgebra::DMatrix<f64>, GraphError> {
         // (row of the output, scalar variable) for every requested coordinate that is free.
         let mut wanted = Vec::new();
         let mut total = 0;

@@ -17,6 +17,14 @@ pub enum GridError {
     /// A configuration parameter was outside its documented range.
     #[error(transparent)]
     InvalidConfig(#[from] ConfigError),
+    /// A [`crate::RangeData`] was integrated into a grid whose sensor model classifies
+    /// beams by other range rules (`min_range`, `max_range`, `far_hits_clear`,
+    /// `no_return_range`) than the model it was built with: build it with the grid's
+    /// model ([`crate::OccupancyGrid::sensor_model`]).
+    #[error(
+        "the scan was classified into returns and misses under other range rules than the map's sensor model (min_range, max_range, far_hits_clear, no_return_range)"
+    )]
+    OtherRangeRules,
     /// A scan had too few usable end points to be matched.
     #[error("scan has {found} usable end points; at least {needed} are needed for matching")]
     TooFewPoints {

@@ -7,9 +7,7 @@ use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
 use crate::InverseSensorModel;
 use serde::{Deserialize, Serialize};
-use slam_models::{
-    FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
-};
+use slam_models::{FilterError, GridMap, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose};
 
 /// The configuration of [`KnownPoseMapping`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -109,17 +107,7 @@ impl KnownPoseMapping {
     }
 }
 
-impl FromConfig for KnownPoseMapping {
-    type Config = KnownPoseConfig;
-    type Error = GridError;
-    fn from_config(
-        config: KnownPoseConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GridError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(KnownPoseMapping, KnownPoseConfig, GridError);
 
 impl ScanSlam for KnownPoseMapping {
     fn name(&self) -> &str {

@@ -19,7 +19,7 @@
 //!   [`matcher::endpoint`]: the truncated endpoint model as a log-likelihood on the
 //!   incremental distance field, with the same hill climber and an exhaustive search under a
 //!   motion prior (the matching of grid FastSLAM and of scan-matching odometry). Every
-//!   matcher takes the one [`PreparedScan`].
+//!   matcher takes the one [`RangeData`].
 //! * [`KnownPoseMapping`]: mapping with known poses, each scan written at the log's own
 //!   pose (`ScanSlam`, name `"known-poses"`); [`OccupancyGrid::from_grid_map`] and
 //!   [`OccupancyGrid::cast_ray`] load a saved map back and cast beams on it (localization).
@@ -50,7 +50,7 @@ pub use grid::sensor_model::InverseSensorModel;
 pub use grid::tiles::{TILE_CELLS, TILE_SIZE};
 pub use grid::{CopyStats, OccupancyGrid, MAX_MAP_CELLS, MAX_MAP_EXTENT_CELLS};
 pub use likelihood::{LikelihoodField, LikelihoodParams};
-pub use scan::PreparedScan;
+pub use scan::RangeData;
 pub mod matcher;
 
 #[cfg(test)]

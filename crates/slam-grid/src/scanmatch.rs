@@ -8,10 +8,10 @@ use crate::matcher::check_input;
 use crate::matcher::endpoint::{
     hill_climb, wide_search, EndpointMatch, EndpointModel, HillClimbSteps, SearchWindow,
 };
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use crate::{InverseSensorModel, MAX_DISTANCE_RADIUS};
 use serde::{Deserialize, Serialize};
-use slam_models::{normalize_angle, FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam};
+use slam_models::{normalize_angle, FilterError, GridMap, Pose2, ScanRecord, ScanSlam};
 use slam_models::{ConfigError, Vector3};
 use slam_models::{Matrix3, OdometryJumpGuard, OdometryJumpLimit, ScanUpdateInfo, TimedPose};
 
@@ -374,11 +374,7 @@ impl ScanMatchOdometry {
     /// The matched pose of `scan` around `predicted`, or `None` when the match fails: too
     /// few end points, a prediction out of the matchers' range, or too few inliers at the
     /// best pose. Errors only when the window is too large for the search's pyramid.
-    fn match_scan(
-        &self,
-        scan: &PreparedScan,
-        predicted: &Pose2,
-    ) -> Result<Option<Pose2>, GridError> {
+    fn match_scan(&self, scan: &RangeData, predicted: &Pose2) -> Result<Option<Pose2>, GridError> {
         self.match_scan_in(
             scan,
             predicted,
@@ -392,7 +388,7 @@ impl ScanMatchOdometry {
     /// odometry's searches).
     pub(crate) fn match_scan_in(
         &self,
-        scan: &PreparedScan,
+        scan: &RangeData,
         predicted: &Pose2,
         window: Option<&SearchWindow>,
         min_inlier_fraction: f64,
@@ -411,7 +407,7 @@ impl ScanMatchOdometry {
     /// large for the search's pyramid.
     pub(crate) fn match_scored(
         &self,
-        scan: &PreparedScan,
+        scan: &RangeData,
         predicted: &Pose2,
         window: Option<&SearchWindow>,
     ) -> Result<Option<EndpointMatch>, GridError> {
@@ -455,7 +451,7 @@ impl ScanMatchOdometry {
     }
 
     /// Writes `scan` into the map at `pose` (world frame).
-    pub(crate) fn integrate(&mut self, pose: &Pose2, scan: &PreparedScan) -> Result<(), GridError> {
+    pub(crate) fn integrate(&mut self, pose: &Pose2, scan: &RangeData) -> Result<(), GridError> {
         self.grid.try_integrate_prepared(pose, scan)?;
         self.map_has_scan = true;
         Ok(())
@@ -486,7 +482,12 @@ impl ScanMatchOdometry {
                 || moved >= self.config.linear_update
                 || turned >= self.config.angular_update;
             if due {
-                let prepared = PreparedScan::with_limits(scan, 0.0, self.config.match_max_range)?;
+                let prepared = RangeData::with_limits(
+                    scan,
+                    &self.config.sensor_model,
+                    0.0,
+                    self.config.match_max_range,
+                )?;
                 let pose = if self.map_has_scan {
                     match self.match_scan(&prepared, &predicted)? {
                         Some(pose) => pose,
@@ -514,18 +515,7 @@ impl ScanMatchOdometry {
     }
 }
 
-impl FromConfig for ScanMatchOdometry {
-    type Config = ScanMatchConfig;
-    type Error = GridError;
-
-    fn from_config(
-        config: ScanMatchConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GridError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(ScanMatchOdometry, ScanMatchConfig, GridError);
 
 impl ScanSlam for ScanMatchOdometry {
     fn name(&self) -> &str {

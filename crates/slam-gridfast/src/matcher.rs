@@ -24,7 +24,7 @@ pub(crate) mod tests {
     use slam_grid::matcher::endpoint::{
         hill_climb, score, score_scan, EndpointModel, HillClimbSteps,
     };
-    use slam_grid::{InverseSensorModel, LaserScan, OccupancyGrid, Point2, Pose2, PreparedScan};
+    use slam_grid::{InverseSensorModel, LaserScan, OccupancyGrid, Point2, Pose2, RangeData};
 
     pub(crate) fn empty_map() -> OccupancyGrid {
         let model = InverseSensorModel {
@@ -110,8 +110,9 @@ pub(crate) mod tests {
         assert_eq!(tight.inliers, 0);
     }
 
-    #[test]
-    fn hill_climbing_recovers_an_offset_pose() {
+    /// The room of [`room_scan`] mapped from three poses that see it from different
+    /// places and headings.
+    pub(crate) fn room_map() -> OccupancyGrid {
         let mut map = empty_map();
         for p in [
             Pose2::new(0.0, 0.0, 0.0),
@@ -120,8 +121,15 @@ pub(crate) mod tests {
         ] {
             map.integrate_scan(&p, &room_scan(&p));
         }
+        map
+    }
+
+    #[test]
+    fn hill_climbing_recovers_an_offset_pose() {
+        let map = room_map();
         let truth = Pose2::new(0.3, 0.4, 0.3);
-        let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
+        let scan =
+            RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
         let lk = EndpointModel {
             k: 1.0 / (2.0 * 0.05 * 0.05 * 3.0),
             radius: 0.2,

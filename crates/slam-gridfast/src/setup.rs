@@ -46,6 +46,17 @@ pub(crate) struct Recovery {
     pub accept_fraction: f64,
     /// `range-xy`, `step-xy`, `range-theta`, `step-theta`.
     pub window: Window,
+    /// `turn-trigger`, radians.
+    pub turn_trigger: f64,
+    /// `turn-range-theta`, radians.
+    pub turn_range_theta: f64,
+    /// `turn-range-xy`, metres.
+    pub turn_range_xy: f64,
+    /// `turn-accept-fraction`.
+    pub turn_accept_fraction: f64,
+    /// ln(ε / (1 − ε)), ε = `outlier-weight`: the broad component's weight relative to
+    /// the odometry model's in the recovered particles' motion density.
+    pub log_outlier_odds: f64,
 }
 
 /// ⌈`fraction` · n⌉ beams of a scan with `n` used beams.
@@ -160,6 +171,11 @@ impl Setup {
                     range_theta: set(rc.range_theta),
                     step_theta: set(rc.step_theta),
                 },
+                turn_trigger: rc.turn_trigger,
+                turn_range_theta: rc.turn_range_theta,
+                turn_range_xy: set(rc.turn_range_xy),
+                turn_accept_fraction: rc.turn_accept_fraction,
+                log_outlier_odds: (rc.outlier_weight / (1.0 - rc.outlier_weight)).ln(),
             }),
             offsets: sample_offsets(
                 p.samples_per_axis,

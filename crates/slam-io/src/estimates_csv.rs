@@ -15,7 +15,7 @@
 //! bits.
 
 use crate::error::IoError;
-use crate::text::{read_text, write_text, Line};
+use crate::text::{read_text, rows_after_header, write_text, Line};
 use slam_models::{Matrix3, Pose2};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -83,28 +83,7 @@ pub fn write_estimates_csv(path: &Path, rows: &[PoseEstimateRow]) -> Result<(), 
 /// Reads a file written by [`write_estimates_csv`]. Errors name the line and field.
 pub fn read_estimates_csv(path: &Path) -> Result<Vec<PoseEstimateRow>, IoError> {
     let f = read_text(path)?;
-    let mut lines = f
-        .text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    match lines.next() {
-        Some((_, h)) if h.trim() == HEADER => {}
-        Some((i, h)) => {
-            return Err(IoError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                expected: format!("the header {HEADER}"),
-                found: h.to_string(),
-            })
-        }
-        None => {
-            return Err(IoError::Empty {
-                path: path.to_path_buf(),
-                expected: format!("the header {HEADER}"),
-            })
-        }
-    }
+    let lines = rows_after_header(path, &f.text, HEADER)?;
     let mut out = Vec::new();
     for (i, l) in lines {
         let (head, nees) = l.trim_end().rsplit_once(',').unwrap_or((l, ""));

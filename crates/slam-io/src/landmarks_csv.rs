@@ -7,7 +7,7 @@
 
 use crate::bounds::MAX_MAGNITUDE;
 use crate::error::IoError;
-use crate::text::{read_text, write_text};
+use crate::text::{read_text, rows_after_header, write_text};
 use slam_models::{LandmarkEstimate, LandmarkId, Matrix2, Point2};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -39,28 +39,7 @@ pub fn write_landmarks_csv(path: &Path, l: &[LandmarkEstimate]) -> Result<(), Io
 /// Reads a file written by [`write_landmarks_csv`]. Errors name the line and field.
 pub fn read_landmarks_csv(path: &Path) -> Result<Vec<LandmarkEstimate>, IoError> {
     let f = read_text(path)?;
-    let mut lines = f
-        .text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty());
-    match lines.next() {
-        Some((_, h)) if h.trim() == HEADER => {}
-        Some((i, h)) => {
-            return Err(IoError::Parse {
-                path: path.to_path_buf(),
-                line: i + 1,
-                expected: format!("the header {HEADER}"),
-                found: h.to_string(),
-            })
-        }
-        None => {
-            return Err(IoError::Empty {
-                path: path.to_path_buf(),
-                expected: format!("the header {HEADER}"),
-            })
-        }
-    }
+    let lines = rows_after_header(path, &f.text, HEADER)?;
     let mut out = Vec::new();
     for (i, l) in lines {
         let spaced = l.replace(',', " ");

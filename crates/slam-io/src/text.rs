@@ -87,6 +87,33 @@ pub(crate) fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>, IoE
     Ok(bytes)
 }
 
+/// The non-blank lines of a CSV `text` after its first non-blank line, which must be
+/// `header` (surrounding white space aside), as (0-based line index, line); a missing or
+/// other header is an error naming `path` and the line.
+pub(crate) fn rows_after_header<'t>(
+    path: &Path,
+    text: &'t str,
+    header: &str,
+) -> Result<impl Iterator<Item = (usize, &'t str)>, IoError> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    match lines.next() {
+        Some((_, h)) if h.trim() == header => Ok(lines),
+        Some((i, h)) => Err(IoError::Parse {
+            path: path.to_path_buf(),
+            line: i + 1,
+            expected: format!("the header {header}"),
+            found: h.to_string(),
+        }),
+        None => Err(IoError::Empty {
+            path: path.to_path_buf(),
+            expected: format!("the header {header}"),
+        }),
+    }
+}
+
 /// Writes `content` to `path`, gzip-compressed when the name ends in `.gz`.
 pub(crate) fn write_text(path: &Path, content: &str) -> Result<(), IoError> {
     let gz = path.extension().is_some_and(|e| e == "gz");
@@ -145,10 +172,18 @@ impl<'a> Line<'a> {
 
     /// The next field, or an error saying what was expected there.
     pub fn word(&mut self, expected: &str) -> Result<&'a str, IoError> {
-        match self.fields.next() {
-            Some(w) => Ok(w),
-            None => Err(self.error(format!("{expected} (line ended early)"), self.text.trim())),
-        }
+        self.next_word().ok_or_else(|| self.ended_early(expected))
+    }
+
+    /// The next field, if any: [`Line::word`] without building the description of the
+    /// field (readers of large files build it only on error, with [`Line::ended_early`]).
+    pub fn next_word(&mut self) -> Option<&'a str> {
+        self.fields.next()
+    }
+
+    /// The error of a line that ended where `expected` should have been.
+    pub fn ended_early(&self, expected: &str) -> IoError {
+        self.error(format!("{expected} (line ended early)"), self.text.trim())
     }
 
     /// The next field as a finite f64 of magnitude at most [`bounds::MAX_MAGNITUDE`] (the

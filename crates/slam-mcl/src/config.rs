@@ -67,6 +67,12 @@ pub struct SensorConfig {
     /// plausible pose. 0 switches it off. Default 0.03 (0.1 kept random particles of a
     /// recovery heavy enough to widen a converged Intel cloud past 0.5 m at 419 m).
     pub min_n_eff_ratio: f64,
+    /// The same floor while a global start converges (`MclConfig::converge_min_travel`);
+    /// the larger of the two applies then. A global cloud holds several look-alike places
+    /// at once; a higher floor keeps any one scan from deciding between them by sampling
+    /// luck before the robot has seen what tells them apart. 0 = `min_n_eff_ratio` only.
+    /// Default 0.1 (the 0.03 afterwards keeps a recovery's random particles light).
+    pub global_min_n_eff_ratio: f64,
 }
 
 impl Default for SensorConfig {
@@ -85,6 +91,7 @@ impl Default for SensorConfig {
             max_distance: 1.0,
             weight_exponent: 0.2,
             min_n_eff_ratio: 0.03,
+            global_min_n_eff_ratio: 0.1,
         }
     }
 }
@@ -122,7 +129,8 @@ pub struct KldConfig {
     /// resampling (clustered particle filtering, Milstein et al. 2002). Default 0.01.
     pub mode_min_mass: f64,
     /// Particles each mode keeps at a resampling at least (drawn from its own by weight,
-    /// each cluster's mass kept). Default 100.
+    /// each cluster's mass kept), as far as `max_particles` leaves room: the count never
+    /// passes `max_particles`. Default 100.
     pub mode_particles: usize,
     /// At most this many modes (the heaviest) are kept so. Default 8.
     pub max_modes: usize,
@@ -208,6 +216,22 @@ pub struct MclConfig {
     /// average likelihood, so a cloud that drifted out of the map looks lost. 1 switches
     /// the prior off. Default 1e-6.
     pub not_free_weight: f64,
+    /// Evidence from one place counted once (global start only): until the filter has
+    /// converged (see `converge_min_travel`), each update's likelihood exponent is
+    /// multiplied by min(1, d / `evidence_distance`), d the odometry translation (metres)
+    /// since the previous update; the first scan counts in full. Scans taken while the
+    /// robot turns in place see the same walls from the same point, and their errors (map
+    /// errors, people, furniture) are shared, so weighing each as new evidence makes a
+    /// look-alike room win before the robot has driven anywhere. With the tempering, k
+    /// updates from one place weigh about as one scan, plus what the translation added.
+    /// 0 switches it off. Default 0.5 m.
+    pub evidence_distance: f64,
+    /// A global start counts as converged (and `evidence_distance` stops applying) once
+    /// the robot has travelled at least this far (metres of odometry) since the start and
+    /// the heaviest cluster holds at least `converge_mode_mass` of the weight. Default 2 m.
+    pub converge_min_travel: f64,
+    /// See `converge_min_travel`: the weight the heaviest cluster must hold. Default 0.9.
+    pub converge_mode_mass: f64,
 }
 
 impl Default for MclConfig {
@@ -226,6 +250,9 @@ impl Default for MclConfig {
             roughening: 0.2,
             free_max: 19,
             not_free_weight: 1e-6,
+            evidence_distance: 0.2,
+            converge_min_travel: 5.0,
+            converge_mode_mass: 0.9,
         }
     }
 }
@@ -303,6 +330,13 @@ impl MclConfig {
             C,
             "sensor.min_n_eff_ratio",
             s.min_n_eff_ratio,
+            "in [0, 1)",
+        )?;
+        ensure_config(
+            (0.0..1.0).contains(&s.global_min_n_eff_ratio),
+            C,
+            "sensor.global_min_n_eff_ratio",
+            s.global_min_n_eff_ratio,
             "in [0, 1)",
         )?;
         let k = &self.kld;
@@ -413,6 +447,27 @@ impl MclConfig {
             C,
             "not_free_weight",
             self.not_free_weight,
+            "in (0, 1]",
+        )?;
+        ensure_config(
+            self.evidence_distance >= 0.0,
+            C,
+            "evidence_distance",
+            self.evidence_distance,
+            "finite and >= 0 m",
+        )?;
+        ensure_config(
+            self.converge_min_travel >= 0.0,
+            C,
+            "converge_min_travel",
+            self.converge_min_travel,
+            "finite and >= 0 m",
+        )?;
+        ensure_config(
+            self.converge_mode_mass > 0.0 && self.converge_mode_mass <= 1.0,
+            C,
+            "converge_mode_mass",
+            self.converge_mode_mass,
             "in (0, 1]",
         )?;
         Ok(())

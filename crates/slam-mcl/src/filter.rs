@@ -61,6 +61,10 @@ pub struct StepInfo {
     /// least `kld.mode_min_mass` of the weight. More than one: the filter is unsure
     /// between places (0 without an update).
     pub modes: usize,
+    /// True while a global start has not yet converged (`MclConfig::converge_min_travel`):
+    /// the updates' evidence is then scaled by the translation since the previous update
+    /// (`MclConfig::evidence_distance`).
+    pub converging: bool,
     /// The estimate after this record.
     pub pose: Pose2,
 }
@@ -103,6 +107,12 @@ pub struct Mcl {
     w_fast: f64,
     trajectory: Vec<TimedPose>,
     updates: usize,
+    /// True from a global start until it converged.
+    converging: bool,
+    /// Odometry translation (m) summed over the updates since the start.
+    travelled: f64,
+    /// Weight of the heaviest cluster at the last estimate.
+    best_mass: f64,
 }
 
 impl Mcl {
@@ -143,6 +153,7 @@ impl Mcl {
                 (poses, mean)
             }
         };
+        let converging = matches!(init, InitialBelief::Global);
         let log_w = vec![-(n as f64).ln(); n];
         let mut f = Self {
             config,
@@ -157,6 +168,9 @@ impl Mcl {
             w_fast: 0.0,
             trajectory: Vec::new(),
             updates: 0,
+            converging,
+            travelled: 0.0,
+            best_mass: 0.0,
         };
         let _ = f.refresh_estimate();
         Ok(f)
@@ -242,6 +256,7 @@ impl Mcl {
             w_slow: 0.0,
             exponent: 0.0,
             modes: 0,
+            converging: self.converging,
             pose: Pose2::IDENTITY,
         };
         if let Some(scan) = record
@@ -253,7 +268,9 @@ impl Mcl {
             if !beams.is_empty() {
                 self.motion_update(&last, &odom);
                 self.odom_at_update = Some(odom);
-                self.measurement_update(&beams, &mut info)?;
+                let d = delta.x.hypot(delta.y);
+                self.travelled += d;
+                self.measurement_update(&beams, d, &mut info)?;
             }
         }
         let since = self
@@ -275,13 +292,21 @@ impl Mcl {
         }
     }
 
-    /// Weighs the particles by the scan, updates w_slow/w_fast, resamples when due.
+    /// Weighs the particles by the scan, updates w_slow/w_fast, resamples when due. `d` is
+    /// the odometry translation (m) since the previous update.
     fn measurement_update(
         &mut self,
         beams: &ScanBeams,
+        d: f64,
         info: &mut StepInfo,
     ) -> Result<(), MclError> {
-        let k_max = self.config.sensor.weight_exponent;
+        let mut k_max = self.config.sensor.weight_exponent;
+        // Evidence from one place counted once while a global start converges: the
+        // scan's exponent is scaled by the new ground covered since the previous update.
+        let d_ref = self.config.evidence_distance;
+        if self.converging && self.updates > 0 && d_ref > 0.0 {
+            k_max *= (d / d_ref).min(1.0);
+        }
         // The map prior p(x | m): a particle outside the free space is down-weighted.
         let ln_not_free = self.config.not_free_weight.ln();
         let free_max = self.config.free_max;
@@ -333,6 +358,13 @@ impl Mcl {
         info.w_fast = w_fast;
         info.w_slow = w_slow;
         info.modes = self.refresh_estimate();
+        if self.converging
+            && self.travelled >= self.config.converge_min_travel
+            && self.best_mass >= self.config.converge_mode_mass
+        {
+            self.converging = false;
+        }
+        info.converging = self.converging;
         let n = self.poses.len() as f64;
         if info.n_eff < self.config.resample_ratio * n || p_inject > 0.0 {
             info.injected = self.resample(p_inject)?;
@@ -346,7 +378,13 @@ impl Mcl {
     /// that floor (bisection to 1e-4 relative; N_eff falls as k grows from 0, where it is
     /// the prior's).
     fn tempered_exponent(&self, lls: &[f64], k_max: f64) -> f64 {
-        let floor = self.config.sensor.min_n_eff_ratio * lls.len() as f64;
+        let s = &self.config.sensor;
+        let ratio = if self.converging {
+            s.min_n_eff_ratio.max(s.global_min_n_eff_ratio)
+        } else {
+            s.min_n_eff_ratio
+        };
+        let floor = ratio * lls.len() as f64;
         let n_eff = |k: f64| -> f64 {
             let top = self
                 .log_w
@@ -456,7 +494,9 @@ impl Mcl {
             count[c] += 1;
         }
         for &c in &modes {
-            let missing = kld.mode_particles.saturating_sub(count[c]);
+            // Never past `max_particles`: the top-up takes what the KLD draw left.
+            let room = kld.max_particles.saturating_sub(out.len());
+            let missing = kld.mode_particles.saturating_sub(count[c]).min(room);
             if missing == 0 {
                 continue;
             }
@@ -598,6 +638,7 @@ impl Mcl {
             ms += w * p.theta.sin();
             mc += w * p.theta.cos();
         }
+        self.best_mass = sw;
         if sw <= 0.0 {
             return modes;
         }

@@ -117,3 +117,96 @@ fn bad_input_is_an_error() {
         Err(slam_mcl::MclError::NoFreeSpace { .. })
     ));
 }
+
+/// The global start's evidence rule (`evidence-distance`): while converging, an update's
+/// exponent is k₀ · min(1, d / d_ref), d the translation since the previous update, so a
+/// robot turning in place (d = 0) adds no scan evidence after the first scan; the first
+/// scan and a Gaussian start use k₀ (adaptive tempering may only lower it). Expected values
+/// from the rule's definition: 0 for a pure turn, at most k₀ · 0.1 / 0.2 after 0.1 m.
+#[test]
+fn scans_from_one_place_count_once_while_a_global_start_converges() {
+    let world = room();
+    let config = MclConfig {
+        kld: slam_mcl::KldConfig {
+            max_particles: 2000,
+            ..Default::default()
+        },
+        ..MclConfig::default()
+    };
+    let k0 = config.sensor.weight_exponent;
+    let scanner = LaserScanner::default();
+    let mut rng = Pcg64Mcg::seed_from_u64(1);
+    let mut exponents = |init: InitialBelief| -> Vec<(f64, bool)> {
+        let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
+        let mut mcl = Mcl::new(config, map, init, 3).unwrap();
+        // Turn in place by 0.3 rad four times, then drive 0.1 m while turning 0.3 rad.
+        let mut truths: Vec<Pose2> = (0..5)
+            .map(|k| Pose2::new(2.0, 2.0, 0.3 * k as f64))
+            .collect();
+        truths.push(Pose2::new(2.1, 2.0, 1.5));
+        truths
+            .iter()
+            .enumerate()
+            .map(|(k, truth)| {
+                let info = mcl
+                    .process(&ScanRecord {
+                        t: k as f64,
+                        odometry: *truth,
+                        scan: Some(scanner.scan(&world, truth, &mut rng)),
+                    })
+                    .unwrap();
+                assert!(info.updated, "record {k} made no update");
+                (info.exponent, info.converging)
+            })
+            .collect()
+    };
+    let global = exponents(InitialBelief::Global);
+    assert!(global.iter().all(|(_, c)| *c), "{global:?}");
+    assert!(global[0].0 > 0.0 && global[0].0 <= k0);
+    for (k, c) in &global[1..5] {
+        assert!(*c && *k == 0.0, "a turn in place weighed with {k}");
+    }
+    assert!(global[5].0 > 0.0 && global[5].0 <= k0 * 0.1 / 0.2 + 1e-12);
+    let tracked = exponents(InitialBelief::Gaussian {
+        mean: Pose2::new(2.0, 2.0, 0.0),
+        sigma: [0.1, 0.1, 0.05],
+    });
+    assert!(tracked.iter().all(|(k, c)| !c && *k > 0.0), "{tracked:?}");
+}
+
+/// `max_particles` bounds the particle count at every step, the modes' top-up included:
+/// from a global start (the count starts at the bound) with mode top-ups large enough to
+/// pass it (8 modes × 400 particles against a bound of 1,000), no step reports more.
+#[test]
+fn the_particle_count_never_passes_max_particles() {
+    let world = room();
+    let mut config = MclConfig::default();
+    config.kld.max_particles = 1000;
+    config.kld.min_particles = 100;
+    config.kld.mode_particles = 400;
+    config.kld.mode_min_mass = 0.001;
+    let map = MclMap::new(world.rasterize(0.05, 0.5).unwrap(), &config).unwrap();
+    let mut mcl = Mcl::new(config, map, InitialBelief::Global, 3).unwrap();
+    let scanner = LaserScanner::default();
+    let mut rng = Pcg64Mcg::seed_from_u64(1);
+    let mut resampled = 0;
+    for k in 0..40 {
+        let truth = Pose2::new(1.5 + 0.15 * k as f64, 1.5, 0.0);
+        let scan = scanner.scan(&world, &truth, &mut rng);
+        let info = mcl
+            .process(&ScanRecord {
+                t: k as f64,
+                odometry: truth,
+                scan: Some(scan),
+            })
+            .unwrap();
+        resampled += usize::from(info.resampled);
+        assert!(
+            info.particles <= 1000,
+            "step {k}: {} particles",
+            info.particles
+        );
+        assert_eq!(info.particles, mcl.particle_count());
+    }
+    assert!(resampled > 0, "the check must see resamplings");
+}

@@ -186,6 +186,27 @@ pub trait FromConfig: Sized {
     ) -> Result<Self, Self::Error>;
 }
 
+/// `impl FromConfig for $filter` by the filter's own constructor
+/// `$filter::new(config, initial_pose, seed) -> Result<$filter, $error>`, the shape every
+/// filter of the workspace has: `from_config_by_new!(EkfSlam, EkfConfig, EkfError);`.
+#[macro_export]
+macro_rules! from_config_by_new {
+    ($filter:ty, $config:ty, $error:ty) => {
+        impl $crate::FromConfig for $filter {
+            type Config = $config;
+            type Error = $error;
+
+            fn from_config(
+                config: $config,
+                initial_pose: $crate::Pose2,
+                seed: u64,
+            ) -> Result<Self, $error> {
+                Self::new(config, initial_pose, seed)
+            }
+        }
+    };
+}
+
 /// A landmark-based SLAM filter: EKF-SLAM, FastSLAM 1.0/2.0.
 ///
 /// Call order per time step: [`predict`](LandmarkSlam::predict) with the control that moved

@@ -168,7 +168,12 @@ pub struct Participant {
 }
 
 impl Participant {
-    /// Joins DDS domain `domain_id` (ROS 2's `ROS_DOMAIN_ID`, 0–232).
+    /// Joins DDS domain `domain_id` (ROS 2's `ROS_DOMAIN_ID`, 0–232), on every interface.
+    ///
+    /// There is no loopback-only mode (`ROS_LOCALHOST_ONLY`): RustDDS 0.13.1 can announce
+    /// only 127.0.0.1 (`DomainParticipantBuilder::with_only_networks`), but it ignores the
+    /// loopback locators its peers announce (`RtpsReaderProxy::not_loopback`, the route
+    /// selection in `rtps/transmit.rs`), so it cannot talk to a peer held to loopback.
     pub fn new(domain_id: u16) -> Result<Self, RosError> {
         if domain_id > 232 {
             return Err(RosError::Dds(format!(
@@ -187,20 +192,50 @@ impl Participant {
         })
     }
 
+    /// The DDS topic `dds_topic` (shown as `shown` in errors) of `ros_type`.
     fn topic(
         &self,
-        ros_topic: &str,
+        dds_topic: String,
+        shown: &str,
         ros_type: &str,
         profile: Profile,
     ) -> Result<rustdds::Topic, RosError> {
         self.dp
             .create_topic(
-                dds_topic_name(ros_topic),
+                dds_topic,
                 slam_io::ros_msg::dds_type_name(ros_type),
                 &profile.qos(),
                 TopicKind::NoKey,
             )
-            .map_err(|e| RosError::Dds(format!("topic {ros_topic}: {e}")))
+            .map_err(|e| RosError::Dds(format!("topic {shown}: {e}")))
+    }
+
+    /// A writer of DDS topic `dds_topic` (shown as `shown` in errors).
+    fn dds_writer(
+        &self,
+        dds_topic: String,
+        shown: &str,
+        ros_type: &str,
+        profile: Profile,
+    ) -> Result<Writer, RosError> {
+        let topic = self.topic(dds_topic, shown, ros_type, profile)?;
+        self.publisher
+            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
+            .map_err(|e| RosError::Dds(format!("writer of {shown}: {e}")))
+    }
+
+    /// The participant's GUID (RTPS: 12-byte prefix, 4-byte entity id), ROS 2's gid of it.
+    pub fn gid(&self) -> [u8; 16] {
+        rustdds::RTPSEntity::guid(&self.dp).to_bytes()
+    }
+
+    /// The writer of the ROS 2 graph's `ros_discovery_info` topic (no `rt` prefix, type
+    /// `rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_`, reliable, keep last 1,
+    /// transient local, as `rmw_dds_common`'s graph cache publishes it).
+    pub fn discovery_info_writer(&self) -> Result<Writer, RosError> {
+        use crate::graph::{DISCOVERY_TOPIC, DISCOVERY_TYPE};
+        let topic = DISCOVERY_TOPIC.to_string();
+        self.dds_writer(topic, DISCOVERY_TOPIC, DISCOVERY_TYPE, Profile::Latched)
     }
 
     /// A writer of `ros_topic` (type `pkg/msg/Type`) with `profile`.
@@ -210,10 +245,7 @@ impl Participant {
         ros_type: &str,
         profile: Profile,
     ) -> Result<Writer, RosError> {
-        let topic = self.topic(ros_topic, ros_type, profile)?;
-        self.publisher
-            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
-            .map_err(|e| RosError::Dds(format!("writer of {ros_topic}: {e}")))
+        self.dds_writer(dds_topic_name(ros_topic), ros_topic, ros_type, profile)
     }
 
     /// A reader of `ros_topic` (type `pkg/msg/Type`) with `profile`.
@@ -223,27 +255,38 @@ impl Participant {
         ros_type: &str,
         profile: Profile,
     ) -> Result<Reader, RosError> {
-        let topic = self.topic(ros_topic, ros_type, profile)?;
+        let topic = self.topic(dds_topic_name(ros_topic), ros_topic, ros_type, profile)?;
         self.subscriber
             .create_datareader_no_key::<RawCdr, RawCdrAdapter>(&topic, Some(profile.qos()))
             .map_err(|e| RosError::Dds(format!("reader of {ros_topic}: {e}")))
     }
 }
 
-/// Takes the next message of `reader`, `Ok(None)` when none is waiting.
-pub fn take(reader: &mut Reader) -> Result<Option<RawCdr>, RosError> {
+/// Takes the next message of `reader` (of ROS topic `topic`, named in the error),
+/// `Ok(None)` when none is waiting.
+pub fn take(reader: &mut Reader, topic: &str) -> Result<Option<RawCdr>, RosError> {
     match reader.take_next_sample() {
         Ok(Some(s)) => Ok(Some(s.into_value())),
         Ok(None) => Ok(None),
-        Err(e) => Err(RosError::Dds(format!("read: {e}"))),
+        Err(e) => Err(RosError::Dds(format!("read of {topic}: {e}"))),
     }
 }
 
-/// Writes `message` on `writer`.
-pub fn write(writer: &Writer, message: Vec<u8>) -> Result<(), RosError> {
-    writer
-        .write(RawCdr(message), None)
-        .map_err(|e| RosError::Dds(format!("write: {e}")))
+/// The gid (RTPS GUID) of a reader or writer.
+pub fn gid_of(entity: &dyn rustdds::RTPSEntity) -> [u8; 16] {
+    entity.guid().to_bytes()
+}
+
+/// Writes `message` on `writer` (of ROS topic `topic`, named in the error). `Ok(false)`: not
+/// written, because a reliable reader has not acknowledged the writer's history (its
+/// depth) within the QoS's blocking time (100 ms): the message is dropped, not queued, so
+/// a slow subscriber never holds the node up for longer.
+pub fn write(writer: &Writer, topic: &str, message: Vec<u8>) -> Result<bool, RosError> {
+    match writer.write(RawCdr(message), None) {
+        Ok(()) => Ok(true),
+        Err(rustdds::dds::result::WriteError::WouldBlock { .. }) => Ok(false),
+        Err(e) => Err(RosError::Dds(format!("write on {topic}: {e}"))),
+    }
 }
 
 #[cfg(test)]

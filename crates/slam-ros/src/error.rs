@@ -44,6 +44,16 @@ pub enum RosError {
         #[source]
         source: slam_models::FilterError,
     },
+    /// The laser odometry of the laser-only mode refused its configuration (`scan` none)
+    /// or failed on a scan.
+    #[error("laser odometry{}: {source}", scan.map(|s| format!(" on scan {s}")).unwrap_or_default())]
+    LaserOdometry {
+        /// 0-based index of the scan stepped, if it was a scan.
+        scan: Option<usize>,
+        /// The laser odometry's error.
+        #[source]
+        source: slam_grid::GridError,
+    },
     /// Writing the map, the trajectory or the report failed.
     #[error("writing {path}: {source}")]
     Write {

@@ -16,11 +16,12 @@
 pub mod convert;
 pub mod dds;
 pub mod error;
+pub mod graph;
 pub mod live;
 pub mod node;
 pub mod outputs;
 
 pub use error::RosError;
 pub use live::LiveServer;
-pub use node::{run_node, NodeOptions, NodeReport, OdomSource};
+pub use node::{run_node, NodeOptions, NodeReport, OdomSource, ScanStepper};
 pub use outputs::{Frames, Out};

@@ -477,13 +477,15 @@ impl RunView {
 impl RunView {
     /// Publishes a localization step (`slam localize --live`): `pose` and `cloud` in the
     /// map frame after `record`, with `map → odom`, `odom → base` and the scan; `map` (the
-    /// fixed map localized on) goes out once, with the first step.
+    /// fixed map localized on) goes out once, with the first step; `trajectory` (the
+    /// estimates so far) every [`RunView::TRAJECTORY_EVERY`] of wall time.
     pub fn localize_step(
         &mut self,
         record: &slam_models::ScanRecord,
         pose: slam_models::Pose2,
         cloud: &[slam_models::WeightedPose],
         map: &slam_models::GridMap,
+        trajectory: &[slam_models::TimedPose],
     ) {
         use slam_io::ros_msg::{self, Transform};
         let stamp = ros_msg::stamp(record.t).unwrap_or(ros_msg::Stamp { sec: 0, nanosec: 0 });
@@ -508,6 +510,16 @@ impl RunView {
             },
         ];
         out.push((Out::Tf, ros_msg::encode_tf_message(&tf)));
+        if self
+            .last_trajectory
+            .is_none_or(|a| a.elapsed() >= Self::TRAJECTORY_EVERY)
+        {
+            self.last_trajectory = Some(std::time::Instant::now());
+            out.push((
+                Out::Trajectory,
+                crate::outputs::path_message(stamp, trajectory, f),
+            ));
+        }
         let cov = crate::convert::cloud_covariance(cloud).unwrap_or([[0.0; 3]; 3]);
         out.push((
             Out::Pose,

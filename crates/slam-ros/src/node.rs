@@ -9,8 +9,9 @@
 //! filter that keeps up nothing is skipped.
 //!
 //! **Odometry** (`odom → base`) comes from `nav_msgs/Odometry`, from `/tf`, or from nowhere
-//! (laser only: the odometry is held at the origin and the filter's scan matcher carries all
-//! the motion). A scan takes the odometry interpolated at its stamp; a scan newer than every
+//! (laser only: laser odometry, [`slam_grid::LaserOdometry`], each scan matched against a
+//! local map of the scans before it, as `slam run` makes the odometry of a laser-only
+//! recording; [`ScanStepper`]). A scan takes the odometry interpolated at its stamp; a scan newer than every
 //! odometry message waits for the next one up to `odom_wait_s`, then takes the newest (counted
 //! as `odom_held`).
 //!
@@ -84,6 +85,13 @@ pub struct NodeOptions {
     pub odom_wait_s: f64,
     /// The output folder of the map, the trajectory and `node.json`.
     pub out: PathBuf,
+    /// The laser odometry of [`OdomSource::None`] (the `[laser-odometry]` table of the
+    /// filter's configuration, as for `slam run` on a laser-only recording).
+    pub laser_odometry: slam_grid::LaserOdometryConfig,
+    /// The node's name in the ROS graph (`ros2 node list`, `ros_discovery_info`).
+    pub node_name: String,
+    /// The node's namespace (`/` for the root).
+    pub node_namespace: String,
 }
 
 impl Default for NodeOptions {
@@ -107,6 +115,9 @@ impl Default for NodeOptions {
             trajectory_every: 10,
             odom_wait_s: 0.2,
             out: PathBuf::from("slam-ros-out"),
+            laser_odometry: slam_grid::LaserOdometryConfig::default(),
+            node_name: "slam".into(),
+            node_namespace: "/".into(),
         }
     }
 }
@@ -196,6 +207,9 @@ pub struct NodeReport {
     pub no_odometry: u64,
     /// Scans whose frame had no `/tf_static` transform to the base (taken as at the base).
     pub unmounted: u64,
+    /// Messages not published, by topic: a reliable subscriber had not acknowledged the
+    /// topic's history (its QoS depth) within 100 ms ([`dds::write`]).
+    pub dropped: std::collections::BTreeMap<String, u64>,
     /// Messages that did not decode.
     pub decode_errors: u64,
     /// The first decoding error.
@@ -214,6 +228,80 @@ pub struct NodeReport {
     pub wall_s: f64,
     /// Files written at shutdown.
     pub files: Vec<PathBuf>,
+}
+
+/// The node's processing core, without DDS: makes each received scan the filter's next
+/// record and steps the filter with it. With odometry from a topic the record takes the
+/// odometry given; in the laser-only mode ([`OdomSource::None`]) it takes the pose of the
+/// node's own [`slam_grid::LaserOdometry`] (each scan matched against a local map of the
+/// scans before it, in the frame of the first scan), the odometry `slam run` makes for a
+/// laser-only recording ([`slam_grid::laser_odometry()`]), so that the node on a stream of
+/// scans and `slam run` on the same scans give the same estimates.
+pub struct ScanStepper {
+    laser: Option<slam_grid::LaserOdometry>,
+    steps: usize,
+}
+
+impl ScanStepper {
+    /// A stepper for `odometry`; `laser` configures the laser odometry of
+    /// [`OdomSource::None`] (rejected when invalid, by key).
+    pub fn new(
+        odometry: &OdomSource,
+        laser: &slam_grid::LaserOdometryConfig,
+    ) -> Result<Self, RosError> {
+        let laser = match odometry {
+            OdomSource::None => Some(
+                slam_grid::LaserOdometry::new(laser.clone())
+                    .map_err(|source| RosError::LaserOdometry { scan: None, source })?,
+            ),
+            _ => None,
+        };
+        Ok(ScanStepper { laser, steps: 0 })
+    }
+
+    /// Whether the odometry is made from the scans.
+    pub fn laser_only(&self) -> bool {
+        self.laser.is_some()
+    }
+
+    /// Steps `filter` with scan message `msg`, its sensor at `sensor_pose` in the base frame
+    /// (metres, radians), at odometry `odometry` (`odom → base`; ignored in the laser-only
+    /// mode, where the laser odometry's pose is taken). Returns the record the filter was
+    /// given.
+    pub fn step(
+        &mut self,
+        filter: &mut dyn ScanSlam,
+        msg: &ros_msg::ScanMsg,
+        odometry: Pose2,
+        sensor_pose: Pose2,
+    ) -> Result<ScanRecord, RosError> {
+        let scan = scan_from_msg(msg, sensor_pose);
+        let t = secs(msg.header.stamp_ns);
+        let odometry = match &mut self.laser {
+            Some(lo) => {
+                lo.process(&scan, None)
+                    .map_err(|source| RosError::LaserOdometry {
+                        scan: Some(self.steps),
+                        source,
+                    })?
+                    .0
+            }
+            None => odometry,
+        };
+        let record = ScanRecord {
+            t,
+            odometry,
+            scan: Some(scan),
+        };
+        filter.process(&record).map_err(|source| RosError::Filter {
+            filter: filter.name().to_string(),
+            scan: self.steps,
+            t,
+            source,
+        })?;
+        self.steps += 1;
+        Ok(record)
+    }
 }
 
 /// A scan off the wire with its arrival time.
@@ -238,13 +326,46 @@ struct Inbox {
     failed: Option<String>,
 }
 
+/// A reader with the ROS topic it reads (for the errors) and its count of messages taken.
+struct Named {
+    reader: Reader,
+    topic: String,
+    taken: u64,
+}
+
+impl Named {
+    fn new(dp: &Participant, topic: &str, ros_type: &str, p: Profile) -> Result<Self, RosError> {
+        Ok(Named {
+            reader: dp.reader(topic, ros_type, p)?,
+            topic: topic.to_string(),
+            taken: 0,
+        })
+    }
+}
+
 struct Readers {
-    scan: Reader,
-    odom: Option<(Reader, bool)>,
-    tf_static: Reader,
-    clock: Option<Reader>,
-    save: Reader,
-    map_request: Reader,
+    scan: Named,
+    /// The odometry, and whether it is `/tf` (else `nav_msgs/Odometry`).
+    odom: Option<(Named, bool)>,
+    tf_static: Named,
+    clock: Option<Named>,
+    save: Named,
+    map_request: Named,
+}
+
+impl Readers {
+    /// Every reader, in a fixed order (the poll tokens).
+    fn all(&mut self) -> Vec<&mut Named> {
+        let mut v = vec![
+            &mut self.scan,
+            &mut self.tf_static,
+            &mut self.save,
+            &mut self.map_request,
+        ];
+        v.extend(self.odom.as_mut().map(|(n, _)| n));
+        v.extend(self.clock.as_mut());
+        v
+    }
 }
 
 struct Writers {
@@ -289,6 +410,7 @@ pub fn run_node(
 ) -> Result<NodeReport, RosError> {
     opts.check()?;
     let started = Instant::now();
+    let stepper = ScanStepper::new(&opts.odometry, &opts.laser_odometry)?;
     let dp = Participant::new(opts.domain_id)?;
     let writers = Writers {
         tf: dp.writer(&opts.tf_topic, TF, Profile::Tf)?,
@@ -306,25 +428,56 @@ pub fn run_node(
         )?,
     };
     let readers = Readers {
-        scan: dp.reader(&opts.scan_topic, LASER_SCAN, Profile::SensorData)?,
+        scan: Named::new(&dp, &opts.scan_topic, LASER_SCAN, Profile::SensorData)?,
         odom: match &opts.odometry {
-            OdomSource::Topic(t) => Some((dp.reader(t, ODOMETRY, Profile::Default)?, false)),
+            OdomSource::Topic(t) => Some((Named::new(&dp, t, ODOMETRY, Profile::Default)?, false)),
             OdomSource::Tf if opts.tf_topic.is_empty() => None,
-            OdomSource::Tf => Some((dp.reader(&opts.tf_topic, TF, Profile::Tf)?, true)),
+            OdomSource::Tf => Some((Named::new(&dp, &opts.tf_topic, TF, Profile::Tf)?, true)),
             OdomSource::None => None,
         },
-        tf_static: dp.reader(&opts.tf_static_topic, TF, Profile::Latched)?,
+        tf_static: Named::new(&dp, &opts.tf_static_topic, TF, Profile::Latched)?,
         clock: if opts.use_sim_time {
-            Some(dp.reader(&opts.clock_topic, CLOCK, Profile::SensorData)?)
+            Some(Named::new(
+                &dp,
+                &opts.clock_topic,
+                CLOCK,
+                Profile::SensorData,
+            )?)
         } else {
             None
         },
-        save: dp.reader(&opts.save_topic, STRING, Profile::Default)?,
-        map_request: dp.reader(&opts.map_request_topic, STRING, Profile::Default)?,
+        save: Named::new(&dp, &opts.save_topic, STRING, Profile::Default)?,
+        map_request: Named::new(&dp, &opts.map_request_topic, STRING, Profile::Default)?,
     };
-    // No buffer at all means laser only (the odometry held at the origin); an empty one
-    // means odometry expected but none yet.
-    let odom = (opts.odometry != OdomSource::None).then(|| OdomBuffer::new(ODOM_KEPT));
+    // The node in the ROS graph (`ros2 node list`): its readers and writers by gid.
+    let mut readers = readers;
+    let graph_node = crate::graph::NodeEntities {
+        namespace: opts.node_namespace.clone(),
+        name: opts.node_name.clone(),
+        readers: readers
+            .all()
+            .into_iter()
+            .map(|n| dds::gid_of(&n.reader))
+            .collect(),
+        writers: [
+            &writers.tf,
+            &writers.map,
+            &writers.pose,
+            &writers.trajectory,
+            &writers.particles,
+        ]
+        .into_iter()
+        .map(|w| dds::gid_of(w))
+        .collect(),
+    };
+    let graph = dp.discovery_info_writer()?;
+    dds::write(
+        &graph,
+        crate::graph::DISCOVERY_TOPIC,
+        crate::graph::encode_participant_entities_info(&dp.gid(), &[graph_node]),
+    )?;
+    // No buffer: no odometry yet (laser only: none expected, the scans make it).
+    let odom = None;
     let inbox = Arc::new((
         Mutex::new(Inbox {
             odom,
@@ -337,10 +490,16 @@ pub fn run_node(
         let inbox = Arc::clone(&inbox);
         let quit = Arc::clone(&quit);
         let frames = opts.frames.clone();
-        let topics = [opts.scan_topic.clone(), opts.tf_static_topic.clone()];
         std::thread::Builder::new()
             .name("ros-receive".into())
-            .spawn(move || receive(readers, &inbox, &quit, &frames, &topics))
+            .spawn(move || {
+                if let Err(e) = receive(readers, &inbox, &quit, &frames) {
+                    if let Ok(mut inb) = inbox.0.lock() {
+                        inb.failed = Some(e.to_string());
+                    }
+                    inbox.1.notify_all();
+                }
+            })
             .map_err(|e| RosError::Dds(format!("receiver thread: {e}")))?
     };
     log(&format!(
@@ -369,6 +528,7 @@ pub fn run_node(
         last_map: None,
         last_odom: Pose2::IDENTITY,
         last_stamp: None,
+        stepper,
     };
     let result = node.spin(filter.as_mut(), &inbox, stop, log);
     quit.store(true, Ordering::Relaxed);
@@ -380,11 +540,26 @@ pub fn run_node(
         node.report.decode_errors = inb.decode_errors;
         node.report.first_decode_error = inb.first_decode_error.clone();
     }
+    // Leaving the graph (as rmw does when a node is destroyed).
+    let _ = dds::write(
+        &graph,
+        crate::graph::DISCOVERY_TOPIC,
+        crate::graph::encode_participant_entities_info(&dp.gid(), &[]),
+    );
     result?;
-    // Shutdown: the final map out, and everything on disk.
-    let stamp = node.now_stamp(&inbox);
-    node.publish_map(filter.as_ref(), stamp)?;
-    node.report.files = save(filter.as_ref(), &opts.out)?;
+    // Shutdown: the final map out, and everything on disk (no map exists before the first
+    // scan: then only node.json, and the log says so).
+    if node.report.processed > 0 {
+        let stamp = node.now_stamp(&inbox);
+        node.publish_map(filter.as_ref(), stamp)?;
+        node.report.files = save(filter.as_ref(), &opts.out)?;
+    } else {
+        std::fs::create_dir_all(&opts.out).map_err(|e| RosError::Write {
+            path: opts.out.clone(),
+            source: Box::new(e),
+        })?;
+        log("slam ros2: no scan processed, so no map or trajectory to save");
+    }
     node.report.latency = Latency::of(&node.latencies);
     if let Some(rss) = current_rss_mb() {
         node.report.rss_mb.push(rss);
@@ -435,6 +610,7 @@ struct Running<'a> {
     last_map: Option<(Option<i64>, Instant)>,
     last_odom: Pose2,
     last_stamp: Option<Stamp>,
+    stepper: ScanStepper,
 }
 
 impl Running<'_> {
@@ -532,14 +708,18 @@ impl Running<'_> {
         Ok(())
     }
 
-    fn send(&self, out: Out, stamp: Stamp, bytes: Vec<u8>) -> Result<(), RosError> {
+    fn send(&mut self, out: Out, stamp: Stamp, bytes: Vec<u8>) -> Result<(), RosError> {
         if let Some(live) = self.live {
             live.publish(out, stamp.ns(), bytes.clone());
         }
-        match self.writers.of(out) {
-            Some(w) => dds::write(w, bytes),
-            None => Ok(()),
+        let Some(w) = self.writers.of(out) else {
+            return Ok(());
+        };
+        let topic = self.opts.topic(out);
+        if !dds::write(w, &topic, bytes)? {
+            *self.report.dropped.entry(topic).or_default() += 1;
         }
+        Ok(())
     }
 
     /// The odometry at `ns`, waiting up to `odom_wait_s` for it to arrive.
@@ -554,7 +734,7 @@ impl Running<'_> {
         let mut inb = lock.lock().ok()?;
         loop {
             let found = match &inb.odom {
-                None => return Some(Pose2::IDENTITY),
+                None => OdomAt::Missing,
                 Some(buf) => buf.at(ns),
             };
             let now = Instant::now();
@@ -580,9 +760,14 @@ impl Running<'_> {
         stop: &AtomicBool,
     ) -> Result<(), RosError> {
         let ns = arrived.msg.header.stamp_ns;
-        let Some(odom) = self.odometry_at(ns, inbox, stop) else {
-            self.report.no_odometry += 1;
-            return Ok(());
+        let odom = if self.stepper.laser_only() {
+            Pose2::IDENTITY
+        } else {
+            let Some(odom) = self.odometry_at(ns, inbox, stop) else {
+                self.report.no_odometry += 1;
+                return Ok(());
+            };
+            odom
         };
         let frame = &arrived.msg.header.frame_id;
         let mount = inbox
@@ -594,20 +779,8 @@ impl Running<'_> {
             self.report.unmounted += 1;
             Pose2::IDENTITY
         });
-        let scan = scan_from_msg(&arrived.msg, sensor_pose);
-        let t = secs(ns);
-        let record = ScanRecord {
-            t,
-            odometry: odom,
-            scan: Some(scan),
-        };
-        let index = self.report.processed as usize;
-        filter.process(&record).map_err(|source| RosError::Filter {
-            filter: filter.name().to_string(),
-            scan: index,
-            t,
-            source,
-        })?;
+        let record = self.stepper.step(filter, &arrived.msg, odom, sensor_pose)?;
+        let (t, odom) = (record.t, record.odometry);
         self.report.processed += 1;
         self.report.processed_stamps_ns.push(ns);
         let stamp = ros_msg::stamp(t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
@@ -674,154 +847,143 @@ pub fn current_rss_mb() -> Option<f64> {
     Some(kb / 1024.0)
 }
 
-/// The receiver thread: takes every waiting message, sleeping 1 ms when there was none.
+/// Takes every waiting message of `r`, decodes it with `decode` and hands it to `apply`
+/// under the inbox lock. A message that does not decode is counted, the first such error
+/// kept (naming `r`'s topic, `ros_type` and the message's index on it). `Err`: the DDS read
+/// failed, or the filter's thread panicked.
+fn drain<T>(
+    r: &mut Named,
+    ros_type: &'static str,
+    lock: &Mutex<Inbox>,
+    decode: impl Fn(&[u8]) -> Result<T, slam_io::ros_msg::DecodeError>,
+    mut apply: impl FnMut(&mut Inbox, T),
+) -> Result<(), RosError> {
+    while let Some(m) = dds::take(&mut r.reader, &r.topic)? {
+        let index = r.taken;
+        r.taken += 1;
+        let decoded = decode(&m.0);
+        let mut inb = lock
+            .lock()
+            .map_err(|_| RosError::Dds("the filter's thread panicked".into()))?;
+        match decoded {
+            Ok(v) => apply(&mut inb, v),
+            Err(source) => {
+                inb.decode_errors += 1;
+                if inb.first_decode_error.is_none() {
+                    let e = RosError::Decode {
+                        topic: r.topic.clone(),
+                        ros_type,
+                        index,
+                        source,
+                    };
+                    inb.first_decode_error = Some(e.to_string());
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// How long the receiver blocks on its readers before it looks at the quit flag.
+const RECEIVE_WAKE: Duration = Duration::from_millis(100);
+
+/// The receiver thread: blocks until one of the readers has data (mio's poll on their
+/// readiness, at most [`RECEIVE_WAKE`]), then takes every waiting message of every reader.
 fn receive(
     mut r: Readers,
     inbox: &(Mutex<Inbox>, Condvar),
     quit: &AtomicBool,
     frames: &Frames,
-    topics: &[String; 2],
-) {
+) -> Result<(), RosError> {
     let (lock, cvar) = inbox;
-    let mut counts = [0u64; 6];
-    let decode_error = |inb: &mut Inbox, e: RosError| {
-        inb.decode_errors += 1;
-        if inb.first_decode_error.is_none() {
-            inb.first_decode_error = Some(e.to_string());
-        }
-    };
+    let poll_error = |e: std::io::Error| RosError::Dds(format!("poll of the readers: {e}"));
+    let mut poll = mio::Poll::new().map_err(poll_error)?;
+    for (i, n) in r.all().into_iter().enumerate() {
+        poll.registry()
+            .register(&mut n.reader, mio::Token(i), mio::Interest::READABLE)
+            .map_err(poll_error)?;
+    }
+    let mut events = mio::Events::with_capacity(16);
     while !quit.load(Ordering::Relaxed) {
-        let mut got = false;
-        macro_rules! each {
-            ($reader:expr, $i:expr, |$inb:ident, $bytes:ident| $body:block) => {
-                loop {
-                    match dds::take($reader) {
-                        Ok(Some(m)) => {
-                            got = true;
-                            counts[$i] += 1;
-                            let Ok(mut $inb) = lock.lock() else { return };
-                            let $bytes = m.0;
-                            $body
-                        }
-                        Ok(None) => break,
-                        Err(e) => {
-                            if let Ok(mut inb) = lock.lock() {
-                                inb.failed = Some(e.to_string());
-                            }
-                            cvar.notify_all();
-                            return;
-                        }
-                    }
-                }
-            };
+        match poll.poll(&mut events, Some(RECEIVE_WAKE)) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(poll_error(e)),
         }
-        each!(&mut r.tf_static, 0, |inb, bytes| {
-            match ros_msg::decode_tf_message(&bytes) {
-                Ok(ts) => ts.into_iter().for_each(|t| inb.statics.insert(t)),
-                Err(source) => decode_error(
-                    &mut inb,
-                    RosError::Decode {
-                        topic: topics[1].clone(),
-                        ros_type: TF,
-                        index: counts[0] - 1,
-                        source,
-                    },
-                ),
-            }
-        });
+        // Every reader is drained on every wake (a reader's readiness is edge-triggered:
+        // what one wake announces may hold several messages, and a timeout costs nothing).
+        drain(
+            &mut r.tf_static,
+            TF,
+            lock,
+            ros_msg::decode_tf_message,
+            |inb, ts| ts.into_iter().for_each(|t| inb.statics.insert(t)),
+        )?;
         if let Some((reader, is_tf)) = &mut r.odom {
             let is_tf = *is_tf;
-            each!(reader, 1, |inb, bytes| {
-                let decoded = if is_tf {
-                    ros_msg::decode_tf_message(&bytes).map(|ts| {
+            let decode = |b: &[u8]| {
+                if is_tf {
+                    ros_msg::decode_tf_message(b).map(|ts| {
                         ts.into_iter()
                             .filter(|t| t.parent == frames.odom && t.child == frames.base)
                             .collect::<Vec<_>>()
                     })
                 } else {
-                    ros_msg::decode_odometry(&bytes).map(|o| vec![o])
-                };
-                match decoded {
-                    Ok(poses) => {
-                        let buf = inb.odom.get_or_insert_with(|| OdomBuffer::new(ODOM_KEPT));
-                        for p in poses {
-                            buf.push(p.stamp_ns, p.pose);
-                        }
-                        cvar.notify_all();
-                    }
-                    Err(source) => decode_error(
-                        &mut inb,
-                        RosError::Decode {
-                            topic: "odometry".into(),
-                            ros_type: if is_tf { TF } else { ODOMETRY },
-                            index: counts[1] - 1,
-                            source,
-                        },
-                    ),
+                    ros_msg::decode_odometry(b).map(|o| vec![o])
                 }
-            });
-        }
-        if let Some(reader) = &mut r.clock {
-            each!(reader, 2, |inb, bytes| {
-                match ros_msg::decode_clock(&bytes) {
-                    Ok(ns) => inb.clock_ns = Some(ns),
-                    Err(source) => decode_error(
-                        &mut inb,
-                        RosError::Decode {
-                            topic: "clock".into(),
-                            ros_type: CLOCK,
-                            index: counts[2] - 1,
-                            source,
-                        },
-                    ),
-                }
-            });
-        }
-        each!(&mut r.scan, 3, |inb, bytes| {
-            match ros_msg::decode_laser_scan(&bytes) {
-                Ok(msg) => {
-                    inb.received += 1;
-                    let replaced = inb.scan.replace(Arrived {
-                        msg,
-                        at: Instant::now(),
-                    });
-                    if replaced.is_some() {
-                        inb.skipped += 1;
+            };
+            drain(
+                reader,
+                if is_tf { TF } else { ODOMETRY },
+                lock,
+                decode,
+                |inb, poses| {
+                    let buf = inb.odom.get_or_insert_with(|| OdomBuffer::new(ODOM_KEPT));
+                    for p in poses {
+                        buf.push(p.stamp_ns, p.pose);
                     }
                     cvar.notify_all();
-                }
-                Err(source) => decode_error(
-                    &mut inb,
-                    RosError::Decode {
-                        topic: topics[0].clone(),
-                        ros_type: LASER_SCAN,
-                        index: counts[3] - 1,
-                        source,
-                    },
-                ),
-            }
-        });
-        each!(&mut r.save, 4, |inb, bytes| {
-            match ros_msg::decode_string(&bytes) {
-                Ok(s) => inb.saves.push(s),
-                Err(source) => decode_error(
-                    &mut inb,
-                    RosError::Decode {
-                        topic: "save".into(),
-                        ros_type: STRING,
-                        index: counts[4] - 1,
-                        source,
-                    },
-                ),
-            }
-        });
-        each!(&mut r.map_request, 5, |inb, _bytes| {
-            inb.map_requests += 1;
-        });
-        if !got {
-            std::thread::sleep(Duration::from_millis(1));
+                },
+            )?;
         }
+        if let Some(reader) = &mut r.clock {
+            drain(reader, CLOCK, lock, ros_msg::decode_clock, |inb, ns| {
+                inb.clock_ns = Some(ns)
+            })?;
+        }
+        drain(
+            &mut r.scan,
+            LASER_SCAN,
+            lock,
+            ros_msg::decode_laser_scan,
+            |inb, msg| {
+                inb.received += 1;
+                let replaced = inb.scan.replace(Arrived {
+                    msg,
+                    at: Instant::now(),
+                });
+                if replaced.is_some() {
+                    inb.skipped += 1;
+                }
+                cvar.notify_all();
+            },
+        )?;
+        drain(
+            &mut r.save,
+            STRING,
+            lock,
+            ros_msg::decode_string,
+            |inb, s| inb.saves.push(s),
+        )?;
+        drain(
+            &mut r.map_request,
+            STRING,
+            lock,
+            |_| Ok(()),
+            |inb, ()| inb.map_requests += 1,
+        )?;
     }
+    Ok(())
 }
 
 #[cfg(test)]

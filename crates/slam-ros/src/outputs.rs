@@ -191,8 +191,17 @@ pub fn step_messages(
 /// The filter's trajectory as a `nav_msgs/Path` in the map frame, each pose at its own
 /// stamp (a pose whose time has no `builtin_interfaces/Time` is left out).
 pub fn trajectory_message(stamp: Stamp, filter: &dyn ScanSlam, frames: &Frames) -> Vec<u8> {
-    let path: Vec<(Stamp, Pose2)> = filter
-        .trajectory()
+    path_message(stamp, &filter.trajectory(), frames)
+}
+
+/// `nav_msgs/Path` of `trajectory` in the map frame, each pose at its own time (poses at a
+/// time outside `builtin_interfaces/Time`'s range are left out).
+pub fn path_message(
+    stamp: Stamp,
+    trajectory: &[slam_models::TimedPose],
+    frames: &Frames,
+) -> Vec<u8> {
+    let path: Vec<(Stamp, Pose2)> = trajectory
         .iter()
         .filter_map(|p| Some((ros_msg::stamp(p.t)?, p.pose)))
         .collect();

@@ -65,8 +65,8 @@ use slam_models::association::{
 };
 use slam_models::gaussian::mahalanobis_squared;
 use slam_models::{
-    Control, FilterError, FromConfig, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3,
-    Pose2, RangeBearing, UpdateInfo, Vector3,
+    Control, FilterError, LandmarkEstimate, LandmarkId, LandmarkSlam, Matrix2, Matrix3, Pose2,
+    RangeBearing, UpdateInfo, Vector3,
 };
 use std::collections::HashMap;
 
@@ -494,18 +494,7 @@ impl GraphLandmarkSlam {
     }
 }
 
-impl FromConfig for GraphLandmarkSlam {
-    type Config = GraphLandmarkConfig;
-    type Error = GraphError;
-
-    fn from_config(
-        config: GraphLandmarkConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GraphError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(GraphLandmarkSlam, GraphLandmarkConfig, GraphError);
 
 impl LandmarkSlam for GraphLandmarkSlam {
     fn name(&self) -> &str {

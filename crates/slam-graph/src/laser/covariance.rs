@@ -10,7 +10,7 @@
 //! flat and the sampled variance approaches the window's, across it the response is sharp
 //! and the variance is the lattice's.
 
-use slam_grid::{CellIndex, OccupancyGrid, PreparedScan};
+use slam_grid::{CellIndex, OccupancyGrid, RangeData};
 use slam_models::{Matrix3, Pose2};
 
 /// Where and how the likelihood is sampled around a match (see [`response_covariance`]).
@@ -46,7 +46,7 @@ const MAX_ROTATION_STEPS: i32 = 64;
 /// `None` for a scan without end points.
 pub(crate) fn response_covariance(
     grid: &OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     mode: &Pose2,
     sampling: &ResponseSampling,
 ) -> Option<Matrix3> {
@@ -189,7 +189,7 @@ mod tests {
                 .unwrap();
         }
         let scan = box_scan(0.0, hx, hy, open_ends);
-        let prepared = PreparedScan::with_limits(&scan, 0.0, 20.0).unwrap();
+        let prepared = RangeData::with_limits(&scan, grid.sensor_model(), 0.0, 20.0).unwrap();
         let sampling = ResponseSampling {
             linear_window: 0.3,
             angular_window: 0.02,

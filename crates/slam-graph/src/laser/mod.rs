@@ -52,10 +52,10 @@ pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SC
 use crate::error::GraphError;
 use crate::graph::PoseGraph;
 use crate::optimizer::Optimizer;
-use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, PreparedScan};
+use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
-    normalize_angle, FilterError, FromConfig, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2,
-    ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
+    normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
+    ScanSlam, ScanUpdateInfo, TimedPose,
 };
 use std::cmp::Reverse;
 use std::collections::VecDeque;
@@ -86,7 +86,7 @@ struct LoopMap {
 #[derive(Debug, Clone)]
 struct Keyframe {
     record: usize,
-    scan: PreparedScan,
+    scan: RangeData,
     /// Pose in the local (scan-matching) frame.
     local: Pose2,
     /// Current estimate in the world frame (the optimised keyframe graph).
@@ -198,8 +198,8 @@ impl Clone for LaserGraphSlam {
 
 impl LaserGraphSlam {
     /// A front end with no data yet, in the one constructor shape of every filter
-    /// ([`FromConfig`]); rejects an invalid configuration (the error names the field and
-    /// its bound).
+    /// ([`slam_models::FromConfig`]); rejects an invalid configuration (the error names the
+    /// field and its bound).
     ///
     /// `initial_pose` is the pose of the odometry frame in the world, as for grid FastSLAM:
     /// every odometry reading o is taken as the world pose `initial_pose ⊕ o`, so the map
@@ -291,8 +291,9 @@ impl LaserGraphSlam {
         // Prepare the scan before anything changes, so that a bad scan leaves the state as
         // it was.
         let prepared = match &record.scan {
-            Some(s) => Some(PreparedScan::with_limits(
+            Some(s) => Some(RangeData::with_limits(
                 s,
+                &self.config.sensor_model,
                 0.0,
                 self.config.match_max_range,
             )?),
@@ -341,7 +342,7 @@ impl LaserGraphSlam {
     fn add_keyframe(
         &mut self,
         i: usize,
-        scan: PreparedScan,
+        scan: RangeData,
         info: &mut ScanUpdateInfo,
     ) -> Result<(), GraphError> {
         let odometry = self.odometry[i];
@@ -450,7 +451,7 @@ impl LaserGraphSlam {
     /// True when the response of `scan` on `grid` around `pose` is flat along one
     /// direction: the translational block of its sampled covariance
     /// ([`covariance::response_covariance`]) has σ_max / σ_min above `loop-max-anisotropy`.
-    fn flat_match(&self, grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> bool {
+    fn flat_match(&self, grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> bool {
         let sampling = match self.config.match_covariance {
             MatchCovariance::Response {
                 linear_window,
@@ -480,7 +481,7 @@ impl LaserGraphSlam {
 
     /// Local scan-to-submap match from `predicted`: pose and covariance, or `None` when
     /// there is no submap yet, the match failed or scored below `local-min-score`.
-    fn local_match(&self, scan: &PreparedScan, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
+    fn local_match(&self, scan: &RangeData, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
         let &oldest = self.active.first()?;
         let grid = self.submaps[oldest].grid.as_ref()?;
         match self
@@ -501,7 +502,7 @@ impl LaserGraphSlam {
     fn match_covariance(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         pose: &Pose2,
         matcher: Matrix3,
     ) -> Matrix3 {
@@ -570,7 +571,7 @@ impl LaserGraphSlam {
         &mut self,
         k: usize,
         local: &Pose2,
-        scan: &PreparedScan,
+        scan: &RangeData,
     ) -> Result<(), GraphError> {
         let n = self.config.submap_scans;
         let start_new = match self.active.last() {
@@ -807,13 +808,7 @@ impl LaserGraphSlam {
     /// followed by a small branch-and-bound search of ±0.1 m, ±0.2 m, ±0.2 m and
     /// ±0.05 rad) scores at least
     /// `loop-ambiguity-ratio` × `score`: the match is not unique.
-    fn ambiguous(
-        &self,
-        pyramid: &MaxPyramid,
-        scan: &PreparedScan,
-        best: &Pose2,
-        score: f64,
-    ) -> bool {
+    fn ambiguous(&self, pyramid: &MaxPyramid, scan: &RangeData, best: &Pose2, score: f64) -> bool {
         let bar = self.config.loop_ambiguity_ratio * score;
         let local = BranchBoundMatcher {
             linear_window: 0.2,
@@ -1052,18 +1047,7 @@ fn invert(cov: &Matrix3) -> Matrix3 {
     (m + m.transpose()) * 0.5
 }
 
-impl FromConfig for LaserGraphSlam {
-    type Config = LaserGraphConfig;
-    type Error = GraphError;
-
-    fn from_config(
-        config: LaserGraphConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GraphError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(LaserGraphSlam, LaserGraphConfig, GraphError);
 
 impl ScanSlam for LaserGraphSlam {
     fn name(&self) -> &str {

@@ -120,7 +120,7 @@ fn obstacle_bounded_pyramid_searches_like_the_full_one() {
         .unwrap();
     let bounded = loop_pyramid(&grid, config.loop_depth).unwrap().unwrap();
     assert!(bounded.memory_bytes() < full.memory_bytes());
-    let scan = PreparedScan::new(&room_scan(2.5, 1.5)).unwrap();
+    let scan = RangeData::new(&room_scan(2.5, 1.5), grid.sensor_model()).unwrap();
     let matcher = BranchBoundMatcher {
         linear_window: 0.5,
         angular_window: 0.3,
@@ -154,7 +154,7 @@ fn square_with_closures(config: LaserGraphConfig, false_closure: bool) -> (Vec<P
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
     let noise = Normal::new(0.0, 1.0).unwrap();
     let mut f = LaserGraphSlam::new(config, Pose2::IDENTITY, 0).unwrap();
-    let scan = PreparedScan::new(&room_scan(2.5, 1.5)).unwrap();
+    let scan = RangeData::new(&room_scan(2.5, 1.5), &f.config.sensor_model).unwrap();
     let n = 96;
     let truth: Vec<Pose2> = {
         let mut p = Pose2::IDENTITY;

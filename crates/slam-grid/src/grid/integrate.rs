@@ -12,7 +12,7 @@ use super::tiles::{split, Tile, TileLayout, HIT_CAP, TILE_BITS, TILE_CELLS, TILE
 use super::OccupancyGrid;
 use crate::cell::CellIndex;
 use crate::error::GridError;
-use crate::scan::PreparedScan;
+use crate::scan::{RangeData, RangeRules};
 use slam_models::{LaserScan, Pose2};
 use std::sync::Arc;
 
@@ -41,15 +41,18 @@ impl OccupancyGrid {
         robot_pose: &Pose2,
         scan: &LaserScan,
     ) -> Result<(), GridError> {
-        let prepared = PreparedScan::new(scan)?;
-        self.try_integrate_prepared(robot_pose, &prepared)
+        let data = RangeData::new(scan, &self.model)?;
+        self.try_integrate_prepared(robot_pose, &data)
     }
 
-    /// Integrates a [`PreparedScan`] (no trigonometry per beam: one `sin_cos` per call).
+    /// Integrates a scan classified at the door ([`RangeData`], built under this grid's
+    /// sensor model: [`GridError::OtherRangeRules`] otherwise): each return marks its end
+    /// cell and clears the space up to `hit_margin` before it, each miss clears its length;
+    /// no trigonometry per beam (one `sin_cos` per call).
     pub fn try_integrate_prepared(
         &mut self,
         robot_pose: &Pose2,
-        scan: &PreparedScan,
+        scan: &RangeData,
     ) -> Result<(), GridError> {
         let Footprint {
             start,
@@ -66,54 +69,39 @@ impl OccupancyGrid {
     /// pose, without changing the grid: the same checks (a finite pose, finite end points
     /// within ±2³⁰ cells, the map extent limits), so that a caller can report an error at
     /// the scan that caused it and integrate later.
-    pub fn check_integrable(
-        &self,
-        robot_pose: &Pose2,
-        scan: &PreparedScan,
-    ) -> Result<(), GridError> {
+    pub fn check_integrable(&self, robot_pose: &Pose2, scan: &RangeData) -> Result<(), GridError> {
         let f = self.footprint(robot_pose, scan)?;
         self.check_extent(f.lo, f.hi).map(|_| ())
     }
 
     /// The beams of `scan` at `robot_pose` as segments in continuous cell coordinates and
     /// the cells they need covered, or the error the integration reports.
-    fn footprint(&self, robot_pose: &Pose2, scan: &PreparedScan) -> Result<Footprint, GridError> {
+    fn footprint(&self, robot_pose: &Pose2, scan: &RangeData) -> Result<Footprint, GridError> {
         if !robot_pose.is_finite() {
             return Err(GridError::NonFinite {
                 what: "robot pose",
                 value: f64::NAN,
             });
         }
-        let sensor = robot_pose.compose(&scan.sensor_pose);
+        if scan.rules != RangeRules::of(&self.model) {
+            return Err(GridError::OtherRangeRules);
+        }
+        let sensor = robot_pose.compose(&scan.origin);
         let (s, c) = sensor.theta.sin_cos();
         let start = self.frame.world_to_continuous(&sensor.translation());
         let inv_res = 1.0 / self.frame.resolution;
         let m = self.model;
-        // Segment ends in continuous cell coordinates, and whether the end cell is a hit.
-        // (end of the free stretch, end point, hit?) in continuous cell coordinates.
-        let mut segs: Vec<(CellPoint, CellPoint, bool)> = Vec::with_capacity(scan.beams.len());
+        // (end of the free stretch, end point, hit?) in continuous cell coordinates: the
+        // returns, then the misses. The order of the free stretches changes nothing (each
+        // adds the same l_free, and the changed cells are sorted before the fields are
+        // repaired); the hits keep scan order (their running mean position).
+        let mut segs: Vec<(CellPoint, CellPoint, bool)> =
+            Vec::with_capacity(scan.returns.len() + scan.misses.len());
         let (mut lo_x, mut lo_y, mut hi_x, mut hi_y) = (start.0, start.1, start.0, start.1);
-        for b in &scan.beams {
-            if b.range < m.min_range {
-                continue;
-            }
-            // A hit beyond max_range (at or beyond it when far hits do not clear).
-            let far = b.hit
-                && if m.far_hits_clear {
-                    b.range > m.max_range
-                } else {
-                    b.range >= m.max_range
-                };
-            let (len, hit) = if b.hit && !far {
-                (b.range, true)
-            } else if far && m.far_hits_clear {
-                (m.max_range, false)
-            } else {
-                (m.no_return_range.min(b.range), false)
-            };
-            if len <= 0.0 {
-                continue;
-            }
+        let rays =
+            (scan.returns.iter().map(|r| (r, true))).chain(scan.misses.iter().map(|r| (r, false)));
+        for (b, hit) in rays {
+            let len = b.length;
             // Beam direction in the world: R(θ_sensor)·dir.
             let (dx, dy) = (c * b.dir.0 - s * b.dir.1, s * b.dir.0 + c * b.dir.1);
             let end = (start.0 + len * dx * inv_res, start.1 + len * dy * inv_res);
@@ -204,8 +192,8 @@ impl OccupancyGrid {
         } else {
             ProtectedMasks::new(&[])
         };
-        // Free cells first, beam by beam in scan order, each beam walked cell by cell
-        // (its end cell too when it is not a hit).
+        // Free cells first, beam by beam (returns, then misses, each in scan order), each
+        // walked cell by cell (its end cell too when it is a miss).
         for &(free_end, _, hit) in segs {
             let walk = TileWalk::new(start, free_end, !hit);
             self.apply_free(
@@ -683,7 +671,7 @@ mod tests {
     ) -> (HashMap<CellIndex, f32>, HashSet<(i32, i32)>) {
         let m = *g.sensor_model();
         let f = g
-            .footprint(pose, &PreparedScan::new(scan).unwrap())
+            .footprint(pose, &RangeData::new(scan, &m).unwrap())
             .unwrap();
         let mut free = Vec::new();
         let mut hits = Vec::new();

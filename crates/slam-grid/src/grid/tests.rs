@@ -478,7 +478,7 @@ fn a_scan_beyond_the_maximum_extent_is_refused_and_changes_nothing() {
 fn check_integrable_agrees_with_the_integration() {
     let near = Pose2::new(0.3, -0.2, 0.1);
     let s = room_scan(&near, 2.0, 360);
-    let prepared = crate::PreparedScan::new(&s).unwrap();
+    let prepared = crate::RangeData::new(&s, &Default::default()).unwrap();
     let mut g = grid_with_distance();
     g.try_integrate_prepared(&near, &prepared).unwrap();
     let map_before = g.to_grid_map();

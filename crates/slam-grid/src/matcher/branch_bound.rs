@@ -14,7 +14,7 @@ use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
 use crate::likelihood::LikelihoodParams;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::Pose2;
 
@@ -378,19 +378,11 @@ impl BranchBoundMatcher {
     fn lattice(
         &self,
         frame: &GridFrame,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<Lattice, GridError> {
         let res = frame.resolution;
-        let r_max = scan.max_point_range.max(res);
-        let dtheta = if self.angular_step > 0.0 {
-            self.angular_step
-        } else {
-            (1.0 - res * res / (2.0 * r_max * r_max))
-                .clamp(-1.0, 1.0)
-                .acos()
-                .max(1e-4)
-        };
+        let dtheta = super::rotation_step(self.angular_step, res, scan.max_point_range);
         let k_max = (self.angular_window / dtheta).floor();
         Lattice::new(
             frame,
@@ -411,7 +403,7 @@ impl BranchBoundMatcher {
     pub fn match_in(
         &self,
         pyramid: &MaxPyramid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<Option<MatchResult>, GridError> {
         self.validate()?;
@@ -474,7 +466,7 @@ impl BranchBoundMatcher {
     pub fn match_grid(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<Option<MatchResult>, GridError> {
         self.validate()?;
@@ -763,7 +755,7 @@ impl super::ScanMatcher for BranchBoundMatcher {
     fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.match_grid(grid, scan, initial)?
@@ -849,8 +841,11 @@ mod tests {
             (Pose2::new(9.5, 2.5, 2.8), (0.02, 0.27, 0.0)),
             (Pose2::new(3.0, 6.3, -2.9), (-0.11, -0.12, 0.04)),
         ] {
-            let scan =
-                PreparedScan::new(&world.scan(&truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+            let scan = RangeData::new(
+                &world.scan(&truth, 180, std::f64::consts::PI, 30.0),
+                &Default::default(),
+            )
+            .unwrap();
             let initial = Pose2::new(truth.x + off.0, truth.y + off.1, truth.theta + off.2);
             let got = m.match_grid(&g, &scan, &initial).unwrap().unwrap();
             let mut best = f64::NEG_INFINITY;
@@ -896,8 +891,11 @@ mod tests {
             Pose2::new(8.7, 6.5, -2.0),
             Pose2::new(10.0, 3.0, 1.6),
         ] {
-            let scan =
-                PreparedScan::new(&world.scan(&truth, 361, std::f64::consts::PI, 30.0)).unwrap();
+            let scan = RangeData::new(
+                &world.scan(&truth, 361, std::f64::consts::PI, 30.0),
+                &Default::default(),
+            )
+            .unwrap();
             let initial = Pose2::new(truth.x - 0.6, truth.y + 0.53, truth.theta - 0.35);
             let r = m.match_in(&pyramid, &scan, &initial).unwrap().unwrap();
             let dtheta = slam_models::normalize_angle(r.pose.theta - truth.theta).abs();
@@ -923,7 +921,11 @@ mod tests {
         let g = office_map(0.1);
         let world = SegmentWorld::office();
         let truth = Pose2::new(2.5, 3.2, 0.3);
-        let scan = PreparedScan::new(&world.scan(&truth, 181, std::f64::consts::PI, 30.0)).unwrap();
+        let scan = RangeData::new(
+            &world.scan(&truth, 181, std::f64::consts::PI, 30.0),
+            &Default::default(),
+        )
+        .unwrap();
         // Far from the map, nothing scores above the far value.
         let lost = Pose2::new(50.0, 50.0, 0.0);
         let m = BranchBoundMatcher {

@@ -1,11 +1,11 @@
 //! Correlative multi-resolution scan matching (Olson, "Real-time correlative scan
 //! matching", ICRA 2009).
 
-use super::{check_input, covariance_by_sampling, validate_window, MatchResult, ScanMatcher};
+use super::{check_input, covariance_by_sampling, validate_window, MatchResult};
 use crate::cell::CellIndex;
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::{ConfigError, Pose2};
 
@@ -71,7 +71,7 @@ impl CorrelativeMatcher {
     pub fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
@@ -87,15 +87,7 @@ impl CorrelativeMatcher {
             self.linear_window + f as f64 * res,
         )?;
         let frame = grid.frame();
-        let r_max = scan.max_point_range.max(res);
-        let dtheta = if self.angular_step > 0.0 {
-            self.angular_step
-        } else {
-            (1.0 - res * res / (2.0 * r_max * r_max))
-                .clamp(-1.0, 1.0)
-                .acos()
-                .max(1e-4)
-        };
+        let dtheta = super::rotation_step(self.angular_step, res, scan.max_point_range);
         let k_max = (self.angular_window / dtheta).ceil();
         if k_max > MAX_ROTATIONS as f64 {
             return Err(GridError::InvalidConfig(ConfigError::new(
@@ -230,16 +222,7 @@ fn sliding_max(src: &[f32], w: usize, h: usize, f: usize) -> Vec<f32> {
     out
 }
 
-impl ScanMatcher for CorrelativeMatcher {
-    fn match_prepared(
-        &self,
-        grid: &OccupancyGrid,
-        scan: &PreparedScan,
-        initial: &Pose2,
-    ) -> Result<MatchResult, GridError> {
-        CorrelativeMatcher::match_prepared(self, grid, scan, initial)
-    }
-}
+super::scan_matcher_by_inherent_method!(CorrelativeMatcher);
 
 #[cfg(test)]
 mod tests {

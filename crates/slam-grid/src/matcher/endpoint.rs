@@ -1,7 +1,7 @@
 //! The truncated endpoint model on the incremental distance field: the scorer, hill
 //! climber and exhaustive grid search of grid FastSLAM's scan matching.
 //!
-//! A prepared scan's end points are in the robot frame ([`PreparedScan`]); every pose
+//! A prepared scan's end points are in the robot frame ([`RangeData`]); every pose
 //! evaluation is then one rotation and translation per beam and a bilinear look-up in a
 //! grid's incrementally repaired distance field ([`DistanceField`]), with no trigonometry
 //! per beam (GMapping recomputes sin/cos and rounding for every beam of every evaluation).
@@ -25,7 +25,7 @@ use crate::cell::CellIndex;
 use crate::error::{ensure_config, GridError};
 use crate::grid::distance::DistanceField;
 use crate::grid::tiles::{TILE_BITS, TILE_CELLS, TILE_SIZE};
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use slam_models::{Matrix3, Point2, Pose2, Vector3};
 
 /// The parameters of the truncated endpoint model.
@@ -297,18 +297,18 @@ fn fast_floor(x: f64) -> i32 {
 #[inline]
 pub fn score_scan(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
     model: &EndpointModel,
 ) -> EndpointScore {
     score(field, &scan.points, pose, model)
 }
 
-/// The log-likelihood of the coarse subset ([`PreparedScan::coarse_points`]) at `pose`, for
+/// The log-likelihood of the coarse subset ([`RangeData::coarse_points`]) at `pose`, for
 /// choosing between starting points.
 pub fn coarse_score(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
     model: &EndpointModel,
 ) -> f64 {
@@ -345,7 +345,7 @@ const CLIMB_BUDGET: u32 = 64;
 /// capture range); then every point under `model`, which also scores the result.
 pub fn hill_climb(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     initial: &Pose2,
     capture: &EndpointModel,
     model: &EndpointModel,
@@ -433,7 +433,7 @@ impl SearchWindow {
 /// the input is not finite.
 pub fn grid_search(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     initial: &Pose2,
     model: &EndpointModel,
     window: &SearchWindow,
@@ -450,7 +450,7 @@ pub fn grid_search(
 /// branch-and-bound search is tested against, and its fallback.
 pub fn grid_search_exhaustive(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     initial: &Pose2,
     model: &EndpointModel,
     window: &SearchWindow,
@@ -562,7 +562,7 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
     /// [`grid_search`]).
     fn new(
         field: &'a DistanceField<'f>,
-        scan: &'a PreparedScan,
+        scan: &'a RangeData,
         initial: &'a Pose2,
         model: &'a EndpointModel,
         window: &'a SearchWindow,
@@ -866,7 +866,7 @@ pub struct WideMatch {
 ///   with m = max(1, round(`step_xy`/res)) cells and res the field's cell size;
 /// * rotations θ₀ + k·`step_theta`, |k| ≤ ⌊`range_theta`/`step_theta`⌋;
 /// * objective f = s·Σᵢ v(cell of pᵢ) − ½eᵀR⁻¹e over the coarse subset p
-///   ([`PreparedScan::coarse_points`]), with v(c) = −k·min(d(c), r)² the endpoint model at
+///   ([`RangeData::coarse_points`]), with v(c) = −k·min(d(c), r)² the endpoint model at
 ///   the centre of the end point's cell (no interpolation), s the subsampling factor, and
 ///   e = (i·m·res, j·m·res, k·δθ) the offset from `initial`.
 ///
@@ -880,7 +880,7 @@ pub struct WideMatch {
 /// or has too many rotations; the caller may then search by brute force ([`grid_search`]).
 pub fn wide_search(
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     initial: &Pose2,
     model: &EndpointModel,
     window: &SearchWindow,
@@ -1009,11 +1009,13 @@ mod tests {
         let field = g.distance_field().unwrap();
         let world = SegmentWorld::office();
         let scan_pose = Pose2::new(5.0, 3.5, 0.2);
-        let points: Vec<Point2> =
-            PreparedScan::new(&world.scan(&scan_pose, 361, std::f64::consts::TAU * 0.999, 30.0))
-                .unwrap()
-                .points()
-                .to_vec();
+        let points: Vec<Point2> = RangeData::new(
+            &world.scan(&scan_pose, 361, std::f64::consts::TAU * 0.999, 30.0),
+            &Default::default(),
+        )
+        .unwrap()
+        .points()
+        .to_vec();
         let model = EndpointModel::new(0.05, 0.15, 3.0);
         let unit = field.metres_per_unit();
         let frame = field.frame();
@@ -1100,8 +1102,11 @@ mod tests {
             (Pose2::new(9.5, 2.5, 2.8), (0.2, 0.8, 0.0), 0.1, 0.5),
             (Pose2::new(3.0, 6.3, -2.9), (-0.4, -0.4, 0.08), 0.05, 8.0),
         ] {
-            let scan =
-                PreparedScan::new(&world.scan(&truth, 361, std::f64::consts::PI, 30.0)).unwrap();
+            let scan = RangeData::new(
+                &world.scan(&truth, 361, std::f64::consts::PI, 30.0),
+                &Default::default(),
+            )
+            .unwrap();
             let initial = Pose2::new(truth.x + off.0, truth.y + off.1, truth.theta + off.2);
             let window = SearchWindow {
                 range_xy: 1.0,
@@ -1204,8 +1209,11 @@ mod tests {
                 rng.random_range(0.5..7.5),
                 rng.random_range(-3.1..3.1),
             );
-            let scan =
-                PreparedScan::new(&world.scan(&truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+            let scan = RangeData::new(
+                &world.scan(&truth, 180, std::f64::consts::PI, 30.0),
+                &Default::default(),
+            )
+            .unwrap();
             let off = if case % 10 == 9 { 40.0 } else { 0.25 };
             let initial = Pose2::new(
                 truth.x + rng.random_range(-off..off),

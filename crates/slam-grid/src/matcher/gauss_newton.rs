@@ -1,9 +1,9 @@
 //! Gauss-Newton matching on the bilinearly interpolated likelihood field (Hector SLAM).
 
-use super::{check_input, mean_interpolated, transform_points, MatchResult, ScanMatcher};
+use super::{check_input, mean_interpolated, transform_points, MatchResult};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::{Matrix3, Pose2, Vector3};
 
@@ -88,7 +88,7 @@ fn normal_equations(
     interp: Interpolation,
     sigma: f64,
     grid: &OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
 ) -> (f64, Matrix3, Vector3) {
     let (s, c) = pose.theta.sin_cos();
@@ -111,7 +111,7 @@ fn cost_at(
     interp: Interpolation,
     sigma: f64,
     grid: &OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
 ) -> f64 {
     transform_points(&scan.points, pose)
@@ -144,7 +144,7 @@ impl GaussNewtonMatcher {
     pub fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
@@ -208,13 +208,4 @@ impl GaussNewtonMatcher {
     }
 }
 
-impl ScanMatcher for GaussNewtonMatcher {
-    fn match_prepared(
-        &self,
-        grid: &OccupancyGrid,
-        scan: &PreparedScan,
-        initial: &Pose2,
-    ) -> Result<MatchResult, GridError> {
-        GaussNewtonMatcher::match_prepared(self, grid, scan, initial)
-    }
-}
+super::scan_matcher_by_inherent_method!(GaussNewtonMatcher);

@@ -2,11 +2,11 @@
 //! [`HillClimbMatcher`] on the lazy likelihood field and by
 //! [`super::endpoint::hill_climb`] on the incremental distance field.
 
+use super::MatchResult;
 use super::{check_input, covariance_by_sampling, default_steps, mean_interpolated};
-use super::{MatchResult, ScanMatcher};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::Pose2;
 
@@ -140,7 +140,7 @@ impl HillClimbMatcher {
     pub fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         self.validate()?;
@@ -173,13 +173,4 @@ impl HillClimbMatcher {
     }
 }
 
-impl ScanMatcher for HillClimbMatcher {
-    fn match_prepared(
-        &self,
-        grid: &OccupancyGrid,
-        scan: &PreparedScan,
-        initial: &Pose2,
-    ) -> Result<MatchResult, GridError> {
-        HillClimbMatcher::match_prepared(self, grid, scan, initial)
-    }
-}
+super::scan_matcher_by_inherent_method!(HillClimbMatcher);

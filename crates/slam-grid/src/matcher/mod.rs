@@ -1,6 +1,6 @@
 //! Scan matchers: find the robot pose at which a scan best fits a grid's likelihood field.
 //!
-//! Every matcher takes a [`PreparedScan`] (end points precomputed in the robot frame, so a
+//! Every matcher takes a [`RangeData`] (end points precomputed in the robot frame, so a
 //! candidate pose costs one `sin_cos`, never one per beam) and returns a [`MatchResult`]:
 //!
 //! * [`HillClimbMatcher`]: GMapping-style greedy search over (x, y, θ) with step halving;
@@ -38,7 +38,7 @@ pub use refined::RefinedCorrelativeMatcher;
 
 use crate::error::GridError;
 use crate::grid::OccupancyGrid;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use slam_models::{LaserScan, Matrix3, Point2, Pose2};
 
 /// The outcome of a scan match.
@@ -58,7 +58,7 @@ pub trait ScanMatcher {
     fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError>;
 
@@ -69,9 +69,42 @@ pub trait ScanMatcher {
         scan: &LaserScan,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
-        let prepared = PreparedScan::new(scan)?;
+        // Under the grid's own model (only the matching points are used here).
+        let prepared = RangeData::new(scan, grid.sensor_model())?;
         self.match_prepared(grid, &prepared, initial)
     }
+}
+
+/// `impl ScanMatcher for T` by `T`'s inherent `match_prepared` (the matchers whose search
+/// is a method of their own, callable without the trait in scope).
+macro_rules! scan_matcher_by_inherent_method {
+    ($t:ty) => {
+        impl $crate::matcher::ScanMatcher for $t {
+            fn match_prepared(
+                &self,
+                grid: &$crate::OccupancyGrid,
+                scan: &$crate::RangeData,
+                initial: &$crate::Pose2,
+            ) -> Result<$crate::MatchResult, $crate::GridError> {
+                <$t>::match_prepared(self, grid, scan, initial)
+            }
+        }
+    };
+}
+pub(crate) use scan_matcher_by_inherent_method;
+
+/// The rotation step of a correlative search: `configured` when positive, else the angle
+/// that moves the farthest end point (`max_point_range`, at least one cell) by one cell
+/// of `resolution`: acos(1 − res² / (2 r²)) (Olson 2009 §IV), at least 10⁻⁴ rad.
+pub(crate) fn rotation_step(configured: f64, resolution: f64, max_point_range: f64) -> f64 {
+    if configured > 0.0 {
+        return configured;
+    }
+    let r_max = max_point_range.max(resolution);
+    (1.0 - resolution * resolution / (2.0 * r_max * r_max))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .max(1e-4)
 }
 
 /// Largest distance from the grid origin, in cells, that a matched pose may reach with its
@@ -86,7 +119,7 @@ pub const MAX_MATCH_CELLS: f64 = (1u32 << 30) as f64;
 /// would leave ±[`MAX_MATCH_CELLS`] cells of the grid origin.
 pub(crate) fn check_input(
     grid: &OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     initial: &Pose2,
     min_points: usize,
     reach: f64,
@@ -128,7 +161,7 @@ pub(crate) fn transform_points<'a>(
 }
 
 /// Mean field value of the end points at `pose`, looking up the cell of each end point.
-pub fn mean_field_value(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+pub fn mean_field_value(grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> f64 {
     if scan.points.is_empty() {
         return 0.0;
     }
@@ -139,7 +172,7 @@ pub fn mean_field_value(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2)
 }
 
 /// Mean of the bilinearly interpolated field over the end points at `pose`.
-pub(crate) fn mean_interpolated(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+pub(crate) fn mean_interpolated(grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> f64 {
     if scan.points.is_empty() {
         return 0.0;
     }
@@ -152,7 +185,7 @@ pub(crate) fn mean_interpolated(grid: &OccupancyGrid, scan: &PreparedScan, pose:
 /// ln p(z | x, m) of the whole scan under the likelihood-field model (PR table 6.3): the sum
 /// over end points of ln(z_hit·N(d; 0, σ²) + z_rand/z_max), with d read from the cell of each
 /// end point. Beams are treated as independent, as in the book.
-pub fn scan_log_likelihood(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pose2) -> f64 {
+pub fn scan_log_likelihood(grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> f64 {
     let params = grid.likelihood_params();
     transform_points(&scan.points, pose)
         .map(|p| params.log_likelihood(grid.likelihood(grid.world_to_cell(&p))))
@@ -166,7 +199,7 @@ pub fn scan_log_likelihood(grid: &OccupancyGrid, scan: &PreparedScan, pose: &Pos
 /// when the likelihood is sharper than the lattice.
 pub(crate) fn covariance_by_sampling(
     grid: &OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     mode: &Pose2,
     steps: [f64; 3],
 ) -> Matrix3 {
@@ -227,7 +260,7 @@ pub(crate) fn covariance_from_log_likelihood(
 
 /// Lattice spacings for [`covariance_by_sampling`]: one cell in x and y, and the rotation
 /// that moves the mean end point by one cell.
-pub(crate) fn default_steps(grid: &OccupancyGrid, scan: &PreparedScan) -> [f64; 3] {
+pub(crate) fn default_steps(grid: &OccupancyGrid, scan: &RangeData) -> [f64; 3] {
     let res = grid.resolution();
     let n = scan.points.len().max(1) as f64;
     let mean_r = (scan.points.iter().map(|p| p.coords.norm()).sum::<f64>() / n).max(res);

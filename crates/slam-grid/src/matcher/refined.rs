@@ -1,9 +1,9 @@
 //! Correlative search followed by Gauss-Newton refinement.
 
-use super::{CorrelativeMatcher, GaussNewtonMatcher, MatchResult, ScanMatcher};
+use super::{CorrelativeMatcher, GaussNewtonMatcher, MatchResult};
 use crate::error::GridError;
 use crate::grid::OccupancyGrid;
-use crate::scan::PreparedScan;
+use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::Pose2;
 
@@ -24,7 +24,7 @@ impl RefinedCorrelativeMatcher {
     pub fn match_prepared(
         &self,
         grid: &OccupancyGrid,
-        scan: &PreparedScan,
+        scan: &RangeData,
         initial: &Pose2,
     ) -> Result<MatchResult, GridError> {
         let coarse = self.correlative.match_prepared(grid, scan, initial)?;
@@ -37,13 +37,4 @@ impl RefinedCorrelativeMatcher {
     }
 }
 
-impl ScanMatcher for RefinedCorrelativeMatcher {
-    fn match_prepared(
-        &self,
-        grid: &OccupancyGrid,
-        scan: &PreparedScan,
-        initial: &Pose2,
-    ) -> Result<MatchResult, GridError> {
-        RefinedCorrelativeMatcher::match_prepared(self, grid, scan, initial)
-    }
-}
+super::scan_matcher_by_inherent_method!(RefinedCorrelativeMatcher);

@@ -77,7 +77,11 @@ fn correlative_equals_brute_force_on_its_lattice() {
         min_points: 10,
     };
     for (truth, initial) in trial_poses(5, 3) {
-        let scan = PreparedScan::new(&world.scan(&truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+        let scan = RangeData::new(
+            &world.scan(&truth, 180, std::f64::consts::PI, 30.0),
+            &Default::default(),
+        )
+        .unwrap();
         let got = m.match_prepared(&g, &scan, &initial).unwrap();
         let mut best = f64::NEG_INFINITY;
         for k in -5..=5 {
@@ -112,7 +116,11 @@ fn refined_correlative_converges_from_large_offsets() {
     let trials = trial_poses(100, 42);
     let mut ok = 0;
     for (truth, initial) in &trials {
-        let scan = PreparedScan::new(&world.scan(truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+        let scan = RangeData::new(
+            &world.scan(truth, 180, std::f64::consts::PI, 30.0),
+            &Default::default(),
+        )
+        .unwrap();
         let r = m.match_prepared(&g, &scan, initial).unwrap();
         let dt = r.pose.distance(truth);
         let da = slam_models::normalize_angle(r.pose.theta - truth.theta).abs();
@@ -131,7 +139,11 @@ fn hill_climb_and_gauss_newton_converge_from_small_offsets() {
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
     let (mut hc_ok, mut gn_ok) = (0, 0);
     for (truth, _) in trial_poses(50, 9) {
-        let scan = PreparedScan::new(&world.scan(&truth, 180, std::f64::consts::PI, 30.0)).unwrap();
+        let scan = RangeData::new(
+            &world.scan(&truth, 180, std::f64::consts::PI, 30.0),
+            &Default::default(),
+        )
+        .unwrap();
         let initial = Pose2::new(
             truth.x + rng.random_range(-0.06..0.06),
             truth.y + rng.random_range(-0.06..0.06),
@@ -161,13 +173,13 @@ fn errors_for_bad_input() {
     let world = SegmentWorld::office();
     let truth = Pose2::new(2.0, 3.0, 0.0);
     let mut scan = world.scan(&truth, 180, std::f64::consts::PI, 30.0);
-    let p = PreparedScan::new(&scan).unwrap();
+    let p = RangeData::new(&scan, &Default::default()).unwrap();
     assert!(matches!(
         CorrelativeMatcher::default().match_prepared(&g, &p, &Pose2::new(f64::NAN, 0.0, 0.0)),
         Err(GridError::NonFinite { .. })
     ));
     scan.ranges.iter_mut().for_each(|r| *r = 30.0);
-    let p = PreparedScan::new(&scan).unwrap();
+    let p = RangeData::new(&scan, &Default::default()).unwrap();
     assert!(matches!(
         HillClimbMatcher::default().match_prepared(&g, &p, &truth),
         Err(GridError::TooFewPoints { .. })
@@ -183,7 +195,7 @@ fn far_off_initial_poses_are_errors_not_panics() {
     let world = SegmentWorld::office();
     let truth = Pose2::new(2.0, 3.0, 0.0);
     let scan = world.scan(&truth, 180, std::f64::consts::PI, 30.0);
-    let p = PreparedScan::new(&scan).unwrap();
+    let p = RangeData::new(&scan, &Default::default()).unwrap();
     let matchers: [&dyn ScanMatcher; 4] = [
         &CorrelativeMatcher::default(),
         &RefinedCorrelativeMatcher::default(),

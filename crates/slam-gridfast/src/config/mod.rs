@@ -98,6 +98,7 @@ struct PresetValues {
     recovery_range_theta: f64,
     recovery_step_xy: f64,
     recovery_step_theta: f64,
+    recovery_turn_range_xy: f64,
 }
 
 impl Preset {
@@ -118,6 +119,7 @@ impl Preset {
                 recovery_range_theta: 0.9,
                 recovery_step_xy: 0.1,
                 recovery_step_theta: 0.02,
+                recovery_turn_range_xy: 0.3,
             },
             Preset::Outdoor => PresetValues {
                 resolution: 0.2,
@@ -134,6 +136,7 @@ impl Preset {
                 recovery_range_theta: 0.4,
                 recovery_step_xy: 0.4,
                 recovery_step_theta: 0.01,
+                recovery_turn_range_xy: 1.2,
             },
         }
     }
@@ -355,6 +358,33 @@ pub struct RecoveryConfig {
     pub step_xy: Option<f64>,
     /// Rotation step, radians. Default from the preset: 0.02 indoor, 0.01 outdoor.
     pub step_theta: Option<f64>,
+    /// A processed step whose odometry turned by at least this much (|δrot1| + |δrot2|,
+    /// radians) answers a poor match that the wide window's search did not recover with a
+    /// second search: every heading (± `turn-range-theta`) at the predicted position
+    /// (± `turn-range-xy`), taken with `turn-accept-fraction`. Default 0.5 (the default
+    /// `angular-update`: a step processed for turning).
+    /// Odometry that turned in place can be off by more than the turn itself: on
+    /// `perturb-odometry --seed 2 --profile hard` fhw a measured +50.8° for a true −20.1°
+    /// (1.24 rad, 7σ of the motion model), which bent the map at a junction with every
+    /// filter seed (docs/gridfast.md, "Turns in place the odometry got wrong").
+    pub turn_trigger: f64,
+    /// ± this in θ, radians, for a poor match on a turn (`turn-trigger`): π, the full
+    /// circle, by default, in steps of `step-theta`.
+    pub turn_range_theta: f64,
+    /// ± this in x and y around the prediction, metres, for a poor match on a turn (in
+    /// steps of `step-xy`). Default from the preset: 0.3 indoor, 1.2 outdoor (the coarse
+    /// search's).
+    pub turn_range_xy: Option<f64>,
+    /// The turn search's match is taken with at least this fraction of the used beams on
+    /// the map (and not poor, and more than the local match). Default 0.45: on
+    /// `perturb-odometry --seed 2 --profile hard` fhw, the scan after the turn that the
+    /// odometry measured 1.24 rad off fits 47–57 % of its beams at the right heading, at a
+    /// junction it partly looks out of; the wide window's 0.6 guards poses metres away.
+    pub turn_accept_fraction: f64,
+    /// ε, the prior probability that a step's odometry is an outlier: the motion density
+    /// of a recovered particle is the mixture (1 − ε)·N(x′, R) + ε·N(x′, R + W), W the
+    /// searched window's (see [`RecoveryConfig`]). In (0, 1); default 0.01.
+    pub outlier_weight: f64,
 }
 
 impl Default for RecoveryConfig {
@@ -367,6 +397,11 @@ impl Default for RecoveryConfig {
             range_theta: None,
             step_xy: None,
             step_theta: None,
+            turn_trigger: 0.5,
+            turn_range_theta: std::f64::consts::PI,
+            turn_range_xy: None,
+            turn_accept_fraction: 0.45,
+            outlier_weight: 0.01,
         }
     }
 }
@@ -543,6 +578,9 @@ impl GridFastConfig {
         m.recovery.range_theta.get_or_insert(p.recovery_range_theta);
         m.recovery.step_xy.get_or_insert(p.recovery_step_xy);
         m.recovery.step_theta.get_or_insert(p.recovery_step_theta);
+        m.recovery
+            .turn_range_xy
+            .get_or_insert(p.recovery_turn_range_xy);
         c.proposal.sample_range_xy.get_or_insert(p.sample_range_xy);
         c
     }

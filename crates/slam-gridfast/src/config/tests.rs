@@ -98,6 +98,51 @@ fn bad_values_are_rejected() {
     assert!(c.validate().is_err());
 }
 
+/// The turn search's and the mixture's keys: each out-of-range value (NaN included) is
+/// refused naming its key.
+#[test]
+fn bad_turn_search_values_are_rejected() {
+    type Edit = fn(&mut crate::RecoveryConfig, f64);
+    let cases: [(&str, Edit, &[f64]); 5] = [
+        (
+            "matching.recovery.turn-trigger",
+            |r, v| r.turn_trigger = v,
+            &[-0.1, f64::NAN],
+        ),
+        (
+            "matching.recovery.turn-range-theta",
+            |r, v| r.turn_range_theta = v,
+            &[-0.1, 3.2, f64::NAN],
+        ),
+        (
+            "matching.recovery.turn-range-xy",
+            |r, v| r.turn_range_xy = Some(v),
+            &[-0.1, 5.1, f64::NAN],
+        ),
+        (
+            "matching.recovery.turn-accept-fraction",
+            |r, v| r.turn_accept_fraction = v,
+            &[-0.1, 1.1, f64::NAN],
+        ),
+        (
+            "matching.recovery.outlier-weight",
+            |r, v| r.outlier_weight = v,
+            &[0.0, 1.0, f64::NAN],
+        ),
+    ];
+    for (key, edit, values) in cases {
+        for &v in values {
+            let mut c = GridFastConfig::default();
+            edit(&mut c.matching.recovery, v);
+            match c.resolve(None) {
+                Err(GridFastError::InvalidConfig(e)) => assert_eq!(e.field, key, "{v}"),
+                other => panic!("{key} = {v}: {other:?}"),
+            }
+        }
+    }
+    GridFastConfig::default().resolve(None).unwrap();
+}
+
 /// The range limit and the preset come from the scan unless given; the result has
 /// every value set, and an explicit value is kept over the preset's.
 #[test]

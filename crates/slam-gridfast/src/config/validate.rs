@@ -211,6 +211,36 @@ impl GridFastConfig {
             "matching.recovery.step-theta",
             "> 0",
         )?;
+        check(
+            rc.turn_trigger >= 0.0,
+            "matching.recovery.turn-trigger",
+            rc.turn_trigger,
+            ">= 0",
+        )?;
+        check(
+            (0.0..=std::f64::consts::PI).contains(&rc.turn_range_theta),
+            "matching.recovery.turn-range-theta",
+            rc.turn_range_theta,
+            "in [0, π]",
+        )?;
+        check_opt(
+            rc.turn_range_xy,
+            |v| v >= 0.0,
+            "matching.recovery.turn-range-xy",
+            ">= 0",
+        )?;
+        check(
+            (0.0..=1.0).contains(&rc.turn_accept_fraction),
+            "matching.recovery.turn-accept-fraction",
+            rc.turn_accept_fraction,
+            "in [0, 1]",
+        )?;
+        check(
+            rc.outlier_weight > 0.0 && rc.outlier_weight < 1.0,
+            "matching.recovery.outlier-weight",
+            rc.outlier_weight,
+            "in (0, 1)",
+        )?;
         Ok(())
     }
 
@@ -301,6 +331,18 @@ impl GridFastConfig {
             "matching.recovery.range-xy",
             v(rc.range_xy),
             "at most 50 steps per side in x and y and 100 in θ",
+        )?;
+        check(
+            v(rc.turn_range_xy) / v(rc.step_xy) <= 50.0,
+            "matching.recovery.turn-range-xy",
+            v(rc.turn_range_xy),
+            "at most 50 steps of matching.recovery.step-xy per side",
+        )?;
+        check(
+            rc.turn_range_theta / v(rc.step_theta) <= 400.0,
+            "matching.recovery.turn-range-theta",
+            rc.turn_range_theta,
+            "at most 400 steps of matching.recovery.step-theta per side",
         )
     }
 }

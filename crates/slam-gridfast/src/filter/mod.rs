@@ -9,7 +9,7 @@ use crate::setup::Setup;
 use rand_pcg::Pcg64Mcg;
 use slam_grid::matcher::endpoint::score_scan;
 use slam_grid::OccupancyGrid;
-use slam_grid::PreparedScan;
+use slam_grid::RangeData;
 use slam_models::keyframes::{self, Keyframe};
 use slam_models::particle::PathNode;
 use slam_models::OdometryJumpGuard;
@@ -86,9 +86,10 @@ pub struct GridFastSlam {
     times: Vec<f64>,
     odometry: Vec<Pose2>,
     last_scan_of_record: Vec<u32>,
-    /// Per processed scan: the record index and the scan itself (kept for re-rendering).
+    /// Per processed scan: the record index and the scan as it came through the door
+    /// (kept for re-rendering; shared with the pending integration).
     scan_records: Vec<usize>,
-    scans: Vec<LaserScan>,
+    scans: Vec<Arc<RangeData>>,
     acc_linear: f64,
     acc_angular: f64,
     motion_reference: Option<Pose2>,
@@ -122,7 +123,7 @@ pub struct GridFastSlam {
 struct Pending {
     /// The scan's index among the processed scans (for an error).
     k: usize,
-    scan: PreparedScan,
+    scan: Arc<RangeData>,
 }
 
 /// The largest f64 below `x`, for a positive finite `x` (the config validates
@@ -249,17 +250,18 @@ impl GridFastSlam {
     }
 
     /// Re-renders the best particle's map at `resolution` metres per cell (e.g. 0.01 for
-    /// a 5 cm matching grid) by integrating every processed scan at the best particle's
-    /// corrected trajectory, with the same inverse sensor model. Returns an empty map for
-    /// a non-positive or non-finite resolution.
+    /// a 5 cm matching grid) by integrating every processed scan, as the door classified
+    /// it, at the best particle's corrected trajectory, with the same inverse sensor model.
+    /// Returns an empty map for a non-positive or non-finite resolution.
     pub fn render_map(&self, resolution: f64) -> GridMap {
         if !(resolution > 0.0 && resolution.is_finite()) {
             return GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0);
         }
         let mut map = OccupancyGrid::new(resolution, self.setup.sensor_model);
         for (pose, scan) in self.best_path().iter().zip(&self.scans) {
-            // Every kept scan was validated and every path pose is finite.
-            map.integrate_scan(pose, scan);
+            // Every kept scan passed the door and every path pose is finite; a scan the
+            // map cannot take (beyond its extent) is left out, as before.
+            let _ = map.try_integrate_prepared(pose, scan);
         }
         map.to_grid_map()
     }
@@ -398,11 +400,11 @@ impl GridFastSlam {
         self.odometry.push(odometry);
         let first = self.scans.is_empty();
         let arrival = match &record.scan {
-            Some(scan) => Some((scan, self.admit(first, scan)?)),
+            Some(scan) => Some(self.admit(first, scan)?),
             None => None,
         };
         let update = match &arrival {
-            Some((_, prepared)) => {
+            Some(prepared) => {
                 first
                     || self.acc_linear >= self.setup.linear_update
                     || self.acc_angular >= self.setup.angular_update
@@ -410,8 +412,8 @@ impl GridFastSlam {
             }
             None => false,
         };
-        let (scan, prepared) = match (arrival, update) {
-            (Some(s), true) => s,
+        let prepared = match (arrival, update) {
+            (Some(prepared), true) => Arc::new(prepared),
             _ => {
                 let last = self.last_scan_of_record.last().copied().unwrap_or(u32::MAX);
                 self.last_scan_of_record.push(last);
@@ -427,10 +429,10 @@ impl GridFastSlam {
         let info = if first {
             self.first_scan(&prepared, odometry)?
         } else {
-            self.update(k, prepared)?
+            self.update(k, Arc::clone(&prepared))?
         };
         self.scan_records.push(self.times.len() - 1);
-        self.scans.push(scan.clone());
+        self.scans.push(prepared);
         self.last_scan_of_record.push(k as u32);
         self.acc_linear = 0.0;
         self.acc_angular = 0.0;
@@ -446,7 +448,7 @@ impl GridFastSlam {
     /// coarse search): in space only the last processed scan has seen, a scan may count as
     /// misfit and trigger an update early, which then integrates that scan, so a robot
     /// standing still triggers it at most once.
-    fn scan_misfits(&self, prepared: &PreparedScan, odometry: &Pose2) -> bool {
+    fn scan_misfits(&self, prepared: &RangeData, odometry: &Pose2) -> bool {
         let fraction = self.setup.scan_update_fraction;
         let (Some(&r_prev), true) = (self.scan_records.last(), fraction > 0.0) else {
             return false;
@@ -464,7 +466,7 @@ impl GridFastSlam {
 
     fn first_scan(
         &mut self,
-        prepared: &PreparedScan,
+        prepared: &RangeData,
         odometry: Pose2,
     ) -> Result<ScanUpdateInfo, GridFastError> {
         // The first scan's pose in the world frame (the odometry itself at the identity).
@@ -494,19 +496,28 @@ impl GridFastSlam {
 
     /// The front door of a record's scan, once it has passed [`GridFastSlam::check_record`]
     /// (first scan: after the configuration has taken the values it leaves open from it,
-    /// [`GridFastSlam::configure_from`]): the scan classified once into the returns the
-    /// filter matches and integrates — every `sensor.beam-step`-th of the hits with
-    /// 0 < r < `sensor.max-range` (the scan's `sensor_pose` applied) — and the rest; a
-    /// reading at `max-range` itself is a no return for the filter's sensor model
-    /// (`far_hits_clear` off), so it is not matched either. No later stage asks again.
-    fn admit(&mut self, first: bool, scan: &LaserScan) -> Result<PreparedScan, GridFastError> {
+    /// [`GridFastSlam::configure_from`]): slam-grid's [`RangeData`], the scan classified
+    /// once under the filter's sensor model ([`crate::setup::Setup::sensor_model`]) into
+    /// returns — the hits with r < `sensor.max-range`, which the maps mark — and misses
+    /// (none: with `far_hits_clear` off and no `no_return_range` nothing else clears
+    /// space), with every `sensor.beam-step`-th of the returns with r > 0 (the scan's
+    /// `sensor_pose` applied) as the matching points; a reading at `max-range` itself is a
+    /// no return. The misfit test, the update's matching, every particle's integration and
+    /// [`GridFastSlam::render_map`] take it as it is: no later stage asks a reading again.
+    fn admit(&mut self, first: bool, scan: &LaserScan) -> Result<RangeData, GridFastError> {
         if first {
             self.configure_from(scan)?;
         }
         let k = self.scans.len();
         let (max_range, beam_step) = (self.setup.max_range, self.setup.beam_step);
-        PreparedScan::with_limits_every(scan, f64::MIN_POSITIVE, below(max_range), beam_step)
-            .map_err(|e| numerical(k, e))
+        RangeData::with_limits_every(
+            scan,
+            &self.setup.sensor_model,
+            f64::MIN_POSITIVE,
+            below(max_range),
+            beam_step,
+        )
+        .map_err(|e| numerical(k, e))
     }
 }
 

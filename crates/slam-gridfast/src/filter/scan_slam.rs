@@ -1,27 +1,15 @@
-//! [`GridFastSlam`] behind the workspace's filter traits: [`FromConfig`] and [`ScanSlam`]
-//! (the estimates as the front ends read them).
+//! [`GridFastSlam`] behind the workspace's filter traits: [`slam_models::FromConfig`] and
+//! [`ScanSlam`] (the estimates as the front ends read them).
 
 use super::GridFastSlam;
 use crate::config::GridFastConfig;
 use crate::error::GridFastError;
 use slam_models::particle::normalize_log_weights;
 use slam_models::{
-    FilterError, FromConfig, GridMap, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose,
-    WeightedPose,
+    FilterError, GridMap, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose, WeightedPose,
 };
 
-impl FromConfig for GridFastSlam {
-    type Config = GridFastConfig;
-    type Error = GridFastError;
-
-    fn from_config(
-        config: GridFastConfig,
-        initial_pose: Pose2,
-        seed: u64,
-    ) -> Result<Self, GridFastError> {
-        Self::new(config, initial_pose, seed)
-    }
-}
+slam_models::from_config_by_new!(GridFastSlam, GridFastConfig, GridFastError);
 
 impl ScanSlam for GridFastSlam {
     fn name(&self) -> &str {

@@ -8,7 +8,7 @@ use super::stages::Shared;
 use super::{numerical, Particle, Pending};
 use crate::error::GridFastError;
 use crate::proposal::Drawn;
-use slam_grid::{GridError, PreparedScan};
+use slam_grid::{GridError, RangeData};
 use std::sync::{Mutex, OnceLock};
 
 #[cfg(not(feature = "parallel"))]
@@ -41,7 +41,7 @@ mod inline {
 /// the pool: the first refusal (slam-grid refuses a scan kilometres off the map).
 pub(super) fn check_integrable(
     groups: &[(Particle, usize)],
-    scan: &PreparedScan,
+    scan: &RangeData,
 ) -> Result<(), GridError> {
     #[cfg(feature = "parallel")]
     use rayon::prelude::*;

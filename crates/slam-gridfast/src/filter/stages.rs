@@ -18,10 +18,11 @@ use crate::matcher::field;
 use crate::proposal::{improved_fit, motion_and_likelihood, Drawn, Step};
 use crate::setup::Setup;
 use slam_grid::matcher::endpoint::{grid_search, hill_climb};
-use slam_grid::PreparedScan;
+use slam_grid::RangeData;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::particle::{effective_sample_size_log, normalize_log_weights, PathNode};
 use slam_models::{OdometryControl, Pose2, ScanUpdateInfo};
+use std::sync::Arc;
 
 /// What one processed scan's match on the best particle's map gives every particle.
 pub(super) struct Shared {
@@ -60,7 +61,7 @@ impl GridFastSlam {
     pub(super) fn update(
         &mut self,
         k: usize,
-        prepared: PreparedScan,
+        prepared: Arc<RangeData>,
     ) -> Result<ScanUpdateInfo, GridFastError> {
         let r_prev = self.scan_records[k - 1];
         let odo_now = *self.odometry.last().unwrap_or(&Pose2::IDENTITY);
@@ -87,11 +88,12 @@ impl GridFastSlam {
     fn match_and_draw(
         &mut self,
         k: usize,
-        prepared: &PreparedScan,
+        prepared: &RangeData,
         u: OdometryControl,
     ) -> Result<(Shared, Vec<Drawn>), GridFastError> {
         let (setup, seed, m) = (&self.setup, self.seed, self.particles.len());
         let share_fits = self.shares_fits();
+        let integrated = self.pending.as_ref().map(|p| p.k);
         let stepped = schedule::step_groups(
             &mut self.particles,
             self.best,
@@ -109,6 +111,13 @@ impl GridFastSlam {
                 draw_group(&step, (seed, k), group, start, shared, share_fits)
             },
         );
+        // The scan the maps just took is kept only to re-render maps: its matching points
+        // go (the Arc is unique once step_groups dropped the pending scan).
+        if let Some(scan) = integrated.and_then(|j| self.scans.get_mut(j)) {
+            if let Some(scan) = Arc::get_mut(scan) {
+                scan.release_matching_points();
+            }
+        }
         stepped.inspect_err(|e| {
             // The maps no longer all hold the same scans: refuse further records.
             self.failed = Some(e.to_string());
@@ -238,7 +247,7 @@ impl GridFastSlam {
     fn queue_integration(
         &mut self,
         k: usize,
-        prepared: PreparedScan,
+        prepared: Arc<RangeData>,
         regrouped: Regrouped,
     ) -> Result<(), GridFastError> {
         let Regrouped { groups, best, dead } = regrouped;
@@ -286,7 +295,7 @@ fn particles_len(groups: &[(Particle, usize)]) -> usize {
 fn shared_match(
     setup: &Setup,
     best: &Particle,
-    scan: &PreparedScan,
+    scan: &RangeData,
     u: OdometryControl,
     m: usize,
 ) -> Shared {

@@ -2,7 +2,7 @@
 //! and by how much its weight changes.
 
 use crate::config::StartChoice;
-use crate::setup::{beams, Recovery, Setup};
+use crate::setup::{beams, Recovery, Setup, Window};
 use nalgebra::Cholesky;
 use rand::Rng;
 use slam_grid::matcher::endpoint::{
@@ -10,7 +10,7 @@ use slam_grid::matcher::endpoint::{
     EndpointModel,
 };
 use slam_grid::DistanceField;
-use slam_grid::PreparedScan;
+use slam_grid::RangeData;
 use slam_models::motion::{MotionModel, OdometryModel};
 use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 
@@ -18,7 +18,7 @@ use slam_models::{normalize_angle, Matrix3, OdometryControl, Pose2, Vector3};
 /// odometry increment and the best particle's coarse correction.
 pub(crate) struct Step<'a> {
     pub setup: &'a Setup,
-    pub scan: &'a PreparedScan,
+    pub scan: &'a RangeData,
     /// The odometry increment since the last processed scan.
     pub u: OdometryControl,
     /// The correction x̂_best ⊖ x'_best that the shared coarse search found for the best
@@ -86,10 +86,13 @@ pub(crate) fn motion_and_likelihood<R: Rng + ?Sized>(
 /// model widened by the window, N(x', R + W) with
 /// W = diag((w_xy/2)², (w_xy/2)², (w_θ/2)²): the broad component of a mixture that admits
 /// odometry errors of the window's size. Hill climbing from its best pose replaces the
-/// local match when more beams find the map there; the samples τⱼ then use that widened
-/// motion density, so that the recovered particle is neither favoured nor punished for the
-/// distance from its prediction beyond what the window allows. The wide search's match is
-/// taken only when it is not poor itself.
+/// local match when more beams find the map there; the samples τⱼ then use the mixture
+/// (1 − ε)·N(x′, R) + ε·N(x′, R + W) ([`MotionDensity`]), so that the recovered particle
+/// pays the prior odds ε of an odometry outlier and nothing more for the distance from its
+/// prediction within the window. The wide search's match is taken only when it is not
+/// poor itself and fits `accept-fraction` of the beams. On a step whose odometry turned
+/// (`turn-trigger`), a poor match the wide window did not recover is searched again over
+/// every heading at the predicted position ([`recover`]).
 ///
 /// When the match still has too few inliers (empty or unrelated map) the particle falls
 /// back to [`motion_and_likelihood`] and the failure is reported.
@@ -189,14 +192,45 @@ pub(crate) fn improved_fit(
     let covariance =
         setup.odometry.noise_covariance(pose, &step.u) + Matrix3::from_diagonal(&setup.min_var);
     let m = climb(field, step, &predicted, &covariance);
-    let (m, covariance, recovered) = match setup.recovery {
+    let (m, broad) = match setup.recovery {
         Some(rc) => match recover(map, field, step, &rc, &predicted, &covariance, &m) {
-            Some((m2, wide)) => (m2, wide, true),
-            None => (m, covariance, false),
+            Some((m2, wide)) => (m2, Some((wide, rc.log_outlier_odds))),
+            None => (m, None),
         },
-        None => (m, covariance, false),
+        None => (m, None),
     };
-    fit_gaussian(field, step, &m, &predicted, &covariance, recovered)
+    let motion = MotionDensity {
+        predicted,
+        covariance,
+        broad,
+    };
+    fit_gaussian(field, step, &m, &motion)
+}
+
+/// The motion density p(x | xₜ₋₁, uₜ) the samples τⱼ are weighed with, up to the factor
+/// (1 − ε) common to every particle: N(x; x′, R) + ε/(1 − ε)·N(x; x′, R + W).
+///
+/// The filter's motion model is the mixture (1 − ε)·N(x′, R) + ε·N(x′, R + W) (ε =
+/// `outlier-weight`, W the recovery window's, [`recover`]): the odometry model plus a
+/// small-weight broad component for the steps whose odometry is an outlier (a turn in
+/// place measured 1.24 rad off). The improved proposal's weight is the normaliser of the
+/// proposal, η = Σⱼ p(z | m, xⱼ)·p(xⱼ | xₜ₋₁, uₜ) (Grisetti et al. 2007, eqs. 12, 18), with
+/// that mixture as p(xⱼ | …). A particle whose match was not recovered weighs its samples
+/// (within 1 cm / 0.3° of a mode the hill climber reached from x′) by the first component
+/// alone: the broad one adds at most ε/(1 − ε)·√(det R / det(R + W)) relative to it (for
+/// a 0.1 m / 0.1 rad odometry σ, 4·10⁻⁵ with the indoor wide window, 2·10⁻⁴ with the
+/// turn search's), so ln η moves by less than 2·10⁻⁴ nats; leaving it out keeps every
+/// step without a recovery as it was. W is the window of the search that recovered (the
+/// wide window, or the turn search's on a step that turned). A recovered particle's
+/// samples lie where the broad component can dominate, so it weighs them by both,
+/// exactly.
+pub(crate) struct MotionDensity {
+    /// x′ = xₜ₋₁ ⊕ uₜ.
+    pub predicted: Pose2,
+    /// R (linearised odometry model plus the floor `motion.min-std`²).
+    pub covariance: Matrix3,
+    /// The broad component for a recovered particle: R + W and ln(ε / (1 − ε)).
+    pub broad: Option<(Matrix3, f64)>,
 }
 
 /// Step 1: x̂ by hill climbing from the prediction `predicted` (motion covariance
@@ -250,9 +284,9 @@ fn climb(
     }
 }
 
-/// The answer to a poor match `m`: the wide search's match and the widened covariance
-/// R + W, when they replace `m` (see [`improved`]); `None` when `m` is not poor or the
-/// wide match is not taken.
+/// The answer to a poor match `m`: the wide search's match, or on a step that turned the
+/// turn search's, and the widened covariance R + W of the window searched, when they
+/// replace `m` (see [`improved`]); `None` when `m` is not poor or neither match is taken.
 fn recover(
     map: &slam_grid::OccupancyGrid,
     field: &DistanceField<'_>,
@@ -283,56 +317,85 @@ fn recover(
     if !poor(m) {
         return None;
     }
-    let w = &rc.window;
-    let wide = covariance
-        + Matrix3::from_diagonal(&Vector3::new(
-            (0.5 * w.range_xy).powi(2),
-            (0.5 * w.range_xy).powi(2),
-            (0.5 * w.range_theta).powi(2),
-        ));
-    let window = w.with_prior(&wide);
     let capture = &setup.capture;
-    // Branch and bound over a pyramid built for this particle's map now (its map
-    // changes every step); brute force only if the window is too large for a pyramid.
-    let found = match wide_search(field, step.scan, predicted, capture, &window) {
-        Ok(w) => w.pose,
-        Err(_) => grid_search(field, step.scan, predicted, capture, &window),
+    // The window W's search under N(x′, R + W), then hill climbing from its best pose.
+    let search = |w: &Window| {
+        let wide = covariance
+            + Matrix3::from_diagonal(&Vector3::new(
+                (0.5 * w.range_xy).powi(2),
+                (0.5 * w.range_xy).powi(2),
+                (0.5 * w.range_theta).powi(2),
+            ));
+        let window = w.with_prior(&wide);
+        // Branch and bound over a pyramid built for this particle's map now (its map
+        // changes every step); brute force only if the window is too large for a pyramid.
+        let found = match wide_search(field, step.scan, predicted, capture, &window) {
+            Ok(w) => w.pose,
+            Err(_) => grid_search(field, step.scan, predicted, capture, &window),
+        };
+        let m2 = hill_climb(
+            field,
+            step.scan,
+            &found,
+            capture,
+            &setup.likelihood,
+            &setup.climb,
+        );
+        (m2, wide)
     };
-    let m2 = hill_climb(
-        field,
-        step.scan,
-        &found,
-        capture,
-        &setup.likelihood,
-        &setup.climb,
-    );
     // Taken when it is better than the local match, no longer poor itself and fits
-    // most of the scan (`accept-fraction`): a pose far from the prediction needs more
-    // than not being poor.
-    (m2.score.inliers > m.score.inliers
-        && !poor(&m2)
-        && m2.score.inliers >= beams(rc.accept_fraction, n))
-    .then_some((m2, wide))
+    // `fraction` of the scan: a pose far from the prediction needs more than not being
+    // poor.
+    let taken = |m2: &EndpointMatch, fraction: f64| {
+        m2.score.inliers > m.score.inliers && !poor(m2) && m2.score.inliers >= beams(fraction, n)
+    };
+    let (m2, wide) = search(&rc.window);
+    if taken(&m2, rc.accept_fraction) {
+        return Some((m2, wide));
+    }
+    // A step that turned: every heading (`turn-range-theta`) at the predicted position
+    // (± `turn-range-xy`), since odometry that turned in place can be off by more than the
+    // turn itself; near the predicted position a scan that looks partly into space not
+    // yet mapped can fit only half its beams at the right pose (`turn-accept-fraction`).
+    let turn = step.u.rot1.abs() + step.u.rot2.abs();
+    if turn < rc.turn_trigger {
+        return None;
+    }
+    let w = Window {
+        range_xy: rc.turn_range_xy,
+        range_theta: rc.turn_range_theta,
+        ..rc.window
+    };
+    let (m3, wide) = search(&w);
+    taken(&m3, rc.turn_accept_fraction).then_some((m3, wide))
 }
 
 /// Steps 2–3: the K samples around the match `m`, weighed by likelihood × the motion
-/// density N(`predicted`, `covariance`), and the Gaussian fitted to them; a failed match
-/// (too few inliers) or a singular covariance gives [`Fitted::Failed`].
+/// density ([`MotionDensity`]), and the Gaussian fitted to them; a failed match (too few
+/// inliers) or a singular covariance gives [`Fitted::Failed`].
 fn fit_gaussian(
     field: &DistanceField<'_>,
     step: &Step<'_>,
     m: &EndpointMatch,
-    predicted: &Pose2,
-    covariance: &Matrix3,
-    recovered: bool,
+    motion: &MotionDensity,
 ) -> Fitted {
     let (setup, offsets) = (step.setup, &step.setup.offsets);
-    let chol = Cholesky::new((covariance + covariance.transpose()) * 0.5);
+    let predicted = &motion.predicted;
     let min_inliers = setup.min_inliers(step.scan.points().len());
-    let (Some(chol), true) = (chol, m.score.inliers >= min_inliers) else {
+    let Some(narrow) = LogGaussian::new(&motion.covariance) else {
         return Fitted::Failed;
     };
-    let log_det = 2.0 * (0..3).map(|i| chol.l_dirty()[(i, i)].ln()).sum::<f64>();
+    let broad = match &motion.broad {
+        Some((c, log_odds)) => match LogGaussian::new(c) {
+            Some(g) => Some((g, *log_odds)),
+            None => return Fitted::Failed,
+        },
+        None => None,
+    };
+    if m.score.inliers < min_inliers {
+        return Fitted::Failed;
+    }
+    let recovered = broad.is_some();
     // ln τⱼ with the tempered likelihood (for η) and with the untempered one (for μ, Σ).
     let mut log_tau = [0.0f64; 729];
     let mut log_fit = [0.0f64; 729];
@@ -347,7 +410,10 @@ fn fit_gaussian(
             xj.y - predicted.y,
             normalize_angle(xj.theta - predicted.theta),
         );
-        let log_motion = -0.5 * (e.dot(&chol.solve(&e)) + log_det);
+        let log_motion = match &broad {
+            None => narrow.at(&e),
+            Some((b, log_odds)) => log_add(narrow.at(&e), log_odds + b.at(&e)),
+        };
         log_tau[j] = l + log_motion;
         log_fit[j] = setup.likelihood.gain * l + log_motion;
     }
@@ -380,6 +446,36 @@ fn fit_gaussian(
     }
 }
 
+/// ln N(e; 0, C) + (3/2)·ln 2π for a 3×3 covariance C, from its Cholesky factor.
+struct LogGaussian {
+    chol: Cholesky<f64, nalgebra::U3>,
+    log_det: f64,
+}
+
+impl LogGaussian {
+    /// `None` when C is not positive definite.
+    fn new(c: &Matrix3) -> Option<Self> {
+        let chol = Cholesky::new((c + c.transpose()) * 0.5)?;
+        let log_det = 2.0 * (0..3).map(|i| chol.l_dirty()[(i, i)].ln()).sum::<f64>();
+        Some(Self { chol, log_det })
+    }
+
+    /// −½·(eᵀC⁻¹e + ln det C).
+    fn at(&self, e: &Vector3) -> f64 {
+        -0.5 * (e.dot(&self.chol.solve(e)) + self.log_det)
+    }
+}
+
+/// ln(eᵃ + eᵇ), without overflow or underflow.
+fn log_add(a: f64, b: f64) -> f64 {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    if lo == f64::NEG_INFINITY {
+        hi
+    } else {
+        hi + (lo - hi).exp().ln_1p()
+    }
+}
+
 /// The beams of `scan` at `pose` that the map can judge: the end point lies in an observed
 /// cell (log-odds ≠ 0) or within the model's truncation r of an obstacle, or the beam
 /// passes through an occupied cell (log-odds > 0) more than r before its end — a beam that
@@ -388,7 +484,7 @@ fn fit_gaussian(
 pub(crate) fn observed_beams(
     map: &slam_grid::OccupancyGrid,
     field: &DistanceField<'_>,
-    scan: &PreparedScan,
+    scan: &RangeData,
     pose: &Pose2,
     model: &EndpointModel,
 ) -> usize {
@@ -416,12 +512,12 @@ pub(crate) fn observed_beams(
 }
 
 /// The end points the K samples of the improved proposal score: every 2nd
-/// ([`PreparedScan::half_points`]), and the factor n / n_half that scales their
+/// ([`RangeData::half_points`]), and the factor n / n_half that scales their
 /// log-likelihood to the whole scan's. The samples are close to one another (±1 cm, ±0.3°
 /// by default), so half the beams still tell them apart, at half the cost (they were about
 /// a third of a particle's evaluations). Measured on Intel (5 seeds, relations) and
 /// Freiburg-101 (3 seeds, ATE): docs/results/gridfast-speed.md.
-fn sample_points(scan: &PreparedScan) -> (&[slam_models::Point2], f64) {
+fn sample_points(scan: &RangeData) -> (&[slam_models::Point2], f64) {
     let points = scan.half_points();
     (
         points,

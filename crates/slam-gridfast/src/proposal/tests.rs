@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::matcher::field;
-use crate::matcher::tests::{empty_map, room_scan};
+use crate::matcher::tests::{empty_map, room_map, room_scan};
 use crate::setup::sample_offsets;
 use rand::SeedableRng;
 
@@ -17,7 +17,7 @@ fn the_gain_tempers_the_weight_not_the_proposal() {
         map.integrate_scan(&p, &room_scan(&p));
     }
     let truth = Pose2::new(0.3, 0.4, 0.3);
-    let scan = PreparedScan::with_limits(&room_scan(&truth), 0.0, 50.0).unwrap();
+    let scan = RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 50.0).unwrap();
     let motion = OdometryModel::new([0.05, 0.002, 0.02, 0.002]);
     let previous = Pose2::new(0.0, 0.0, 0.0);
     // Odometry that overshoots the true pose by a few centimetres.
@@ -166,7 +166,7 @@ fn indoor_setup(edit: impl FnOnce(&mut crate::GridFastConfig)) -> Setup {
 /// says, `to`, with the best particle's coarse correction `correction`.
 fn indoor_draw(
     map: &slam_grid::OccupancyGrid,
-    scan: &PreparedScan,
+    scan: &RangeData,
     (previous, to): (Pose2, Pose2),
     correction: Pose2,
     setup: &Setup,
@@ -218,7 +218,8 @@ fn corridor_draw(
     }
     let truth = Pose2::new(1.9, 0.1, 0.05);
     let previous = Pose2::new(1.1, 0.05, 0.0);
-    let scan = PreparedScan::with_limits(&corridor_scan(&truth, 30.0), 0.0, 29.9).unwrap();
+    let scan = RangeData::with_limits(&corridor_scan(&truth, 30.0), &Default::default(), 0.0, 29.9)
+        .unwrap();
     let setup = indoor_setup(|c| {
         c.matching.min_inlier_fraction = 0.05;
         c.matching.start_choice = start_choice;
@@ -329,7 +330,13 @@ fn a_wide_match_in_unmapped_space_needs_most_beams_on_the_map() {
     }
     let truth = Pose2::new(0.0, 0.0, 0.0);
     let previous = Pose2::new(-1.0, 0.0, 0.0);
-    let scan = PreparedScan::with_limits(&ribbed_corridor_scan(&truth), 0.0, 2.999).unwrap();
+    let scan = RangeData::with_limits(
+        &ribbed_corridor_scan(&truth),
+        &Default::default(),
+        0.0,
+        2.999,
+    )
+    .unwrap();
     // The trigger counted among all the beams (`observed-only` off), so that the wide
     // search runs and only the acceptance rule is tested.
     let draw = |accept_fraction: f64| {
@@ -347,4 +354,64 @@ fn a_wide_match_in_unmapped_space_needs_most_beams_on_the_map() {
     let jumped = draw(0.0);
     assert!(jumped.match_recovered);
     assert!(jumped.pose.distance(&truth) > 1.0, "{:?}", jumped.pose);
+}
+
+/// A turn in place in the room of [`room_scan`] that the odometry measured +0.89 rad for
+/// a true −0.35 rad (1.24 rad off, 6σ of the motion model: fhw's scan 62 on
+/// `perturb-odometry --seed 2 --profile hard`, docs/gridfast.md). Returns the true pose
+/// and the particle's draw with `edit` applied to the indoor preset.
+fn missed_turn_draw(edit: impl FnOnce(&mut crate::GridFastConfig)) -> (Pose2, Drawn) {
+    let map = room_map();
+    let previous = Pose2::new(-0.5, 0.4, 0.3);
+    let truth = Pose2::new(-0.5, 0.4, 0.3 - 0.35);
+    let measured = Pose2::new(-0.5, 0.4, 0.3 + 0.89);
+    let scan = RangeData::with_limits(&room_scan(&truth), &Default::default(), 0.0, 29.9).unwrap();
+    let setup = indoor_setup(edit);
+    let drawn = indoor_draw(&map, &scan, (previous, measured), Pose2::IDENTITY, &setup);
+    (truth, drawn)
+}
+
+/// The heading the odometry got 1.24 rad wrong on a turn in place lies outside the wide
+/// window (±0.9 rad): only the turn search (every heading at the predicted position)
+/// finds the true pose; with it off (`turn-trigger` above the turn) the particle stays
+/// off by more than 0.3 rad.
+#[test]
+fn a_turn_the_odometry_got_wrong_is_found_by_the_turn_search() {
+    let (truth, found) = missed_turn_draw(|_| {});
+    assert!(found.match_recovered && !found.match_failed);
+    assert!(
+        found.pose.distance(&truth) < 0.05
+            && normalize_angle(found.pose.theta - truth.theta).abs() < 0.02,
+        "{:?} against the truth {truth:?}",
+        found.pose
+    );
+    let (_, lost) = missed_turn_draw(|c| c.matching.recovery.turn_trigger = 10.0);
+    assert!(
+        normalize_angle(lost.pose.theta - truth.theta).abs() > 0.3,
+        "{:?}",
+        lost.pose
+    );
+}
+
+/// The recovered particle's weight is the normaliser of the proposal under the mixture
+/// (1 − ε)·N(x′, R) + ε·N(x′, R + W): 6σ from x′ (σ_θ 0.2 rad for this turn) the first
+/// component is ~e⁻¹⁹ of the second, so η scales with ε/(1 − ε), and ln η moves by the log-odds ratio between two
+/// values of `outlier-weight` (the same pose drawn: the proposal itself barely changes).
+#[test]
+fn the_recovered_weight_carries_the_outlier_prior() {
+    let draw = |eps: f64| missed_turn_draw(|c| c.matching.recovery.outlier_weight = eps).1;
+    let (a, b) = (draw(0.01), draw(0.1));
+    assert!(a.match_recovered && b.match_recovered);
+    // (The samples' relative weights change by the first component's share, ~e⁻¹⁹.)
+    assert!(
+        a.pose.distance(&b.pose) < 1e-6 && (a.pose.theta - b.pose.theta).abs() < 1e-6,
+        "{:?} vs {:?}",
+        a.pose,
+        b.pose
+    );
+    let expected = (0.1f64 / 0.9).ln() - (0.01f64 / 0.99).ln();
+    let got = b.log_weight - a.log_weight;
+    // Less the first component's share of η, which is ε/(1 − ε)·e⁻¹⁹·det ratio ~ 10⁻⁴
+    // of the broad one's at ε = 0.01.
+    assert!((got - expected).abs() < 1e-3, "{got} vs {expected}");
 }

@@ -60,9 +60,12 @@ mod container;
 pub(crate) mod msgs;
 #[cfg(feature = "rosbag1")]
 mod ros1;
+mod ros1_record;
 #[cfg(feature = "rosbag-sqlite")]
 mod sqlite;
 pub(crate) mod wire;
+
+pub use ros1_record::{ros1_record, ros1_record_head};
 
 pub use container::{BagFormat, TopicInfo};
 

@@ -464,21 +464,7 @@ pub(crate) fn messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Re
 mod tests {
     use super::*;
 
-    /// A record: header fields `name=value`, then the data, each with its length.
-    fn rec(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
-        let mut h = Vec::new();
-        for (n, v) in fields {
-            h.extend((n.len() as u32 + 1 + v.len() as u32).to_le_bytes());
-            h.extend(n.as_bytes());
-            h.push(b'=');
-            h.extend(*v);
-        }
-        let mut r = (h.len() as u32).to_le_bytes().to_vec();
-        r.extend(h);
-        r.extend((data.len() as u32).to_le_bytes());
-        r.extend(data);
-        r
-    }
+    use crate::rosbag::ros1_record as rec;
 
     /// An unindexed bag holding `records` after its header.
     fn bag(records: &[Vec<u8>]) -> Vec<u8> {
