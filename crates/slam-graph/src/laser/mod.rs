@@ -16,10 +16,13 @@
 //!   keeps its weight instead of being overruled by a match that knows nothing of it.
 //! * **Loop closure**: a finished submap (its last scan at least `loop-min-scan-gap`
 //!   keyframes old) whose keyframes lie within reach of the keyframe's global position is
-//!   searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the submap,
-//!   around the pose the current graph predicts; the radius and the rotation window grow
-//!   linearly with the path length between the submap and the keyframe (the uncertainty
-//!   of their relative pose before the closure), up to their caps. A match scoring at
+//!   searched with slam-grid's [`BranchBoundMatcher`](slam_grid::BranchBoundMatcher) over
+//!   a [`MaxPyramid`] of the submap, around the pose the current graph predicts; the radius
+//!   and the rotation window grow linearly with the graph distance between the submap and
+//!   the keyframe (the scan-matching chain since the closures that last joined them: the
+//!   uncertainty of their relative pose before this closure), up to their caps (12 m,
+//!   0.8 rad). Each submap is searched narrow first (3 m, 0.6 rad); the whole window only
+//!   when that finds nothing, under a per-keyframe budget. A match scoring at
 //!   least `loop-min-score`, and not matched almost as well 0.25–1 m away
 //!   (`loop-ambiguity-ratio`), is refined by Gauss-Newton and becomes an edge from the
 //!   submap's keyframe nearest to the match. Finished submaps keep no grid: the search
@@ -54,8 +57,8 @@ pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SC
 use crate::error::GraphError;
 use slam_grid::{MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
-    normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
-    ScanSlam, ScanUpdateInfo, TimedPose,
+    FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord, ScanSlam,
+    ScanUpdateInfo, TimedPose,
 };
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -113,8 +116,8 @@ pub struct LaserGraphStats {
     pub local_match_failures: usize,
     /// Branch-and-bound loop-closure searches run.
     pub loop_searches: usize,
-    /// Of those, wide searches (radius above `loop-wide-radius`, at most one per
-    /// `loop-wide-interval` keyframes).
+    /// Of those, wide searches (the whole window, beyond `loop-wide-radius` or
+    /// `loop-wide-angle`, after a narrow search of the same submap found nothing).
     pub loop_wide_searches: usize,
     /// Loop-closure matches rejected as ambiguous (`loop-ambiguity-ratio`).
     pub loop_ambiguous: usize,
@@ -464,35 +467,6 @@ impl LaserGraphSlam {
         local[(1, 1)] += sxy * sxy;
         local[(2, 2)] += sth * sth;
         invert(&local)
-    }
-
-    /// Covariance of one odometry increment ([`OdometryNoise`]), in the earlier record's
-    /// frame.
-    fn odometry_covariance(&self, delta: &Pose2) -> Matrix3 {
-        let n = &self.config.odometry_noise;
-        let d = delta.translation().coords.norm();
-        let a = normalize_angle(delta.theta).abs();
-        let st = n.translation_per_metre * d + n.translation_per_radian * a + n.min_translation;
-        let sr = n.rotation_per_radian * a + n.rotation_per_metre * d + n.min_rotation;
-        Matrix3::from_diagonal(&slam_models::Vector3::new(st * st, st * st, sr * sr))
-    }
-
-    /// Covariance of the composed odometry from record `a` to record `b` (first order,
-    /// in `a`'s frame): Σ ← J₁ Σ J₁ᵀ + J₂ Σᵢ J₂ᵀ along the chain.
-    fn odometry_chain_covariance(&self, a: usize, b: usize) -> Matrix3 {
-        let mut acc = Pose2::IDENTITY;
-        let mut cov = Matrix3::zeros();
-        for j in a + 1..=b {
-            let delta = self.odometry[j - 1].between(&self.odometry[j]);
-            let (j1, j2) = acc.compose_jacobians(&delta);
-            cov =
-                j1 * cov * j1.transpose() + j2 * self.odometry_covariance(&delta) * j2.transpose();
-            acc = acc.compose(&delta);
-        }
-        if a == b {
-            cov = self.odometry_covariance(&Pose2::IDENTITY);
-        }
-        (cov + cov.transpose()) * 0.5
     }
 
     /// Inserts keyframe `k`'s scan into the active submaps, starting and finishing submaps

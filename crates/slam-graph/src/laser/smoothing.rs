@@ -1,13 +1,14 @@
 //! The keyframe graph's optimisation and the trajectory at every record: the smoother's
 //! graph of one node per record (odometry edges between records, the keyframe graph's
-//! scan-matching and loop-closure edges between keyframes) and the map rendered from it.
+//! scan-matching and loop-closure edges between keyframes) and the map rendered from it;
+//! the odometry noise model ([`OdometryNoise`](super::OdometryNoise)) its edges use.
 
 use super::{invert, Constraint, LaserGraphSlam};
 use crate::error::GraphError;
 use crate::graph::PoseGraph;
 use crate::optimizer::Optimizer;
 use slam_grid::OccupancyGrid;
-use slam_models::{normalize_angle, GridMap, Pose2};
+use slam_models::{normalize_angle, GridMap, Matrix3, Pose2};
 
 impl LaserGraphSlam {
     /// Optimises the keyframe graph (first keyframe held) and writes the poses back.
@@ -114,5 +115,34 @@ impl LaserGraphSlam {
             grid.try_integrate_prepared(&poses[kf.record], &kf.scan)?;
         }
         Ok(grid.to_grid_map())
+    }
+
+    /// Covariance of one odometry increment ([`OdometryNoise`]), in the earlier record's
+    /// frame.
+    pub(super) fn odometry_covariance(&self, delta: &Pose2) -> Matrix3 {
+        let n = &self.config.odometry_noise;
+        let d = delta.translation().coords.norm();
+        let a = normalize_angle(delta.theta).abs();
+        let st = n.translation_per_metre * d + n.translation_per_radian * a + n.min_translation;
+        let sr = n.rotation_per_radian * a + n.rotation_per_metre * d + n.min_rotation;
+        Matrix3::from_diagonal(&slam_models::Vector3::new(st * st, st * st, sr * sr))
+    }
+
+    /// Covariance of the composed odometry from record `a` to record `b` (first order,
+    /// in `a`'s frame): Σ ← J₁ Σ J₁ᵀ + J₂ Σᵢ J₂ᵀ along the chain.
+    pub(super) fn odometry_chain_covariance(&self, a: usize, b: usize) -> Matrix3 {
+        let mut acc = Pose2::IDENTITY;
+        let mut cov = Matrix3::zeros();
+        for j in a + 1..=b {
+            let delta = self.odometry[j - 1].between(&self.odometry[j]);
+            let (j1, j2) = acc.compose_jacobians(&delta);
+            cov =
+                j1 * cov * j1.transpose() + j2 * self.odometry_covariance(&delta) * j2.transpose();
+            acc = acc.compose(&delta);
+        }
+        if a == b {
+            cov = self.odometry_covariance(&Pose2::IDENTITY);
+        }
+        (cov + cov.transpose()) * 0.5
     }
 }
