@@ -434,6 +434,15 @@ pub fn run_scans_observed(
             });
         }
     }
+    // Work a filter held back ([`ScanSlam::finish`]) is part of the run's time.
+    if let Some(last) = records.last() {
+        filter.finish().map_err(|source| RunError::Step {
+            filter: filter_name.clone(),
+            step: records.len() - 1,
+            t: last.t,
+            source,
+        })?;
+    }
     if let Some((k, t)) = first_jump {
         warnings.push(format!(
             "skipped {jumps} odometry jump(s) beyond odometry-jump.max-jump, taken as no motion (first at record {k}, t = {t} s)"

@@ -355,6 +355,14 @@ pub trait ScanSlam: Send {
         None
     }
 
+    /// Called once after the last record: a filter that holds work back (the graph front
+    /// end's group of loop closures not yet checked) finishes it here, so that
+    /// [`trajectory`](ScanSlam::trajectory) and [`map`](ScanSlam::map) read afterwards use
+    /// every record. Filters with nothing held back have nothing to do (the default).
+    fn finish(&mut self) -> Result<(), FilterError> {
+        Ok(())
+    }
+
     /// The configuration the filter runs with, for a front end that writes it: the
     /// filter's own configuration type (a front end downcasts it), with every value the
     /// given configuration left to the data taken from the data (grid FastSLAM: the range

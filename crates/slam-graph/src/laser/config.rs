@@ -138,17 +138,19 @@ pub struct LaserGraphConfig {
     /// Loop closure: the search radius (the branch-and-bound translation window) around the
     /// predicted pose before any uncertainty, metres. Default 0.5.
     pub loop_radius: f64,
-    /// Loop closure: metres added to the radius per metre of path between the submap's last
-    /// keyframe and the searching one (their relative uncertainty grows with it). Default 0.05.
+    /// Loop closure: metres added to the radius per metre of graph distance between the
+    /// submap and the searching keyframe (the scan-matching chain since the closures that
+    /// last joined them: their relative uncertainty grows with it). Default 0.05.
     pub loop_radius_growth: f64,
-    /// Loop closure: the largest radius, metres. Default 3.
+    /// Loop closure: the largest radius, metres (≤ 50). Default 12: the drift of a 1.3 km
+    /// lap of the simulated campus is 5–10 m (docs/results/graph.md).
     pub loop_max_radius: f64,
     /// Loop closure: the rotation window before any uncertainty, radians. Default 0.2.
     pub loop_angle: f64,
     /// Loop closure: radians added to the rotation window per metre of path between the
-    /// submap and the searching keyframe. Default 0.02.
+    /// of graph distance between the submap and the searching keyframe. Default 0.02.
     pub loop_angle_growth: f64,
-    /// Loop closure: the largest rotation window, radians (≤ π). Default 0.6.
+    /// Loop closure: the largest rotation window, radians (≤ π). Default 0.8.
     pub loop_max_angle: f64,
     /// Loop closure: a match is rejected as ambiguous (a corridor, a repeated room) when
     /// the best score found near any of 24 poses shifted from it by 0.25, 0.5 or 1 m in 8
@@ -178,6 +180,19 @@ pub struct LaserGraphConfig {
     /// path [m/m, rad/m], the uncertainty of the local poses between two closures of a
     /// group (each ≥ 0). Default [0.02, 0.005].
     pub loop_group_drift: [f64; 2],
+    /// Loop closure: every candidate submap is searched first within this radius, metres
+    /// (and `loop-wide-angle`), the narrow window; the whole window (up to
+    /// `loop-max-radius`) only when it is wider and the narrow search found nothing
+    /// acceptable: at most one wide search per keyframe, and after one that found nothing
+    /// none for `loop-wide-interval` keyframes (the per-scan budget that keeps the search
+    /// cheap when the uncertainty is large). Default 3.
+    pub loop_wide_radius: f64,
+    /// Loop closure: the narrow window's rotation half-width, radians (see
+    /// `loop-wide-radius`). Default 0.6.
+    pub loop_wide_angle: f64,
+    /// Loop closure: keyframes after a wide search that found nothing before the next
+    /// (≥ 1). Default 4.
+    pub loop_wide_interval: usize,
     /// Loop closure: levels of the max-pyramid (slam-grid's `MaxPyramid`). Default 6.
     pub loop_depth: u32,
     /// Loop closure: a submap is searched only once its last scan is this many keyframes
@@ -233,10 +248,10 @@ impl Default for LaserGraphConfig {
             loop_min_score: 0.55,
             loop_radius: 0.5,
             loop_radius_growth: 0.05,
-            loop_max_radius: 3.0,
+            loop_max_radius: 12.0,
             loop_angle: 0.2,
             loop_angle_growth: 0.02,
-            loop_max_angle: 0.6,
+            loop_max_angle: 0.8,
             loop_ambiguity_ratio: 0.9,
             loop_max_anisotropy: 4.0,
             loop_group_span: 10,
@@ -244,6 +259,9 @@ impl Default for LaserGraphConfig {
             loop_group_min_size: 2,
             loop_group_min_ratio: 2.0,
             loop_group_drift: [0.02, 0.005],
+            loop_wide_radius: 3.0,
+            loop_wide_angle: 0.6,
+            loop_wide_interval: 4,
             loop_depth: 6,
             loop_min_scan_gap: 30,
             loop_max_candidates: 3,
@@ -402,9 +420,22 @@ impl LaserGraphConfig {
             ("loop-group-span", self.loop_group_span),
             ("loop-group-gap", self.loop_group_gap),
             ("loop-group-min-size", self.loop_group_min_size),
+            ("loop-wide-interval", self.loop_wide_interval),
         ] {
             ensure((1..=1000).contains(&v), f, v as f64, "in 1..=1000")?;
         }
+        ensure(
+            self.loop_wide_radius >= 0.0,
+            "loop-wide-radius",
+            self.loop_wide_radius,
+            ">= 0 m",
+        )?;
+        ensure(
+            self.loop_wide_angle >= 0.0,
+            "loop-wide-angle",
+            self.loop_wide_angle,
+            ">= 0 rad",
+        )?;
         let q = self.loop_group_min_ratio;
         ensure(q >= 1.0, "loop-group-min-ratio", q, ">= 1")?;
         for (i, &v) in self.loop_group_drift.iter().enumerate() {

@@ -16,10 +16,13 @@
 //!   keeps its weight instead of being overruled by a match that knows nothing of it.
 //! * **Loop closure**: a finished submap (its last scan at least `loop-min-scan-gap`
 //!   keyframes old) whose keyframes lie within reach of the keyframe's global position is
-//!   searched with slam-grid's [`BranchBoundMatcher`] over a [`MaxPyramid`] of the submap,
-//!   around the pose the current graph predicts; the radius and the rotation window grow
-//!   linearly with the path length between the submap and the keyframe (the uncertainty
-//!   of their relative pose before the closure), up to their caps. A match scoring at
+//!   searched with slam-grid's [`BranchBoundMatcher`](slam_grid::BranchBoundMatcher) over
+//!   a [`MaxPyramid`] of the submap, around the pose the current graph predicts; the radius
+//!   and the rotation window grow linearly with the graph distance between the submap and
+//!   the keyframe (the scan-matching chain since the closures that last joined them: the
+//!   uncertainty of their relative pose before this closure), up to their caps (12 m,
+//!   0.8 rad). Each submap is searched narrow first (3 m, 0.6 rad); the whole window only
+//!   when that finds nothing, under a per-keyframe budget. A match scoring at
 //!   least `loop-min-score`, and not matched almost as well 0.25–1 m away
 //!   (`loop-ambiguity-ratio`), is refined by Gauss-Newton and becomes an edge from the
 //!   submap's keyframe nearest to the match. Finished submaps keep no grid: the search
@@ -46,16 +49,16 @@
 pub mod config;
 mod consistency;
 mod covariance;
+mod loops;
+mod smoothing;
 
 pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SCANS};
 
 use crate::error::GraphError;
-use crate::graph::PoseGraph;
-use crate::optimizer::Optimizer;
-use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
+use slam_grid::{MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
-    normalize_angle, FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
-    ScanSlam, ScanUpdateInfo, TimedPose,
+    FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord, ScanSlam,
+    ScanUpdateInfo, TimedPose,
 };
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -113,6 +116,9 @@ pub struct LaserGraphStats {
     pub local_match_failures: usize,
     /// Branch-and-bound loop-closure searches run.
     pub loop_searches: usize,
+    /// Of those, wide searches (the whole window, beyond `loop-wide-radius` or
+    /// `loop-wide-angle`, after a narrow search of the same submap found nothing).
+    pub loop_wide_searches: usize,
     /// Loop-closure matches rejected as ambiguous (`loop-ambiguity-ratio`).
     pub loop_ambiguous: usize,
     /// Loop-closure matches rejected because their score surface is flat along one
@@ -162,6 +168,8 @@ pub struct LaserGraphSlam {
     pending_span: (usize, usize),
     /// Finished submaps' grids and pyramids for loop closure, most recently used last.
     loop_maps: VecDeque<LoopMap>,
+    /// The keyframe of the last wide loop search (the per-scan budget).
+    last_wide_search: Option<usize>,
     stats: LaserGraphStats,
     /// The smoothed trajectory and the number of records it covers.
     smoothed: Mutex<Option<(usize, Vec<Pose2>)>>,
@@ -183,6 +191,7 @@ impl Clone for LaserGraphSlam {
             pending: self.pending.clone(),
             pending_span: self.pending_span,
             loop_maps: self.loop_maps.clone(),
+            last_wide_search: self.last_wide_search,
             stats: self.stats,
             smoothed: Mutex::new(self.smoothed.lock().map(|s| s.clone()).unwrap_or(None)),
         }
@@ -233,6 +242,7 @@ impl LaserGraphSlam {
             pending: Vec::new(),
             pending_span: (0, 0),
             loop_maps: VecDeque::new(),
+            last_wide_search: None,
             stats: LaserGraphStats::default(),
             smoothed: Mutex::new(None),
         })
@@ -270,6 +280,12 @@ impl LaserGraphSlam {
                 )
             })
             .collect()
+    }
+
+    /// Candidate loop closures waiting for the group test (they enter the graph, or not,
+    /// when the group is complete or at [`finish_run`](Self::finish_run)).
+    pub fn pending_closures(&self) -> usize {
+        self.pending.len()
     }
 
     /// Processes one record (see the module documentation).
@@ -389,84 +405,11 @@ impl LaserGraphSlam {
         self.stats.keyframes += 1;
         if self.config.loop_max_candidates > 0 {
             self.search_loops(k)?;
-            if self.settle_group(k) {
+            if self.settle_group(k, false) {
                 self.optimize_keyframes()?;
             }
         }
         Ok(())
-    }
-
-    /// Once the pending group of candidate closures is complete (`loop-group-span`
-    /// keyframes since its first candidate, or `loop-group-gap` keyframes without one),
-    /// checks it for mutual consistency ([`consistency::dominant_group`]) and adds the
-    /// dominant cluster's closures to the graph; true when some were added.
-    fn settle_group(&mut self, k: usize) -> bool {
-        let c = &self.config;
-        let (first, last) = self.pending_span;
-        if self.pending.is_empty() || (k < first + c.loop_group_span && k < last + c.loop_group_gap)
-        {
-            return false;
-        }
-        let hyps: Vec<consistency::Hypothesis> = self
-            .pending
-            .iter()
-            .map(|p| {
-                let (a, b) = (&self.keyframes[p.from], &self.keyframes[p.to]);
-                consistency::Hypothesis {
-                    z: p.z,
-                    covariance: invert(&p.information),
-                    a: a.local,
-                    b: b.local,
-                    a_path: a.path,
-                    b_path: b.path,
-                }
-            })
-            .collect();
-        let test = consistency::GroupTest {
-            drift: c.loop_group_drift,
-            min_size: c.loop_group_min_size,
-            min_ratio: c.loop_group_min_ratio,
-        };
-        let decision = consistency::dominant_group(&hyps, &test);
-        let pending = std::mem::take(&mut self.pending);
-        self.stats.loop_groups += 1;
-        self.stats.loop_inconsistent += pending.len() - decision.accepted.len();
-        self.stats.loop_closures += decision.accepted.len();
-        for &i in &decision.accepted {
-            self.constraints.push(pending[i]);
-        }
-        !decision.accepted.is_empty()
-    }
-
-    /// True when the response of `scan` on `grid` around `pose` is flat along one
-    /// direction: the translational block of its sampled covariance
-    /// ([`covariance::response_covariance`]) has σ_max / σ_min above `loop-max-anisotropy`.
-    fn flat_match(&self, grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> bool {
-        let sampling = match self.config.match_covariance {
-            MatchCovariance::Response {
-                linear_window,
-                angular_window,
-                temperature,
-            } => covariance::ResponseSampling {
-                linear_window,
-                angular_window,
-                temperature,
-            },
-            MatchCovariance::Matcher => covariance::ResponseSampling {
-                linear_window: 0.3,
-                angular_window: 0.03,
-                temperature: 10.0,
-            },
-        };
-        let Some(cov) = covariance::response_covariance(grid, scan, pose, &sampling) else {
-            return true;
-        };
-        let (a, b, d) = (cov[(0, 0)], cov[(0, 1)], cov[(1, 1)]);
-        // Eigenvalues of the 2 × 2 block [[a, b], [b, d]].
-        let mean = 0.5 * (a + d);
-        let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
-        let (hi, lo) = (mean + r, (mean - r).max(f64::MIN_POSITIVE));
-        (hi / lo).sqrt() > self.config.loop_max_anisotropy
     }
 
     /// Local scan-to-submap match from `predicted`: pose and covariance, or `None` when
@@ -526,35 +469,6 @@ impl LaserGraphSlam {
         invert(&local)
     }
 
-    /// Covariance of one odometry increment ([`OdometryNoise`]), in the earlier record's
-    /// frame.
-    fn odometry_covariance(&self, delta: &Pose2) -> Matrix3 {
-        let n = &self.config.odometry_noise;
-        let d = delta.translation().coords.norm();
-        let a = normalize_angle(delta.theta).abs();
-        let st = n.translation_per_metre * d + n.translation_per_radian * a + n.min_translation;
-        let sr = n.rotation_per_radian * a + n.rotation_per_metre * d + n.min_rotation;
-        Matrix3::from_diagonal(&slam_models::Vector3::new(st * st, st * st, sr * sr))
-    }
-
-    /// Covariance of the composed odometry from record `a` to record `b` (first order,
-    /// in `a`'s frame): Σ ← J₁ Σ J₁ᵀ + J₂ Σᵢ J₂ᵀ along the chain.
-    fn odometry_chain_covariance(&self, a: usize, b: usize) -> Matrix3 {
-        let mut acc = Pose2::IDENTITY;
-        let mut cov = Matrix3::zeros();
-        for j in a + 1..=b {
-            let delta = self.odometry[j - 1].between(&self.odometry[j]);
-            let (j1, j2) = acc.compose_jacobians(&delta);
-            cov =
-                j1 * cov * j1.transpose() + j2 * self.odometry_covariance(&delta) * j2.transpose();
-            acc = acc.compose(&delta);
-        }
-        if a == b {
-            cov = self.odometry_covariance(&Pose2::IDENTITY);
-        }
-        (cov + cov.transpose()) * 0.5
-    }
-
     /// Inserts keyframe `k`'s scan into the active submaps, starting and finishing submaps
     /// as the module documentation describes.
     fn insert_into_submaps(
@@ -602,151 +516,6 @@ impl LaserGraphSlam {
         Ok(())
     }
 
-    /// Searches finished submaps for loop closures of keyframe `k` and adds the matches to
-    /// the pending group (`settle_group` decides which enter the graph); true when one was
-    /// found.
-    fn search_loops(&mut self, k: usize) -> Result<bool, GraphError> {
-        let c = &self.config;
-        let kf = &self.keyframes[k];
-        let position = kf.global.translation();
-        // Candidates: finished submaps old enough, by their nearest keyframe's distance.
-        let mut candidates: Vec<(f64, usize)> = Vec::new();
-        for (s, submap) in self.submaps.iter().enumerate() {
-            let Some(&last) = submap.keyframes.last() else {
-                continue;
-            };
-            if !submap.finished || last + c.loop_min_scan_gap > k {
-                continue;
-            }
-            let nearest = submap
-                .keyframes
-                .iter()
-                .map(|&j| (self.keyframes[j].global.translation() - position).norm())
-                .fold(f64::INFINITY, f64::min);
-            // The scan overlaps the submap when some of its keyframes is within the
-            // matching range (plus the largest search radius) of the predicted position.
-            if nearest <= c.loop_max_radius + 0.5 * c.match_max_range {
-                candidates.push((nearest, s));
-            }
-        }
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        candidates.truncate(c.loop_max_candidates);
-        let mut found = false;
-        for (_, s) in candidates {
-            // The window grows with the path travelled between the submap and keyframe k:
-            // the uncertainty of their relative pose before this closure.
-            let c = &self.config;
-            let last = *self.submaps[s]
-                .keyframes
-                .last()
-                .expect("candidates are not empty");
-            let travelled = self.keyframes[k].path - self.keyframes[last].path;
-            let radius = (c.loop_radius + c.loop_radius_growth * travelled).min(c.loop_max_radius);
-            let angle = (c.loop_angle + c.loop_angle_growth * travelled).min(c.loop_max_angle);
-            let matcher = BranchBoundMatcher {
-                linear_window: radius,
-                angular_window: angle,
-                angular_step: 0.0,
-                depth: c.loop_depth,
-                min_score: c.loop_min_score,
-                min_points: c.local_matcher.correlative.min_points,
-            };
-            let anchor = self.submaps[s].keyframes[0];
-            let (a_local, a_global) = (self.keyframes[anchor].local, self.keyframes[anchor].global);
-            // Keyframe k in the submap's (local) frame, as the current graph predicts it.
-            let predicted = a_local.compose(&a_global.between(&self.keyframes[k].global));
-            if !self.cache_loop_map(s)? {
-                continue;
-            }
-            self.stats.loop_searches += 1;
-            let loop_map = self.loop_maps.back().expect("cached above");
-            let pyramid = &loop_map.pyramid;
-            let scan = &self.keyframes[k].scan;
-            let hit = match matcher.match_in(pyramid, scan, &predicted) {
-                Ok(Some(m)) => m,
-                Ok(None) | Err(_) => continue,
-            };
-            if self.config.loop_ambiguity_ratio < 1.0
-                && self.ambiguous(pyramid, scan, &hit.pose, hit.score)
-            {
-                self.stats.loop_ambiguous += 1;
-                continue;
-            }
-            // Sub-cell refinement on the submap itself; kept only if it stays close.
-            let grid = &loop_map.grid;
-            let refine = &self.config.local_matcher.refine;
-            let m = match refine.match_prepared(grid, scan, &hit.pose) {
-                Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
-                _ => hit,
-            };
-            if self.flat_match(grid, scan, &m.pose) {
-                self.stats.loop_flat += 1;
-                continue;
-            }
-            // The edge starts at the submap's keyframe nearest to the match: the submap is
-            // exact relative to its own keyframes' local poses only up to its internal
-            // drift, which grows with the distance along it.
-            let from = self.submaps[s]
-                .keyframes
-                .iter()
-                .copied()
-                .min_by(|&a, &b| {
-                    let da = self.keyframes[a].local.distance(&m.pose);
-                    let db = self.keyframes[b].local.distance(&m.pose);
-                    da.total_cmp(&db).then(a.cmp(&b))
-                })
-                .unwrap_or(anchor);
-            let from_local = self.keyframes[from].local;
-            let z = from_local.between(&m.pose);
-            // The matcher's own covariance: on the office the response's made the
-            // closures slightly worse (docs/results/graph.md).
-            let information = self.match_information(&m.covariance, from_local.theta);
-            if self.pending.is_empty() {
-                self.pending_span.0 = k;
-            }
-            self.pending_span.1 = k;
-            self.pending.push(Constraint {
-                from,
-                to: k,
-                z,
-                information,
-                loop_closure: true,
-            });
-            found = true;
-        }
-        Ok(found)
-    }
-
-    /// True when some pose 0.25 m, 0.5 m or 1 m away from `best` (8 directions, each
-    /// followed by a small branch-and-bound search of ±0.1 m, ±0.2 m, ±0.2 m and
-    /// ±0.05 rad) scores at least
-    /// `loop-ambiguity-ratio` × `score`: the match is not unique.
-    fn ambiguous(&self, pyramid: &MaxPyramid, scan: &RangeData, best: &Pose2, score: f64) -> bool {
-        let bar = self.config.loop_ambiguity_ratio * score;
-        let local = BranchBoundMatcher {
-            linear_window: 0.2,
-            angular_window: 0.05,
-            angular_step: 0.0,
-            depth: 3.min(pyramid.depth()),
-            min_score: bar.clamp(0.0, 1.0),
-            min_points: 1,
-        };
-        for (d, window) in [(0.25, 0.1), (0.5, 0.2), (1.0, 0.2)] {
-            let local = BranchBoundMatcher {
-                linear_window: window,
-                ..local
-            };
-            for k in 0..8 {
-                let a = k as f64 * std::f64::consts::FRAC_PI_4;
-                let shifted = Pose2::new(best.x + d * a.cos(), best.y + d * a.sin(), best.theta);
-                if let Ok(Some(_)) = local.match_in(pyramid, scan, &shifted) {
-                    return true;
-                }
-            }
-        }
-        false
-    }
-
     /// An empty submap grid (the configured resolution, sensor model and likelihood).
     fn empty_submap_grid(&self) -> Result<OccupancyGrid, GraphError> {
         Ok(
@@ -754,166 +523,6 @@ impl LaserGraphSlam {
                 .with_likelihood(self.config.likelihood)?,
         )
     }
-
-    /// Puts finished submap `s`'s grid and loop-closure pyramid at the back of the cache,
-    /// rebuilding them from its keyframes' scans if needed (the least recently used entry
-    /// is dropped beyond `loop-pyramid-cache`); false for an empty submap.
-    fn cache_loop_map(&mut self, s: usize) -> Result<bool, GraphError> {
-        if let Some(pos) = self.loop_maps.iter().position(|m| m.submap == s) {
-            let entry = self.loop_maps.remove(pos).expect("position is valid");
-            self.loop_maps.push_back(entry);
-            return Ok(true);
-        }
-        let mut grid = self.empty_submap_grid()?;
-        for &k in &self.submaps[s].keyframes {
-            let kf = &self.keyframes[k];
-            grid.try_integrate_prepared(&kf.local, &kf.scan)?;
-        }
-        let Some(pyramid) = loop_pyramid(&grid, self.config.loop_depth)? else {
-            return Ok(false);
-        };
-        if self.loop_maps.len() >= self.config.loop_pyramid_cache {
-            self.loop_maps.pop_front();
-        }
-        self.loop_maps.push_back(LoopMap {
-            submap: s,
-            grid,
-            pyramid,
-        });
-        Ok(true)
-    }
-
-    /// Optimises the keyframe graph (first keyframe held) and writes the poses back.
-    fn optimize_keyframes(&mut self) -> Result<(), GraphError> {
-        let mut graph = PoseGraph::new();
-        for (k, kf) in self.keyframes.iter().enumerate() {
-            graph.add_pose(k as u64, kf.global)?;
-        }
-        graph.fix(0)?;
-        for c in &self.constraints {
-            graph.add_between(c.from as u64, c.to as u64, c.z, c.information)?;
-        }
-        let mut opt = Optimizer::new(&graph, self.config.optimizer)?;
-        opt.optimize(&mut graph)?;
-        for (kf, p) in self.keyframes.iter_mut().zip(graph.poses()) {
-            kf.global = p;
-        }
-        self.stats.optimizations += 1;
-        Ok(())
-    }
-
-    /// The pose of every record before smoothing: the last keyframe's optimised pose
-    /// composed with the odometry since (the odometry itself before the first keyframe).
-    fn composed_poses(&self) -> Vec<Pose2> {
-        (0..self.times.len())
-            .map(|i| match self.last_keyframe_at[i] {
-                Some(k) => {
-                    let kf = &self.keyframes[k];
-                    kf.global
-                        .compose(&self.odometry[kf.record].between(&self.odometry[i]))
-                }
-                None => self.odometry[i],
-            })
-            .collect()
-    }
-
-    /// The smoothed pose of every record: the graph of one node per record described in the
-    /// module documentation, optimised from the composed poses. Falls back to the
-    /// composed poses if the optimiser fails (it cannot on a connected chain with positive
-    /// definite information, but the trait's accessors cannot return errors).
-    pub fn smoothed_poses(&self) -> Vec<Pose2> {
-        let n = self.times.len();
-        if let Ok(guard) = self.smoothed.lock() {
-            if let Some((m, poses)) = guard.as_ref() {
-                if *m == n {
-                    return poses.clone();
-                }
-            }
-        }
-        let initial = self.composed_poses();
-        let poses = self.smooth(&initial).unwrap_or(initial);
-        if let Ok(mut guard) = self.smoothed.lock() {
-            *guard = Some((n, poses.clone()));
-        }
-        poses
-    }
-
-    fn smooth(&self, initial: &[Pose2]) -> Result<Vec<Pose2>, GraphError> {
-        if initial.len() < 2 {
-            return Ok(initial.to_vec());
-        }
-        let mut graph = PoseGraph::new();
-        for (i, p) in initial.iter().enumerate() {
-            graph.add_pose(i as u64, *p)?;
-        }
-        graph.fix(0)?;
-        for i in 1..initial.len() {
-            let delta = self.odometry[i - 1].between(&self.odometry[i]);
-            let info = invert(&self.odometry_covariance(&delta));
-            graph.add_between(i as u64 - 1, i as u64, delta, info)?;
-        }
-        for c in &self.constraints {
-            if c.loop_closure && self.chi2(c) > self.config.smoother_max_closure_chi2 {
-                continue;
-            }
-            let (a, b) = (self.keyframes[c.from].record, self.keyframes[c.to].record);
-            graph.add_between(a as u64, b as u64, c.z, c.information)?;
-        }
-        let mut opt = Optimizer::new(&graph, self.config.smoother)?;
-        opt.optimize(&mut graph)?;
-        Ok(graph.poses())
-    }
-
-    /// eᵀΩe of a constraint at the keyframes' current poses, e = (z⁻¹ ⊕ x_from⁻¹ ⊕ x_to)
-    /// as (x, y, θ) with θ normalised (g2o's `EDGE_SE2` error).
-    fn chi2(&self, c: &Constraint) -> f64 {
-        let rel = self.keyframes[c.from]
-            .global
-            .between(&self.keyframes[c.to].global);
-        let e = c.z.between(&rel);
-        let v = slam_models::Vector3::new(e.x, e.y, normalize_angle(e.theta));
-        (v.transpose() * c.information * v)[(0, 0)]
-    }
-
-    /// The map rendered at `resolution` from every keyframe's scan at its smoothed pose.
-    pub fn render(&self, resolution: f64) -> Result<GridMap, GraphError> {
-        let poses = self.smoothed_poses();
-        let mut grid = OccupancyGrid::try_new(resolution, self.config.sensor_model)?;
-        for kf in &self.keyframes {
-            grid.try_integrate_prepared(&poses[kf.record], &kf.scan)?;
-        }
-        Ok(grid.to_grid_map())
-    }
-}
-
-/// The loop-closure pyramid of a submap grid over the cells where its likelihood field
-/// is not the far value: the obstacles' bounding box grown by the field's reach
-/// (`max-distance`, plus two cells for the sub-cell hit positions). Outside it the
-/// pyramid reads the far value, as the field there is, so the search is the same as
-/// over every covered cell, on a smaller pyramid. `None` without obstacles.
-fn loop_pyramid(grid: &OccupancyGrid, depth: u32) -> Result<Option<MaxPyramid>, GraphError> {
-    let Some((lo, hi)) = grid.known_bounds() else {
-        return Ok(None);
-    };
-    let (mut min, mut max) = (
-        slam_grid::CellIndex::new(i32::MAX, i32::MAX),
-        slam_grid::CellIndex::new(i32::MIN, i32::MIN),
-    );
-    for y in lo.y..=hi.y {
-        for x in lo.x..=hi.x {
-            if grid.is_obstacle(slam_grid::CellIndex::new(x, y)) {
-                min = slam_grid::CellIndex::new(min.x.min(x), min.y.min(y));
-                max = slam_grid::CellIndex::new(max.x.max(x), max.y.max(y));
-            }
-        }
-    }
-    if min.x > max.x {
-        return Ok(None);
-    }
-    let reach = (grid.likelihood_params().max_distance / grid.resolution()).ceil() as i32 + 2;
-    let min = slam_grid::CellIndex::new(min.x - reach, min.y - reach);
-    let max = slam_grid::CellIndex::new(max.x + reach, max.y + reach);
-    Ok(Some(MaxPyramid::new(grid, min, max, depth)?))
 }
 
 /// The inverse of a symmetric positive-definite 3×3 matrix, symmetrised (a covariance to an
@@ -936,6 +545,10 @@ impl ScanSlam for LaserGraphSlam {
 
     fn process(&mut self, record: &ScanRecord) -> Result<ScanUpdateInfo, FilterError> {
         self.step(record).map_err(FilterError::other)
+    }
+
+    fn finish(&mut self) -> Result<(), FilterError> {
+        self.finish_run().map_err(FilterError::other)
     }
 
     fn pose(&self) -> Pose2 {

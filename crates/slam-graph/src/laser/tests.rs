@@ -1,7 +1,9 @@
 //! Unit tests of the laser front end (the simulated and Intel runs are in the workspace's
 //! `tests/graph_laser.rs`).
 
+use super::loops::loop_pyramid;
 use super::*;
+use slam_grid::BranchBoundMatcher;
 
 fn record(t: f64, odometry: Pose2) -> ScanRecord {
     ScanRecord {
