@@ -185,37 +185,22 @@ const GZIP_TESTS: [(&str, &str, u64); 2] = [
     ),
 ];
 
+/// The cargo arguments of slam-io's hostile tests.
+const HOSTILE_TESTS: [&str; 6] = ["test", "--release", "-p", "slam-io", "--test", "hostile"];
+
 /// `cargo test -p slam-io --test hostile -- --ignored --exact NAME` under `/usr/bin/time -v`
 /// for each of [`GZIP_TESTS`].
 fn run_ignored_gzip_tests() -> Result<(), String> {
     super::run(
         "build slam-io's hostile tests",
-        super::cargo().args([
-            "test",
-            "--release",
-            "-p",
-            "slam-io",
-            "--test",
-            "hostile",
-            "--no-run",
-        ]),
+        super::cargo().args(HOSTILE_TESTS).arg("--no-run"),
     )?;
     for (name, what, bound_mib) in GZIP_TESTS {
         let o = Command::new("/usr/bin/time")
             .arg("-v")
             .arg(super::cargo_path())
-            .args([
-                "test",
-                "--release",
-                "-p",
-                "slam-io",
-                "--test",
-                "hostile",
-                "--",
-                "--ignored",
-                "--exact",
-                name,
-            ])
+            .args(HOSTILE_TESTS)
+            .args(["--", "--ignored", "--exact", name])
             .output()
             .map_err(|e| format!("/usr/bin/time: {e}"))?;
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
