@@ -7,6 +7,7 @@ use super::{degenerate, IterationInfo, Optimizer, Termination};
 use crate::error::GraphError;
 use crate::factor::{linearize, Linearized};
 use crate::graph::{NodeValue, PoseGraph};
+use crate::kernel::RobustKernel;
 
 impl Optimizer {
     /// Stage-2 rounds with the plain test until no closure changes (at most
@@ -51,10 +52,7 @@ impl Optimizer {
         rejected: &mut Vec<usize>,
         stop: Termination,
     ) -> Result<Termination, GraphError> {
-        let saved_x: Vec<NodeValue> = graph.nodes().iter().map(|n| n.value).collect();
-        let saved_kernel = self.edge_kernel.clone();
-        let saved_rejected = rejected.clone();
-        let saved_iterations = iterations.len();
+        let saved = Snapshot::take(self, graph, rejected, iterations);
         let (before, _) = self.full_weight_chi2(graph)?;
         if !self.classify_closures(graph, rejected, true)? {
             return Ok(stop);
@@ -70,7 +68,7 @@ impl Optimizer {
         }
         let (chi2_after, dims_after) = self.full_weight_chi2(graph)?;
         let (_, dims_before) = {
-            let now = std::mem::replace(&mut self.edge_kernel, saved_kernel.clone());
+            let now = std::mem::replace(&mut self.edge_kernel, saved.kernel.clone());
             let r = self.full_weight_chi2(graph);
             self.edge_kernel = now;
             r?
@@ -83,13 +81,7 @@ impl Optimizer {
             f64::INFINITY
         };
         if after.failed() || chi2_after - before > bound {
-            for (i, v) in saved_x.into_iter().enumerate() {
-                graph.set_value(i, v);
-            }
-            self.edge_kernel = saved_kernel;
-            self.last_kernel.clone_from(&self.edge_kernel);
-            *rejected = saved_rejected;
-            iterations.truncate(saved_iterations);
+            saved.restore(self, graph, rejected, iterations);
             return Ok(stop);
         }
         Ok(after)
@@ -254,4 +246,48 @@ pub(super) fn inlier_bounds(chi2: f64) -> [f64; 4] {
         chi2
     };
     [chi2, chi2, two, chi2]
+}
+
+/// What a tentative stage (the innovation round, GNC) changes and must put back when its
+/// result is not kept: the estimate, the edges' kernels, the rejected closures and the
+/// iteration record's length.
+pub(super) struct Snapshot {
+    x: Vec<NodeValue>,
+    kernel: Vec<RobustKernel>,
+    rejected: Vec<usize>,
+    iterations: usize,
+}
+
+impl Snapshot {
+    /// The state now.
+    pub(super) fn take(
+        o: &Optimizer,
+        graph: &PoseGraph,
+        rejected: &[usize],
+        iterations: &[IterationInfo],
+    ) -> Self {
+        Self {
+            x: graph.nodes().iter().map(|n| n.value).collect(),
+            kernel: o.edge_kernel.clone(),
+            rejected: rejected.to_vec(),
+            iterations: iterations.len(),
+        }
+    }
+
+    /// Puts the state back (the stage-2 kernels too, which follow the edges' kernels).
+    pub(super) fn restore(
+        self,
+        o: &mut Optimizer,
+        graph: &mut PoseGraph,
+        rejected: &mut Vec<usize>,
+        iterations: &mut Vec<IterationInfo>,
+    ) {
+        for (i, v) in self.x.into_iter().enumerate() {
+            graph.set_value(i, v);
+        }
+        o.edge_kernel = self.kernel;
+        o.last_kernel.clone_from(&o.edge_kernel);
+        *rejected = self.rejected;
+        iterations.truncate(self.iterations);
+    }
 }

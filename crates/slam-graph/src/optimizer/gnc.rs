@@ -22,6 +22,7 @@
 //! thousand is rejected by design: in the survey of the tests, seeds 11–20 (1,380 correct
 //! closures), two, whose rises are 16.29 and 19.50. c² = 21.11 (99.99 %) keeps them.
 
+use super::closures::Snapshot;
 use super::{IterationInfo, Optimizer, Termination};
 use crate::error::GraphError;
 use crate::factor::linearize;
@@ -74,7 +75,8 @@ impl Optimizer {
         rejected: &mut Vec<usize>,
         stop: Termination,
     ) -> Result<Termination, GraphError> {
-        let saved = Saved::take(self, graph, rejected, iterations);
+        let saved = Snapshot::take(self, graph, rejected, iterations);
+        let saved_tls = self.tls_cost(graph).unwrap_or(f64::INFINITY);
         let ratio = self
             .closure_residuals(graph)?
             .iter()
@@ -106,7 +108,14 @@ impl Optimizer {
             }
             mu *= GNC_FACTOR;
         }
-        self.adopt(graph, iterations, rejected, stop, saved, failed)
+        self.adopt(
+            graph,
+            iterations,
+            rejected,
+            stop,
+            (saved, saved_tls),
+            failed,
+        )
     }
 
     /// Keeps the graph's estimate when its truncated cost is below the saved one's: the
@@ -119,12 +128,12 @@ impl Optimizer {
         iterations: &mut Vec<IterationInfo>,
         rejected: &mut Vec<usize>,
         stop: Termination,
-        saved: Saved,
+        (saved, saved_tls): (Snapshot, f64),
         mut failed: bool,
     ) -> Result<Termination, GraphError> {
         // Not lower before the polish: no better minimum, and the polish (tens of iterations
         // on a large graph) is not spent.
-        failed = failed || self.tls_cost(graph)? >= saved.tls;
+        failed = failed || self.tls_cost(graph)? >= saved_tls;
         let mut after = stop;
         if !failed {
             rejected.clear();
@@ -144,14 +153,8 @@ impl Optimizer {
             }
             failed = after.failed();
         }
-        if failed || self.tls_cost(graph)? >= saved.tls {
-            for (i, v) in saved.x.into_iter().enumerate() {
-                graph.set_value(i, v);
-            }
-            self.edge_kernel = saved.kernel;
-            self.last_kernel.clone_from(&self.edge_kernel);
-            *rejected = saved.rejected;
-            iterations.truncate(saved.iterations);
+        if failed || self.tls_cost(graph)? >= saved_tls {
+            saved.restore(self, graph, rejected, iterations);
             return Ok(stop);
         }
         Ok(after)
@@ -162,33 +165,6 @@ impl Optimizer {
         match graph.edges()[k] {
             crate::graph::Edge::Between(_) => self.gnc_chi2[3],
             _ => self.gnc_chi2[2],
-        }
-    }
-}
-
-/// The state a tentative stage may have to restore.
-struct Saved {
-    x: Vec<NodeValue>,
-    kernel: Vec<RobustKernel>,
-    rejected: Vec<usize>,
-    iterations: usize,
-    /// The truncated cost at `x`.
-    tls: f64,
-}
-
-impl Saved {
-    fn take(
-        o: &Optimizer,
-        graph: &PoseGraph,
-        rejected: &[usize],
-        iterations: &[IterationInfo],
-    ) -> Self {
-        Self {
-            x: graph.nodes().iter().map(|n| n.value).collect(),
-            kernel: o.edge_kernel.clone(),
-            rejected: rejected.to_vec(),
-            iterations: iterations.len(),
-            tls: o.tls_cost(graph).unwrap_or(f64::INFINITY),
         }
     }
 }
