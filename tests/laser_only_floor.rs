@@ -6,26 +6,11 @@
 //! poses, from independent data only: GMapping's own poses (`intel.ref.tum`) at the
 //! keyframes, interpolated in time, against the relations.
 
-use slam_eval::metrics::{lookup, relations_error, relations_error_lookup, PoseLookup};
-use slam_models::TimedPose;
-use std::path::{Path, PathBuf};
+mod common;
 
-/// `../shared/datasets/<rel>` beside the checkout (or under `$SLAM_DATASETS`); `None` with a
-/// SKIPPED line when missing, a failure under `CI=true` (as slam-cli's dataset tests).
-fn dataset(rel: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("SLAM_DATASETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/datasets"));
-    let p = base.join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var("CI").is_ok_and(|v| v == "true" || v == "1") {
-        panic!("dataset {} is missing and CI=true", p.display());
-    }
-    eprintln!("SKIPPED: dataset {} not found", p.display());
-    None
-}
+use common::dataset;
+use slam::eval::metrics::{lookup, relations_error, relations_error_lookup, PoseLookup};
+use slam::models::TimedPose;
 
 /// GMapping's reference poses kept only at the keyframes (the scans of the log) score
 /// 0.13 m on the relations when read between keyframes by linear interpolation in time
@@ -43,9 +28,9 @@ fn exact_keyframe_poses_interpolated_in_time_stay_above_ten_centimetres() {
     ) else {
         return;
     };
-    let reference = slam_io::tum::read_tum(&reference).unwrap();
-    let relations = slam_io::relations::read_relations(&relations).unwrap();
-    let log = slam_io::carmen::read_carmen(&log).unwrap();
+    let reference = slam::io::tum::read_tum(&reference).unwrap();
+    let relations = slam::io::relations::read_relations(&relations).unwrap();
+    let log = slam::io::carmen::read_carmen(&log).unwrap();
     let scan_times: Vec<f64> = log
         .dataset
         .records
@@ -56,7 +41,7 @@ fn exact_keyframe_poses_interpolated_in_time_stay_above_ten_centimetres() {
     assert_eq!(scan_times.len(), 910);
 
     // The reference read the README's way (the nearest pose within 6 ms).
-    let sorted = slam_eval::metrics::sorted_by_time(&reference);
+    let sorted = slam::eval::metrics::sorted_by_time(&reference);
     let every_record = relations_error(&sorted, &relations);
     assert_eq!(every_record.used, relations.len());
     assert!(
