@@ -90,17 +90,18 @@ pub(crate) fn response_covariance(
         .collect();
     // ℓ at every lattice pose, indexed [k][j][i].
     let side = (2 * l + 1) as usize;
-    let mut scores = Vec::with_capacity((2 * a + 1) as usize * side * side);
-    for k in 0..(2 * a + 1) as usize {
-        let base: Vec<usize> = cells[k * n..(k + 1) * n]
-            .iter()
-            .map(|c| (c.y - l - min.y) as usize * w + (c.x - l - min.x) as usize)
-            .collect();
-        for j in 0..side {
-            for i in 0..side {
-                let off = j * w + i;
-                let s: f64 = base.iter().map(|&b| ll[b + off] as f64).sum();
-                scores.push(s);
+    // Accumulated end point by end point (each pose's sum still adds the end points in
+    // scan order, so the sums are the same as pose by pose), a window row at a time: the
+    // reads are contiguous instead of one scattered cell per end point and pose.
+    let mut scores = vec![0.0f64; (2 * a + 1) as usize * side * side];
+    for (k, pose_scores) in scores.chunks_exact_mut(side * side).enumerate() {
+        for c in &cells[k * n..(k + 1) * n] {
+            let b = (c.y - l - min.y) as usize * w + (c.x - l - min.x) as usize;
+            for (j, row) in pose_scores.chunks_exact_mut(side).enumerate() {
+                let src = &ll[b + j * w..b + j * w + side];
+                for (s, &v) in row.iter_mut().zip(src) {
+                    *s += v as f64;
+                }
             }
         }
     }

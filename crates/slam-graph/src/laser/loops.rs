@@ -10,7 +10,7 @@ use super::{
 };
 use crate::error::GraphError;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
-use slam_models::Pose2;
+use slam_models::{LaserScan, Pose2};
 use std::cmp::Reverse;
 
 impl LaserGraphSlam {
@@ -197,7 +197,13 @@ impl LaserGraphSlam {
         self.stats.loop_searches += 1;
         let loop_map = self.loop_maps.back().expect("cached above");
         let pyramid = &loop_map.pyramid;
-        let scan = &self.keyframes[k].scan;
+        let Some(scan) = self
+            .newest_scan
+            .as_ref()
+            .filter(|_| k + 1 == self.keyframes.len())
+        else {
+            return Ok(None);
+        };
         let hit = match matcher.match_in(pyramid, scan, &predicted) {
             Ok(Some(m)) => m,
             Ok(None) | Err(_) => return Ok(None),
@@ -209,7 +215,18 @@ impl LaserGraphSlam {
             return Ok(None);
         }
         // Sub-cell refinement on the submap itself; kept only if it stays close.
-        let grid = &loop_map.grid;
+        if self.loop_maps.back().is_some_and(|m| m.grid.is_none()) {
+            let grid = self.loop_grid(s)?;
+            if let Some(m) = self.loop_maps.back_mut() {
+                m.grid = Some(grid);
+            }
+        }
+        let (Some(grid), Some(scan)) = (
+            self.loop_maps.back().and_then(|m| m.grid.as_ref()),
+            self.newest_scan.as_ref(),
+        ) else {
+            return Ok(None);
+        };
         let refine = &self.config.local_matcher.refine;
         let m = match refine.match_prepared(grid, scan, &hit.pose) {
             Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
@@ -335,32 +352,61 @@ impl LaserGraphSlam {
         false
     }
 
-    /// Puts finished submap `s`'s grid and loop-closure pyramid at the back of the cache,
-    /// rebuilding them from its keyframes' scans if needed (the least recently used entry
-    /// is dropped beyond `loop-pyramid-cache`); false for an empty submap.
+    /// Puts finished submap `s`'s loop-closure pyramid (and grid) at the back of the
+    /// cache, rebuilding them from its keyframes' scans if needed (the least recently used
+    /// entry is dropped beyond `loop-pyramid-cache`, and the grids of all but the
+    /// `loop-max-candidates` most recently used, the submaps one keyframe searches: the
+    /// search reads only the pyramid, and a match on a submap whose grid was dropped
+    /// rebuilds it); false for an empty submap.
     fn cache_loop_map(&mut self, s: usize) -> Result<bool, GraphError> {
         if let Some(pos) = self.loop_maps.iter().position(|m| m.submap == s) {
             let entry = self.loop_maps.remove(pos).expect("position is valid");
             self.loop_maps.push_back(entry);
-            return Ok(true);
+        } else {
+            // Room first, so that the new entry is not built alongside a full cache.
+            if self.loop_maps.len() >= self.config.loop_pyramid_cache {
+                self.loop_maps.pop_front();
+            }
+            let mut grid = self.loop_grid(s)?;
+            let Some(pyramid) = loop_pyramid(&grid, self.config.loop_depth)? else {
+                return Ok(false);
+            };
+            // The search reads the pyramid; the grid's field is read again only around a
+            // match.
+            grid.drop_field_cache();
+            self.loop_maps.push_back(LoopMap {
+                submap: s,
+                grid: Some(grid),
+                pyramid,
+            });
         }
+        let keep = self.config.loop_max_candidates.max(1);
+        for m in self.loop_maps.iter_mut().rev().skip(keep) {
+            m.grid = None;
+        }
+        Ok(true)
+    }
+
+    /// A scan checked and classified for the submaps ([`RangeData`] under the configured
+    /// sensor model), its end points beyond `match-max-range` left out of matching.
+    pub(super) fn prepare(&self, scan: &LaserScan) -> Result<RangeData, GraphError> {
+        Ok(RangeData::with_limits(
+            scan,
+            &self.config.sensor_model,
+            0.0,
+            self.config.match_max_range,
+        )?)
+    }
+
+    /// Finished submap `s`'s grid, rebuilt from its keyframes' scans at their local poses
+    /// (the same insertions in the same order as while it was active, so the same grid).
+    fn loop_grid(&self, s: usize) -> Result<OccupancyGrid, GraphError> {
         let mut grid = self.empty_submap_grid()?;
         for &k in &self.submaps[s].keyframes {
             let kf = &self.keyframes[k];
-            grid.try_integrate_prepared(&kf.local, &kf.scan)?;
+            grid.try_integrate_prepared(&kf.local, &self.prepare(&kf.scan)?)?;
         }
-        let Some(pyramid) = loop_pyramid(&grid, self.config.loop_depth)? else {
-            return Ok(false);
-        };
-        if self.loop_maps.len() >= self.config.loop_pyramid_cache {
-            self.loop_maps.pop_front();
-        }
-        self.loop_maps.push_back(LoopMap {
-            submap: s,
-            grid,
-            pyramid,
-        });
-        Ok(true)
+        Ok(grid)
     }
 }
 
@@ -441,5 +487,7 @@ pub(super) fn loop_pyramid(
     let reach = (grid.likelihood_params().max_distance / grid.resolution()).ceil() as i32 + 2;
     let min = slam_grid::CellIndex::new(min.x - reach, min.y - reach);
     let max = slam_grid::CellIndex::new(max.x + reach, max.y + reach);
-    Ok(Some(MaxPyramid::new(grid, min, max, depth)?))
+    // Compact: the cache holds several, and the search scores its poses on the exact
+    // level 0 anyway.
+    Ok(Some(MaxPyramid::new_compact(grid, min, max, depth)?))
 }

@@ -28,7 +28,9 @@
 //!   submap's keyframe nearest to the match. Finished submaps keep no grid: the search
 //!   rebuilds one from its keyframes' scans (the same insertions, so the same grid) and
 //!   keeps it with its pyramid in a small cache (`loop-pyramid-cache`), so memory does not
-//!   grow with the number of submaps. After every keyframe that added a closure the
+//!   grow with the number of submaps (the pyramids' coarse levels in 8-bit codes,
+//!   [`MaxPyramid::new_compact`]; the grids only of the `loop-max-candidates` most
+//!   recently searched). After every keyframe that added a closure the
 //!   keyframe graph is optimised (Levenberg-Marquardt with the configured robust kernel,
 //!   DCS by default, against false closures).
 //! * **Poses at every record**: the odometry is a measurement, not only a prediction. The
@@ -40,7 +42,8 @@
 //!   graph's kernel rejected are left out), so the correction a scan match makes is
 //!   distributed over the records before it in proportion to their odometry uncertainty
 //!   (a smoother), instead of being applied at the keyframe only.
-//! * **The map** is rendered from the keyframes' scans at their smoothed poses.
+//! * **The map** is rendered from the keyframes' scans at their smoothed poses. Keyframes
+//!   keep their scans as recorded and prepare them again when needed.
 //!
 //! The world frame is the odometry frame placed at the constructor's `initial_pose` (the
 //! identity: the odometry frame itself), and the first record's pose is its odometry
@@ -57,8 +60,8 @@ pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SC
 use crate::error::GraphError;
 use slam_grid::{MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
-    FilterError, GridMap, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord, ScanSlam,
-    ScanUpdateInfo, TimedPose,
+    FilterError, GridMap, LaserScan, Matrix3, OdometryJumpGuard, Point2, Pose2, ScanRecord,
+    ScanSlam, ScanUpdateInfo, TimedPose,
 };
 use std::collections::VecDeque;
 use std::sync::Mutex;
@@ -80,15 +83,20 @@ struct Submap {
 #[derive(Debug, Clone)]
 struct LoopMap {
     submap: usize,
-    grid: OccupancyGrid,
+    /// `None` once the entry is no longer among the most recently used (rebuilt on a
+    /// match).
+    grid: Option<OccupancyGrid>,
     pyramid: MaxPyramid,
 }
 
-/// A keyframe: the record it came from, its prepared scan and its poses.
+/// A keyframe: the record it came from, its scan and its poses.
 #[derive(Debug, Clone)]
 struct Keyframe {
     record: usize,
-    scan: RangeData,
+    /// The scan as recorded (8 bytes a beam, against about 50 prepared): prepared again
+    /// ([`LaserGraphSlam::prepare`], the same [`RangeData`]) when a loop map or the map
+    /// is rebuilt from it. The newest keyframe's prepared scan is `newest_scan`.
+    scan: LaserScan,
     /// Pose in the local (scan-matching) frame.
     local: Pose2,
     /// Current estimate in the world frame (the optimised keyframe graph).
@@ -170,6 +178,8 @@ pub struct LaserGraphSlam {
     loop_maps: VecDeque<LoopMap>,
     /// The keyframe of the last wide loop search (the per-scan budget).
     last_wide_search: Option<usize>,
+    /// The newest keyframe's prepared scan, the one its loop search matches.
+    newest_scan: Option<RangeData>,
     stats: LaserGraphStats,
     /// The smoothed trajectory and the number of records it covers.
     smoothed: Mutex<Option<(usize, Vec<Pose2>)>>,
@@ -192,6 +202,7 @@ impl Clone for LaserGraphSlam {
             pending_span: self.pending_span,
             loop_maps: self.loop_maps.clone(),
             last_wide_search: self.last_wide_search,
+            newest_scan: self.newest_scan.clone(),
             stats: self.stats,
             smoothed: Mutex::new(self.smoothed.lock().map(|s| s.clone()).unwrap_or(None)),
         }
@@ -243,6 +254,7 @@ impl LaserGraphSlam {
             pending_span: (0, 0),
             loop_maps: VecDeque::new(),
             last_wide_search: None,
+            newest_scan: None,
             stats: LaserGraphStats::default(),
             smoothed: Mutex::new(None),
         })
@@ -299,12 +311,7 @@ impl LaserGraphSlam {
         // Prepare the scan before anything changes, so that a bad scan leaves the state as
         // it was.
         let prepared = match &record.scan {
-            Some(s) => Some(RangeData::with_limits(
-                s,
-                &self.config.sensor_model,
-                0.0,
-                self.config.match_max_range,
-            )?),
+            Some(s) => Some(self.prepare(s)?),
             None => None,
         };
         let (odometry, skipped) = self.guard.check(&record.odometry)?;
@@ -318,7 +325,7 @@ impl LaserGraphSlam {
         self.odometry.push(odometry);
         let last = self.keyframes.len().checked_sub(1);
         self.last_keyframe_at.push(last);
-        if let Some(scan) = prepared {
+        if let (Some(scan), Some(raw)) = (prepared, &record.scan) {
             let due = match last {
                 None => true,
                 Some(k) => {
@@ -328,7 +335,7 @@ impl LaserGraphSlam {
                 }
             };
             if due {
-                match self.add_keyframe(i, scan, &mut info) {
+                match self.add_keyframe(i, raw.clone(), scan, &mut info) {
                     Ok(()) => {}
                     Err(e) => {
                         // Leave the record as an odometry-only one.
@@ -350,6 +357,7 @@ impl LaserGraphSlam {
     fn add_keyframe(
         &mut self,
         i: usize,
+        raw: LaserScan,
         scan: RangeData,
         info: &mut ScanUpdateInfo,
     ) -> Result<(), GraphError> {
@@ -394,7 +402,7 @@ impl LaserGraphSlam {
         self.insert_into_submaps(k, &local, &scan)?;
         self.keyframes.push(Keyframe {
             record: i,
-            scan,
+            scan: raw,
             local,
             global,
             path: since,
@@ -402,6 +410,7 @@ impl LaserGraphSlam {
         if let Some(c) = edge {
             self.constraints.push(c);
         }
+        self.newest_scan = Some(scan);
         self.stats.keyframes += 1;
         if self.config.loop_max_candidates > 0 {
             self.search_loops(k)?;

@@ -112,7 +112,7 @@ impl LaserGraphSlam {
         let poses = self.smoothed_poses();
         let mut grid = OccupancyGrid::try_new(resolution, self.config.sensor_model)?;
         for kf in &self.keyframes {
-            grid.try_integrate_prepared(&poses[kf.record], &kf.scan)?;
+            grid.try_integrate_prepared(&poses[kf.record], &self.prepare(&kf.scan)?)?;
         }
         Ok(grid.to_grid_map())
     }

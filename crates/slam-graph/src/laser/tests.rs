@@ -156,7 +156,7 @@ fn square_with_closures(config: LaserGraphConfig, false_closure: bool) -> (Vec<P
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
     let noise = Normal::new(0.0, 1.0).unwrap();
     let mut f = LaserGraphSlam::new(config, Pose2::IDENTITY, 0).unwrap();
-    let scan = RangeData::new(&room_scan(2.5, 1.5), &f.config.sensor_model).unwrap();
+    let scan = room_scan(2.5, 1.5);
     let n = 96;
     let truth: Vec<Pose2> = {
         let mut p = Pose2::IDENTITY;

@@ -66,6 +66,13 @@ impl OccupancyGrid {
         Ok(self)
     }
 
+    /// Drops the cached likelihood-field tiles (8 bytes a cell): the next reads compute
+    /// them again, to the same values. For a grid kept for rare reads after one wide
+    /// read (e.g. a pyramid built from it).
+    pub fn drop_field_cache(&mut self) {
+        self.fields = OnceLock::new();
+    }
+
     /// The likelihood-field parameters.
     pub fn likelihood_params(&self) -> LikelihoodParams {
         self.lazy_state().params

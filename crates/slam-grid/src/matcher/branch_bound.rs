@@ -62,7 +62,13 @@ pub(crate) struct Levels {
     height: usize,
     stride: i32,
     far: f32,
+    /// The levels' values, row-major; empty for a level stored as `codes`.
     levels: Vec<Vec<f32>>,
+    /// Levels stored compactly ([`Levels::compact`]): 8-bit codes read through `table`;
+    /// empty for a level stored as `levels`.
+    codes: Vec<Vec<u8>>,
+    /// The value of each code.
+    table: [f32; 256],
 }
 
 impl Levels {
@@ -75,6 +81,26 @@ impl Levels {
         depth: u32,
         stride: i32,
         far: f32,
+        base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
+    ) -> Result<Self, GridError> {
+        Self::build_with(min, max, depth, stride, far, false, base)
+    }
+
+    /// [`Levels::build`], with the levels above 0 stored as 8-bit codes when `compact`:
+    /// code q reads lo + (hi − lo)·q/255 over the values' range [lo, hi] (level 0's and
+    /// `far`: max-pooling stays in it), and each value takes the smallest code that reads
+    /// at least it. The coarse levels then bound the scores from above by at most
+    /// (hi − lo)/255 more per end point; level 0, the exact scores, is kept as it is, so
+    /// a branch and bound over them finds a pose of the same best score (of equally
+    /// scoring poses possibly another: the visiting order follows the bounds). Each level
+    /// is coded once the next is computed, so at most two are held in `f32`.
+    pub(crate) fn build_with(
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+        stride: i32,
+        far: f32,
+        compact: bool,
         base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
     ) -> Result<Self, GridError> {
         ensure_config(
@@ -113,6 +139,31 @@ impl Levels {
                 }
             }
         }
+        let (lo, hi) = base
+            .iter()
+            .fold((far, far), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let mut table = [0.0f32; 256];
+        for (q, t) in table.iter_mut().enumerate() {
+            *t = lo + (hi - lo) * (q as f32 / 255.0);
+        }
+        table[255] = hi;
+        let encode = |values: Vec<f32>| -> Vec<u8> {
+            values
+                .iter()
+                .map(|&v| {
+                    let mut q = if hi > lo {
+                        (((v - lo) / (hi - lo)) * 255.0).ceil().clamp(0.0, 255.0) as usize
+                    } else {
+                        0
+                    };
+                    while q < 255 && table[q] < v {
+                        q += 1;
+                    }
+                    q as u8
+                })
+                .collect()
+        };
+        let mut codes = vec![Vec::new(); depth as usize];
         let mut levels = Vec::with_capacity(depth as usize);
         levels.push(base);
         for k in 1..depth as usize {
@@ -135,6 +186,14 @@ impl Levels {
                 }
             }
             levels.push(next);
+            // Level k − 1 (above 0) has fed level k: code it.
+            if compact && k >= 2 {
+                codes[k - 1] = encode(std::mem::take(&mut levels[k - 1]));
+            }
+        }
+        if compact && depth >= 2 {
+            let top = depth as usize - 1;
+            codes[top] = encode(std::mem::take(&mut levels[top]));
         }
         Ok(Self {
             origin,
@@ -143,6 +202,8 @@ impl Levels {
             stride,
             far,
             levels,
+            codes,
+            table,
         })
     }
 
@@ -154,13 +215,46 @@ impl Levels {
         if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
             return self.far;
         }
-        self.levels[level as usize][y as usize * self.width + x as usize]
+        let i = y as usize * self.width + x as usize;
+        match self.levels[level as usize].get(i) {
+            Some(&v) => v,
+            None => self.table[self.codes[level as usize][i] as usize],
+        }
     }
 
-    /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps.
+    /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps. `bounds`, the
+    /// inclusive box of `cells`, lets a box that stays inside the stored cells skip the
+    /// per-cell bounds test; the sum is the same (the same values in the same order).
     #[inline]
-    pub(crate) fn score(&self, level: u32, cells: &[CellIndex], dx: i32, dy: i32) -> f32 {
+    pub(crate) fn score(
+        &self,
+        level: u32,
+        cells: &[CellIndex],
+        bounds: (CellIndex, CellIndex),
+        dx: i32,
+        dy: i32,
+    ) -> f32 {
         let (dx, dy) = (dx * self.stride, dy * self.stride);
+        let (lo, hi) = bounds;
+        let x0 = lo.x as i64 + dx as i64 - self.origin.x as i64;
+        let y0 = lo.y as i64 + dy as i64 - self.origin.y as i64;
+        let x1 = hi.x as i64 + dx as i64 - self.origin.x as i64;
+        let y1 = hi.y as i64 + dy as i64 - self.origin.y as i64;
+        if x0 >= 0 && y0 >= 0 && x1 < self.width as i64 && y1 < self.height as i64 {
+            let w = self.width as i64;
+            let offset =
+                (dy as i64 - self.origin.y as i64) * w + (dx as i64 - self.origin.x as i64);
+            let index = |c: &CellIndex| (c.y as i64 * w + c.x as i64 + offset) as usize;
+            let values = &self.levels[level as usize];
+            if values.is_empty() {
+                let codes = &self.codes[level as usize];
+                return cells
+                    .iter()
+                    .map(|c| self.table[codes[index(c)] as usize])
+                    .sum();
+            }
+            return cells.iter().map(|c| values[index(c)]).sum();
+        }
         cells
             .iter()
             .map(|c| self.value(level, CellIndex::new(c.x + dx, c.y + dy)))
@@ -184,10 +278,22 @@ impl MaxPyramid {
         max: CellIndex,
         depth: u32,
     ) -> Result<Self, GridError> {
+        Self::build(grid, min, max, depth, false)
+    }
+
+    /// [`MaxPyramid::new`], compact or not ([`Levels::build_with`]).
+    fn build(
+        grid: &OccupancyGrid,
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+        compact: bool,
+    ) -> Result<Self, GridError> {
         let params = grid.likelihood_params();
         // The padding reads the far value too: the grid returns it outside its tiles, and
         // inside them the rectangle is what the caller asked for.
-        let levels = Levels::build(min, max, depth, 1, params.far_value(), |origin, w, h| {
+        let far = params.far_value();
+        let levels = Levels::build_with(min, max, depth, 1, far, compact, |origin, w, h| {
             grid.field_window(origin, w, h)
         })?;
         Ok(Self {
@@ -218,10 +324,29 @@ impl MaxPyramid {
 
     /// Bytes held by the levels.
     pub fn memory_bytes(&self) -> usize {
-        self.levels.levels.len()
-            * self.levels.width
-            * self.levels.height
-            * std::mem::size_of::<f32>()
+        let l = &self.levels;
+        l.levels
+            .iter()
+            .map(|v| v.len() * std::mem::size_of::<f32>())
+            .sum::<usize>()
+            + l.codes.iter().map(Vec::len).sum::<usize>()
+            + std::mem::size_of_val(&l.table)
+    }
+
+    /// [`MaxPyramid::new`] with the levels above 0 in 8-bit codes, rounded up: a quarter
+    /// of their memory (and of the transient while building), and
+    /// [`value`](Self::value) above level 0 reads at most 1/255 of the field's range more
+    /// (the maximum over the block, or above it: still a bound). A
+    /// [`BranchBoundMatcher`] search scores its poses on level 0, which is kept exact, so
+    /// it finds a pose of the same best score (of equally scoring poses, possibly
+    /// another).
+    pub fn new_compact(
+        grid: &OccupancyGrid,
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+    ) -> Result<Self, GridError> {
+        Self::build(grid, min, max, depth, true)
     }
 
     /// P_level(c): the maximum field value over the 2^level-cell block whose lowest corner
@@ -300,6 +425,8 @@ pub(crate) struct Lattice {
     pub(crate) half_steps: i32,
     n: usize,
     cells: Vec<CellIndex>,
+    /// The inclusive box of every rotation's cells.
+    bounds: Vec<(CellIndex, CellIndex)>,
 }
 
 impl Lattice {
@@ -328,13 +455,37 @@ impl Lattice {
             let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * dtheta);
             cells.extend(transform_points(points, &pose).map(|p| frame.world_to_cell(&p)));
         }
+        let bounds = cells
+            .chunks(n.max(1))
+            .map(|rotation| {
+                rotation.iter().fold(
+                    (
+                        CellIndex::new(i32::MAX, i32::MAX),
+                        CellIndex::new(i32::MIN, i32::MIN),
+                    ),
+                    |(lo, hi), c| {
+                        (
+                            CellIndex::new(lo.x.min(c.x), lo.y.min(c.y)),
+                            CellIndex::new(hi.x.max(c.x), hi.y.max(c.y)),
+                        )
+                    },
+                )
+            })
+            .collect();
         Ok(Self {
             dtheta,
             k_max,
             half_steps,
             n,
             cells,
+            bounds,
         })
+    }
+
+    /// Rotation `r`'s end-point cells and their inclusive box.
+    #[inline]
+    fn rotation(&self, r: usize) -> (&[CellIndex], (CellIndex, CellIndex)) {
+        (&self.cells[r * self.n..(r + 1) * self.n], self.bounds[r])
     }
 
     /// The inclusive rectangle of cells the lattice's end points reach with every
@@ -510,7 +661,7 @@ pub(crate) fn branch_and_bound(
     let n_rot = 2 * lat.k_max as usize + 1;
     let mut roots = Vec::new();
     for r in 0..n_rot {
-        let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
+        let (cells, bounds) = lat.rotation(r);
         let mut dy = -l;
         while dy <= l {
             let mut dx = -l;
@@ -519,7 +670,7 @@ pub(crate) fn branch_and_bound(
                     rotation: r as u32,
                     dx,
                     dy,
-                    score: levels.score(top, cells, dx, dy) + bonus(r as u32, dx, dy, top),
+                    score: levels.score(top, cells, bounds, dx, dy) + bonus(r as u32, dx, dy, top),
                 });
                 dx += step;
             }
@@ -557,23 +708,25 @@ fn descend(
             continue;
         }
         let half = 1i32 << (level - 1);
-        let r = c.rotation as usize;
-        let cells = &lat.cells[r * lat.n..(r + 1) * lat.n];
-        let mut children = Vec::with_capacity(4);
+        let (cells, bounds) = lat.rotation(c.rotation as usize);
+        let mut children = [*c; 4];
+        let mut count = 0;
         for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
             let (dx, dy) = (c.dx + ox, c.dy + oy);
             if dx <= l && dy <= l {
-                children.push(Candidate {
+                children[count] = Candidate {
                     rotation: c.rotation,
                     dx,
                     dy,
-                    score: levels.score(level - 1, cells, dx, dy)
+                    score: levels.score(level - 1, cells, bounds, dx, dy)
                         + bonus(c.rotation, dx, dy, level - 1),
-                });
+                };
+                count += 1;
             }
         }
-        sort_descending(&mut children);
-        descend(levels, lat, &children, level - 1, threshold, bonus, best);
+        let children = &mut children[..count];
+        sort_descending(children);
+        descend(levels, lat, children, level - 1, threshold, bonus, best);
     }
 }
 
@@ -875,12 +1028,41 @@ mod tests {
     /// A known offset of 0.8 m and 20° on the simulated office is recovered to within a
     /// cell and an angular step, with a positive-definite covariance, from a pyramid built
     /// once over the whole map and reused.
+    /// The compact pyramid: level 0 as the exact one, every coarser level at or above the
+    /// exact block maximum by less than 1/255 of the value range (searches on it:
+    /// `recovers_a_known_offset`).
+    #[test]
+    fn compact_pyramid_levels_bound_the_block_maxima() {
+        let res = 0.05;
+        let g = office_map(res);
+        let (min, max) = g.covered_cells().unwrap();
+        let exact = MaxPyramid::new(&g, min, max, 6).unwrap();
+        let compact = MaxPyramid::new_compact(&g, min, max, 6).unwrap();
+        assert!(4 * compact.memory_bytes() < 2 * exact.memory_bytes());
+        let step = (1.0 - exact.levels.far) / 255.0;
+        for k in 0..6u32 {
+            for y in (min.y - 40..=max.y + 5).step_by(3) {
+                for x in (min.x - 40..=max.x + 5).step_by(3) {
+                    let c = CellIndex::new(x, y);
+                    let (e, q) = (exact.value(k, c), compact.value(k, c));
+                    if k == 0 {
+                        assert_eq!(q, e, "level 0 at ({x}, {y})");
+                    } else {
+                        assert!(q >= e && q - e <= step * 1.001, "level {k}: {q} vs {e}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn recovers_a_known_offset() {
         let res = 0.05;
         let g = office_map(res);
         let world = SegmentWorld::office();
         let pyramid = MaxPyramid::covering(&g, 6).unwrap().unwrap();
+        let (min, max) = g.covered_cells().unwrap();
+        let compact = MaxPyramid::new_compact(&g, min, max, 6).unwrap();
         let m = BranchBoundMatcher {
             linear_window: 1.0,
             angular_window: 0.45,
@@ -898,6 +1080,9 @@ mod tests {
             .unwrap();
             let initial = Pose2::new(truth.x - 0.6, truth.y + 0.53, truth.theta - 0.35);
             let r = m.match_in(&pyramid, &scan, &initial).unwrap().unwrap();
+            // The compact pyramid finds the same best pose and score.
+            let c = m.match_in(&compact, &scan, &initial).unwrap().unwrap();
+            assert_eq!((c.pose, c.score), (r.pose, r.score));
             let dtheta = slam_models::normalize_angle(r.pose.theta - truth.theta).abs();
             assert!(
                 r.pose.distance(&truth) < 1.5 * res,
