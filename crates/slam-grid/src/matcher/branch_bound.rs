@@ -54,7 +54,7 @@ pub struct MaxPyramid {
 /// P_k(x, y) = max of P₀ over {x + a·m : 0 ≤ a < 2^k} × {y + b·m : 0 ≤ b < 2^k}, computed as
 /// P_k(x, y) = max(P_{k−1}(x, y), P_{k−1}(x + h, y), P_{k−1}(x, y + h), P_{k−1}(x + h, y + h))
 /// with h = m·2^(k−1). Cells outside the rectangle read `far`, the score's minimum.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct Levels {
     /// Lowest stored cell (the rectangle's minimum corner less the padding).
     origin: CellIndex,
@@ -62,20 +62,97 @@ pub(crate) struct Levels {
     height: usize,
     stride: i32,
     far: f32,
-    levels: Vec<Vec<f32>>,
+    depth: u32,
+    /// Level k at `[k·w·h, (k + 1)·w·h)`, each row-major.
+    data: Vec<f32>,
+    /// Whether `data` goes back to this thread's spare buffer when dropped ([`SPARE`]).
+    pooled: bool,
+}
+
+/// Largest buffer kept for reuse by a thread (bytes): the levels of a search pyramid are
+/// tens of megabytes for a 30 m scan, and a fresh allocation of that size costs more in
+/// page faults than filling it.
+const MAX_SPARE_BYTES: usize = 128 << 20;
+
+thread_local! {
+    /// One spare buffer per thread, for the pyramids of [`Levels::build_pooled`].
+    static SPARE: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl Clone for Levels {
+    fn clone(&self) -> Self {
+        Self {
+            data: self.data.clone(),
+            pooled: false,
+            ..*self
+        }
+    }
+}
+
+impl Drop for Levels {
+    fn drop(&mut self) {
+        let bytes = self.data.capacity() * std::mem::size_of::<f32>();
+        if self.pooled && bytes <= MAX_SPARE_BYTES {
+            let data = std::mem::take(&mut self.data);
+            SPARE.with(|s| {
+                let mut spare = s.borrow_mut();
+                if spare.capacity() < data.capacity() {
+                    *spare = data;
+                }
+            });
+        }
+    }
+}
+
+/// max(a, b) for values that are never NaN (a plain comparison, which vectorises; `f32::max`
+/// also handles NaN).
+#[inline(always)]
+fn larger(a: f32, b: f32) -> f32 {
+    if b > a {
+        b
+    } else {
+        a
+    }
 }
 
 impl Levels {
     /// The `depth` levels over the inclusive rectangle `min … max` with lattice stride
-    /// `stride`; `base(origin, w, h)` gives the row-major values of the `w × h` cells from
-    /// `origin` (the rectangle grown by the padding below it, which reads `far`).
+    /// `stride`; `base(origin, w, h, out)` writes the row-major values of the `w × h` cells
+    /// from `origin` into `out` (every element; the rectangle grown by the padding below
+    /// it, which reads `far`).
     pub(crate) fn build(
         min: CellIndex,
         max: CellIndex,
         depth: u32,
         stride: i32,
         far: f32,
-        base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
+        base: impl FnOnce(CellIndex, usize, usize, &mut [f32]),
+    ) -> Result<Self, GridError> {
+        Self::build_in(min, max, depth, stride, far, base, false)
+    }
+
+    /// [`Self::build`] in this thread's spare buffer, given back when the levels are
+    /// dropped (for pyramids built and dropped per search: the same values, fewer page
+    /// faults).
+    pub(crate) fn build_pooled(
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+        stride: i32,
+        far: f32,
+        base: impl FnOnce(CellIndex, usize, usize, &mut [f32]),
+    ) -> Result<Self, GridError> {
+        Self::build_in(min, max, depth, stride, far, base, true)
+    }
+
+    fn build_in(
+        min: CellIndex,
+        max: CellIndex,
+        depth: u32,
+        stride: i32,
+        far: f32,
+        base: impl FnOnce(CellIndex, usize, usize, &mut [f32]),
+        pooled: bool,
     ) -> Result<Self, GridError> {
         ensure_config(
             (1..=MAX_PYRAMID_DEPTH).contains(&depth),
@@ -103,38 +180,58 @@ impl Levels {
                 "at most 16e6 cells: a smaller region or a coarser grid",
             )));
         }
-        let (w, h) = (w as usize, h as usize);
+        let (w, h, pad) = (w as usize, h as usize, pad as usize);
+        let n = w * h;
         let origin = CellIndex::new(min.x - pad as i32, min.y - pad as i32);
-        let mut base = base(origin, w, h);
-        for y in 0..h {
-            for x in 0..w {
-                if x < pad as usize || y < pad as usize {
-                    base[y * w + x] = far;
-                }
+        let len = depth as usize * n;
+        let mut data = if pooled {
+            SPARE.with(|s| std::mem::take(&mut *s.borrow_mut()))
+        } else {
+            Vec::new()
+        };
+        // Every element is written below: old contents of a reused buffer are never read.
+        if data.len() < len {
+            data.resize(len, far);
+        } else {
+            data.truncate(len);
+        }
+        {
+            let first = &mut data[..n];
+            base(origin, w, h, first);
+            first[..pad * w].fill(far);
+            for row in first.chunks_exact_mut(w).skip(pad) {
+                row[..pad].fill(far);
             }
         }
-        let mut levels = Vec::with_capacity(depth as usize);
-        levels.push(base);
+        // P_k from P_{k−1}: the max over the 4 cells (x, y), (x + h, y), (x, y + h),
+        // (x + h, y + h), h = stride·2^(k−1), a cell outside the rectangle reading `far` (the
+        // minimum, so it changes nothing unless all four are outside): first along rows,
+        // then, in place, between a row and the one h above it (rows going up, so that row
+        // is read before it is overwritten).
         for k in 1..depth as usize {
             let half = (stride as usize) << (k - 1);
-            let prev = &levels[k - 1];
-            let at = |x: usize, y: usize| {
-                if x < w && y < h {
-                    prev[y * w + x]
+            let (done, rest) = data.split_at_mut(k * n);
+            let prev = &done[(k - 1) * n..];
+            let next = &mut rest[..n];
+            for (out, src) in next.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
+                if half < w {
+                    let m = w - half;
+                    let (o, a, b) = (&mut out[..m], &src[..m], &src[half..]);
+                    for i in 0..m {
+                        o[i] = larger(a[i], b[i]);
+                    }
+                    out[m..].copy_from_slice(&src[m..]);
                 } else {
-                    far
-                }
-            };
-            let mut next = vec![far; w * h];
-            for y in 0..h {
-                for x in 0..w {
-                    next[y * w + x] = at(x, y)
-                        .max(at(x + half, y))
-                        .max(at(x, y + half))
-                        .max(at(x + half, y + half));
+                    out.copy_from_slice(src);
                 }
             }
-            levels.push(next);
+            for y in 0..h.saturating_sub(half) {
+                let (low, high) = next.split_at_mut((y + half) * w);
+                let (row, above) = (&mut low[y * w..(y + 1) * w], &high[..w]);
+                for i in 0..w {
+                    row[i] = larger(row[i], above[i]);
+                }
+            }
         }
         Ok(Self {
             origin,
@@ -142,7 +239,9 @@ impl Levels {
             height: h,
             stride,
             far,
-            levels,
+            depth,
+            data,
+            pooled,
         })
     }
 
@@ -154,7 +253,8 @@ impl Levels {
         if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
             return self.far;
         }
-        self.levels[level as usize][y as usize * self.width + x as usize]
+        let n = self.width * self.height;
+        self.data[level as usize * n + y as usize * self.width + x as usize]
     }
 
     /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps.
@@ -168,7 +268,12 @@ impl Levels {
     }
 
     fn depth(&self) -> u32 {
-        self.levels.len() as u32
+        self.depth
+    }
+
+    /// Bytes held by the levels.
+    fn memory_bytes(&self) -> usize {
+        self.depth as usize * self.width * self.height * std::mem::size_of::<f32>()
     }
 }
 
@@ -187,9 +292,14 @@ impl MaxPyramid {
         let params = grid.likelihood_params();
         // The padding reads the far value too: the grid returns it outside its tiles, and
         // inside them the rectangle is what the caller asked for.
-        let levels = Levels::build(min, max, depth, 1, params.far_value(), |origin, w, h| {
-            grid.field_window(origin, w, h)
-        })?;
+        let levels = Levels::build(
+            min,
+            max,
+            depth,
+            1,
+            params.far_value(),
+            |origin, w, h, out| out.copy_from_slice(&grid.field_window(origin, w, h)),
+        )?;
         Ok(Self {
             frame: grid.frame(),
             params,
@@ -218,10 +328,7 @@ impl MaxPyramid {
 
     /// Bytes held by the levels.
     pub fn memory_bytes(&self) -> usize {
-        self.levels.levels.len()
-            * self.levels.width
-            * self.levels.height
-            * std::mem::size_of::<f32>()
+        self.levels.memory_bytes()
     }
 
     /// P_level(c): the maximum field value over the 2^level-cell block whose lowest corner
@@ -817,6 +924,68 @@ mod tests {
                         m,
                         "level {k} at ({x}, {y})"
                     );
+                }
+            }
+        }
+    }
+
+    /// With a lattice stride, and built in a reused (dirty, larger) buffer, every level is
+    /// still the maximum over its block of lattice cells, checked by brute force from the
+    /// definition on pseudo-random values (cells outside the rectangle read `far`).
+    #[test]
+    fn strided_pooled_levels_are_block_maxima() {
+        let value = |x: i32, y: i32| ((x * 7919 + y * 104_729).rem_euclid(997)) as f32 - 500.0;
+        let far = -1000.0;
+        let fill = |o: CellIndex, w: usize, _h: usize, out: &mut [f32]| {
+            for (i, v) in out.iter_mut().enumerate() {
+                *v = value(o.x + (i % w) as i32, o.y + (i / w) as i32);
+            }
+        };
+        // A larger pyramid first, so that the second reuses its dirty buffer.
+        drop(
+            Levels::build_pooled(
+                CellIndex::new(0, 0),
+                CellIndex::new(90, 80),
+                5,
+                2,
+                far,
+                fill,
+            )
+            .unwrap(),
+        );
+        for pooled in [true, false] {
+            let (min, max, depth, stride) = (CellIndex::new(-3, 4), CellIndex::new(30, 25), 4, 3);
+            let l = if pooled {
+                Levels::build_pooled(min, max, depth, stride, far, fill).unwrap()
+            } else {
+                Levels::build(min, max, depth, stride, far, fill).unwrap()
+            };
+            for k in 0..depth {
+                for y in -30..30 {
+                    for x in -30..35 {
+                        let mut m = far;
+                        for b in 0..1 << k {
+                            for a in 0..1 << k {
+                                let (xx, yy) = (x + a * stride, y + b * stride);
+                                let inside =
+                                    (min.x..=max.x).contains(&xx) && (min.y..=max.y).contains(&yy);
+                                if inside {
+                                    m = m.max(value(xx, yy));
+                                }
+                            }
+                        }
+                        let lowest = CellIndex::new(
+                            min.x - ((1 << (depth - 1)) - 1) * stride,
+                            min.y - ((1 << (depth - 1)) - 1) * stride,
+                        );
+                        if x >= lowest.x && y >= lowest.y {
+                            assert_eq!(
+                                l.value(k, CellIndex::new(x, y)),
+                                m,
+                                "level {k} at ({x}, {y}), pooled {pooled}"
+                            );
+                        }
+                    }
                 }
             }
         }

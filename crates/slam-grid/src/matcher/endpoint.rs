@@ -926,15 +926,16 @@ pub fn wide_search(
     let values: Vec<f32> = (0..=u8::MAX).map(cell_value).collect();
     let far = (-scale * model.k * model.radius * model.radius) as f32;
     let mut cells = 0;
-    let levels = Levels::build(lo, hi, depth, stride, far, |origin, w, h| {
+    let levels = Levels::build_pooled(lo, hi, depth, stride, far, |origin, w, h, out| {
         cells = w * h;
-        let mut out = Vec::with_capacity(w * h);
-        for y in 0..h as i32 {
-            for x in 0..w as i32 {
-                out.push(values[field.dist(CellIndex::new(origin.x + x, origin.y + y)) as usize]);
+        // A row of distances at a time, tile by tile (the same as `field.dist` per cell).
+        let mut row = vec![0u8; w];
+        for (y, out) in out.chunks_exact_mut(w).enumerate() {
+            field.read_row(CellIndex::new(origin.x, origin.y + y as i32), &mut row);
+            for (o, &d) in out.iter_mut().zip(&row) {
+                *o = values[d as usize];
             }
         }
-        out
     })?;
     let info = &window.information;
     let k0 = lat.k_max;
