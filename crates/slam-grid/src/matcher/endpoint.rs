@@ -917,6 +917,24 @@ pub fn wide_search(
     let span = (2 * half_steps + 1) as u32;
     let depth = (span.next_power_of_two().trailing_zeros() + 1).min(MAX_PYRAMID_DEPTH);
     let (lo, hi) = lat.reach(stride);
+    // Cells outside the grid's table read the far value, and so would every level there:
+    // the pyramid over the part of the reach the table covers holds the same values
+    // (`Levels::value` reads far outside it) in fewer cells (a 30 m scan's reach, turned by
+    // ±0.8 rad, is much larger than a local map). One far cell when they do not meet.
+    let (lo, hi) = match field.covered() {
+        Some((a, b)) => {
+            let (l, h) = (
+                CellIndex::new(lo.x.max(a.x), lo.y.max(a.y)),
+                CellIndex::new(hi.x.min(b.x), hi.y.min(b.y)),
+            );
+            if l.x <= h.x && l.y <= h.y {
+                (l, h)
+            } else {
+                (lo, lo)
+            }
+        }
+        None => (lo, lo),
+    };
     let unit = field.metres_per_unit();
     let cell_value = |d: u8| {
         let d = (d as f64 * unit).min(model.radius);
