@@ -297,15 +297,7 @@ impl<'a> DistanceField<'a> {
     /// The inclusive cell rectangle of the grid's table (every tile it covers); every cell
     /// outside it reads [`DistanceField::max_units`]. `None` for an empty grid.
     pub(crate) fn covered(&self) -> Option<(CellIndex, CellIndex)> {
-        let r = self.table.rect();
-        if r.len() == 0 {
-            return None;
-        }
-        let t = TILE_SIZE as i32;
-        Some((
-            CellIndex::new(r.tx0 * t, r.ty0 * t),
-            CellIndex::new((r.tx0 + r.tw) * t - 1, (r.ty0 + r.th) * t - 1),
-        ))
+        self.table.covered_cells()
     }
 
     /// The stored tile (tx, ty), `None` when all far.

@@ -72,6 +72,7 @@ impl MaxPyramid {
             1,
             params.far_value(),
             |origin, w, h, out| out.copy_from_slice(&grid.field_window(origin, w, h)),
+            false,
         )?;
         Ok(Self {
             frame: grid.frame(),

@@ -944,17 +944,25 @@ pub fn wide_search(
     let values: Vec<f32> = (0..=u8::MAX).map(cell_value).collect();
     let far = (-scale * model.k * model.radius * model.radius) as f32;
     let mut cells = 0;
-    let levels = Levels::build_pooled(lo, hi, depth, stride, far, |origin, w, h, out| {
-        cells = w * h;
-        // A row of distances at a time, tile by tile (the same as `field.dist` per cell).
-        let mut row = vec![0u8; w];
-        for (y, out) in out.chunks_exact_mut(w).enumerate() {
-            field.read_row(CellIndex::new(origin.x, origin.y + y as i32), &mut row);
-            for (o, &d) in out.iter_mut().zip(&row) {
-                *o = values[d as usize];
+    let levels = Levels::build(
+        lo,
+        hi,
+        depth,
+        stride,
+        far,
+        |origin, w, h, out| {
+            cells = w * h;
+            // A row of distances at a time, tile by tile (the same as `field.dist` per cell).
+            let mut row = vec![0u8; w];
+            for (y, out) in out.chunks_exact_mut(w).enumerate() {
+                field.read_row(CellIndex::new(origin.x, origin.y + y as i32), &mut row);
+                for (o, &d) in out.iter_mut().zip(&row) {
+                    *o = values[d as usize];
+                }
             }
-        }
-    })?;
+        },
+        true,
+    )?;
     let info = &window.information;
     let k0 = lat.k_max;
     let dtheta = lat.dtheta;

@@ -32,7 +32,7 @@ pub(crate) struct Levels {
 const MAX_SPARE_BYTES: usize = 128 << 20;
 
 thread_local! {
-    /// One spare buffer per thread, for the pyramids of [`Levels::build_pooled`].
+    /// One spare buffer per thread, for the pyramids of [`Levels::build`] with `pooled`.
     static SPARE: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
@@ -76,33 +76,10 @@ impl Levels {
     /// The `depth` levels over the inclusive rectangle `min … max` with lattice stride
     /// `stride`; `base(origin, w, h, out)` writes the row-major values of the `w × h` cells
     /// from `origin` into `out` (every element; the rectangle grown by the padding below
-    /// it, which reads `far`).
+    /// it, which reads `far`). `pooled`: in this thread's spare buffer, given back when the
+    /// levels are dropped (for pyramids built and dropped per search: the same values,
+    /// fewer page faults).
     pub(crate) fn build(
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-        stride: i32,
-        far: f32,
-        base: impl FnOnce(CellIndex, usize, usize, &mut [f32]),
-    ) -> Result<Self, GridError> {
-        Self::build_in(min, max, depth, stride, far, base, false)
-    }
-
-    /// [`Self::build`] in this thread's spare buffer, given back when the levels are
-    /// dropped (for pyramids built and dropped per search: the same values, fewer page
-    /// faults).
-    pub(crate) fn build_pooled(
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-        stride: i32,
-        far: f32,
-        base: impl FnOnce(CellIndex, usize, usize, &mut [f32]),
-    ) -> Result<Self, GridError> {
-        Self::build_in(min, max, depth, stride, far, base, true)
-    }
-
-    fn build_in(
         min: CellIndex,
         max: CellIndex,
         depth: u32,
@@ -258,23 +235,20 @@ mod tests {
         };
         // A larger pyramid first, so that the second reuses its dirty buffer.
         drop(
-            Levels::build_pooled(
+            Levels::build(
                 CellIndex::new(0, 0),
                 CellIndex::new(90, 80),
                 5,
                 2,
                 far,
                 fill,
+                true,
             )
             .unwrap(),
         );
         for pooled in [true, false] {
             let (min, max, depth, stride) = (CellIndex::new(-3, 4), CellIndex::new(30, 25), 4, 3);
-            let l = if pooled {
-                Levels::build_pooled(min, max, depth, stride, far, fill).unwrap()
-            } else {
-                Levels::build(min, max, depth, stride, far, fill).unwrap()
-            };
+            let l = Levels::build(min, max, depth, stride, far, fill, pooled).unwrap();
             for k in 0..depth {
                 for y in -30..30 {
                     for x in -30..35 {
