@@ -146,6 +146,8 @@ pub fn ros2(a: &Ros2Args, out: &mut dyn Write) -> Result<NodeReport, CliError> {
         initial_pose: slam_models::Pose2::default(),
         sim_noise: None,
         preset: a.preset.as_deref(),
+        // A node cannot know before the first messages whether odometry will come.
+        laser_odometry_scan: None,
     };
     let built = filters::build_scan(&info, &setup)?;
     let live = crate::start_live(a.live.as_deref(), |o| opts.topic(o), out)?;

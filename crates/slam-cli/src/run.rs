@@ -564,10 +564,11 @@ fn run_scan(
             scans: scans.count(),
         });
     }
-    let built = filters::build_scan(
-        info,
-        &Setup::of_run(ctx.args, slam_models::Pose2::default(), None),
-    )?;
+    let mut setup = Setup::of_run(ctx.args, slam_models::Pose2::default(), None);
+    if input.laser_odometry.is_some() {
+        setup.laser_odometry_scan = dataset.records.iter().find_map(|r| r.scan.as_ref());
+    }
+    let built = filters::build_scan(info, &setup)?;
     let mut filter = built.filter;
     let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;
     let mut live = crate::start_live(
