@@ -114,6 +114,9 @@ pub struct LaserGraphConfig {
     /// A local match scoring below this mean field value per end point is rejected and the
     /// odometry increment used instead. Default 0.25.
     pub local_min_score: f64,
+    /// The search over every heading that recovers a local match the odometry put
+    /// outside the window (turns in place; [`super::LocalRecovery`]).
+    pub local_recovery: super::LocalRecovery,
     /// Factor on the matches' covariances before they become information. Default 1.
     pub match_covariance_scale: f64,
     /// How a match's covariance is estimated. Default: from the tempered likelihood
@@ -240,6 +243,7 @@ impl Default for LaserGraphConfig {
             keyframe_angle: 0.15,
             local_matcher,
             local_min_score: 0.25,
+            local_recovery: super::LocalRecovery::default(),
             match_covariance_scale: 1.0,
             match_covariance: MatchCovariance::default(),
             match_min_std: [0.02, 0.002],
@@ -319,6 +323,7 @@ impl LaserGraphConfig {
         self.local_matcher.refine.validate()?;
         let s = self.local_min_score;
         ensure((0.0..=1.0).contains(&s), "local-min-score", s, "in [0, 1]")?;
+        self.local_recovery.validate()?;
         let k = self.match_covariance_scale;
         ensure(k > 0.0, "match-covariance-scale", k, "> 0")?;
         if let MatchCovariance::Response {

@@ -53,9 +53,11 @@ pub mod config;
 mod consistency;
 mod covariance;
 mod loops;
+mod recovery;
 mod smoothing;
 
 pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SCANS};
+pub use recovery::LocalRecovery;
 
 use crate::error::GraphError;
 use slam_grid::{MaxPyramid, OccupancyGrid, RangeData};
@@ -122,6 +124,9 @@ pub struct LaserGraphStats {
     pub keyframes: usize,
     /// Keyframes whose local match was rejected or failed (odometry used instead).
     pub local_match_failures: usize,
+    /// Keyframes whose local match was replaced by the recovery's search over every
+    /// heading ([`LocalRecovery`]).
+    pub local_match_recovered: usize,
     /// Branch-and-bound loop-closure searches run.
     pub loop_searches: usize,
     /// Of those, wide searches (the whole window, beyond `loop-wide-radius` or
@@ -372,7 +377,8 @@ impl LaserGraphSlam {
             Some((prev_record, prev_local, prev_global, prev_since)) => {
                 let delta = self.odometry[prev_record].between(&odometry);
                 let predicted = prev_local.compose(&delta);
-                let (local, information) = match self.local_match(&scan, &predicted) {
+                let matched = self.local_match(&scan, &predicted, &delta)?;
+                let (local, information) = match matched {
                     Some((pose, cov)) => (pose, self.match_information(&cov, prev_local.theta)),
                     None => {
                         self.stats.local_match_failures += 1;
@@ -422,21 +428,41 @@ impl LaserGraphSlam {
     }
 
     /// Local scan-to-submap match from `predicted`: pose and covariance, or `None` when
-    /// there is no submap yet, the match failed or scored below `local-min-score`.
-    fn local_match(&self, scan: &RangeData, predicted: &Pose2) -> Option<(Pose2, Matrix3)> {
-        let &oldest = self.active.first()?;
-        let grid = self.submaps[oldest].grid.as_ref()?;
-        match self
+    /// there is no submap yet, the match failed or scored below `local-min-score`. A
+    /// keyframe whose odometry `delta` since the previous keyframe turned by at least
+    /// `local-recovery.turn`, or whose match failed, is searched over every heading as
+    /// well ([`LocalRecovery`]), and the better match taken.
+    fn local_match(
+        &mut self,
+        scan: &RangeData,
+        predicted: &Pose2,
+        delta: &Pose2,
+    ) -> Result<Option<(Pose2, Matrix3)>, GraphError> {
+        let Some(&oldest) = self.active.first() else {
+            return Ok(None);
+        };
+        let Some(grid) = self.submaps[oldest].grid.as_ref() else {
+            return Ok(None);
+        };
+        let local = self
             .config
             .local_matcher
             .match_prepared(grid, scan, predicted)
-        {
-            Ok(m) if m.score >= self.config.local_min_score => Some((
-                m.pose,
-                self.match_covariance(grid, scan, &m.pose, m.covariance),
-            )),
-            _ => None,
-        }
+            .ok();
+        let recovered = self.recover_local_match(grid, scan, predicted, delta, local.as_ref());
+        let m = match (recovered, local) {
+            (Some(m), _) => {
+                self.stats.local_match_recovered += 1;
+                m
+            }
+            (None, Some(m)) if m.score >= self.config.local_min_score => m,
+            (None, _) => return Ok(None),
+        };
+        let grid = self.submaps[oldest].grid.as_ref().expect("checked above");
+        Ok(Some((
+            m.pose,
+            self.match_covariance(grid, scan, &m.pose, m.covariance),
+        )))
     }
 
     /// The covariance of a match at `pose` on `grid` ([`MatchCovariance`]), `matcher`'s
