@@ -288,7 +288,7 @@ impl Default for LaserGraphConfig {
 }
 
 /// `Err(GraphError::FrontEndConfig)` unless `ok` (and `value` finite).
-fn ensure(
+pub(super) fn ensure(
     ok: bool,
     field: &'static str,
     value: f64,

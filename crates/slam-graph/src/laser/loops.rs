@@ -227,11 +227,7 @@ impl LaserGraphSlam {
         ) else {
             return Ok(None);
         };
-        let refine = &self.config.local_matcher.refine;
-        let m = match refine.match_prepared(grid, scan, &hit.pose) {
-            Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
-            _ => hit,
-        };
+        let m = self.refine_near(grid, scan, hit);
         if self.flat_match(grid, scan, &m.pose) {
             self.stats.loop_flat += 1;
             return Ok(None);
@@ -385,6 +381,26 @@ impl LaserGraphSlam {
             m.grid = None;
         }
         Ok(true)
+    }
+
+    /// A branch-and-bound `hit` of `scan` on `grid` refined by the local matcher's
+    /// Gauss-Newton step (sub-cell), the refinement kept only if it stays within two cells
+    /// of the hit (else the hit itself).
+    pub(super) fn refine_near(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &RangeData,
+        hit: slam_grid::MatchResult,
+    ) -> slam_grid::MatchResult {
+        match self
+            .config
+            .local_matcher
+            .refine
+            .match_prepared(grid, scan, &hit.pose)
+        {
+            Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * self.config.resolution => f,
+            _ => hit,
+        }
     }
 
     /// A scan checked and classified for the submaps ([`RangeData`] under the configured

@@ -377,7 +377,7 @@ impl LaserGraphSlam {
             Some((prev_record, prev_local, prev_global, prev_since)) => {
                 let delta = self.odometry[prev_record].between(&odometry);
                 let predicted = prev_local.compose(&delta);
-                let matched = self.local_match(&scan, &predicted, &delta)?;
+                let matched = self.local_match(&scan, &predicted, &delta);
                 let (local, information) = match matched {
                     Some((pose, cov)) => (pose, self.match_information(&cov, prev_local.theta)),
                     None => {
@@ -437,32 +437,20 @@ impl LaserGraphSlam {
         scan: &RangeData,
         predicted: &Pose2,
         delta: &Pose2,
-    ) -> Result<Option<(Pose2, Matrix3)>, GraphError> {
-        let Some(&oldest) = self.active.first() else {
-            return Ok(None);
-        };
-        let Some(grid) = self.submaps[oldest].grid.as_ref() else {
-            return Ok(None);
-        };
+    ) -> Option<(Pose2, Matrix3)> {
+        let &oldest = self.active.first()?;
+        let grid = self.submaps[oldest].grid.as_ref()?;
         let local = self
             .config
             .local_matcher
             .match_prepared(grid, scan, predicted)
             .ok();
         let recovered = self.recover_local_match(grid, scan, predicted, delta, local.as_ref());
-        let m = match (recovered, local) {
-            (Some(m), _) => {
-                self.stats.local_match_recovered += 1;
-                m
-            }
-            (None, Some(m)) if m.score >= self.config.local_min_score => m,
-            (None, _) => return Ok(None),
-        };
-        let grid = self.submaps[oldest].grid.as_ref().expect("checked above");
-        Ok(Some((
-            m.pose,
-            self.match_covariance(grid, scan, &m.pose, m.covariance),
-        )))
+        let was_recovered = recovered.is_some();
+        let m = recovered.or(local.filter(|m| m.score >= self.config.local_min_score))?;
+        let covariance = self.match_covariance(grid, scan, &m.pose, m.covariance);
+        self.stats.local_match_recovered += usize::from(was_recovered);
+        Some((m.pose, covariance))
     }
 
     /// The covariance of a match at `pose` on `grid` ([`MatchCovariance`]), `matcher`'s

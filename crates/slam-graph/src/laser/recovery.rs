@@ -33,6 +33,7 @@
 //! already the best in the window, and a heading that explains the scan no better than
 //! the predicted one is not taken.
 
+use super::config::ensure;
 use super::{loops, LaserGraphSlam};
 use crate::error::GraphError;
 use serde::{Deserialize, Serialize};
@@ -89,36 +90,25 @@ impl Default for LocalRecovery {
 impl LocalRecovery {
     /// Checks the fields against their documented ranges.
     pub fn validate(&self) -> Result<(), GraphError> {
-        let bad = |field, value, expected| {
-            Err(GraphError::FrontEndConfig {
-                field,
-                value,
-                expected,
-            })
-        };
-        let (t, r, g) = (self.turn, self.radius, self.gain);
-        if !(t.is_finite() && t >= 0.0) {
-            return bad("local-recovery.turn", t, ">= 0 rad");
-        }
-        if !(r.is_finite() && r > 0.0 && r <= 2.0) {
-            return bad("local-recovery.radius", r, "in (0, 2] m");
-        }
-        let ts = self.turn_scale;
-        if !(ts.is_finite() && ts >= 0.0) {
-            return bad("local-recovery.turn-scale", ts, ">= 0");
-        }
-        let ma = self.max_angle;
-        if !(ma.is_finite() && ma > 0.0 && ma <= std::f64::consts::PI) {
-            return bad("local-recovery.max-angle", ma, "in (0, pi] rad");
-        }
-        let s = self.step_growth;
-        if !(s.is_finite() && s >= 0.0) {
-            return bad("local-recovery.step-growth", s, ">= 0");
-        }
-        if !(g.is_finite() && g >= 1.0) {
-            return bad("local-recovery.gain", g, ">= 1");
-        }
-        Ok(())
+        let pi = std::f64::consts::PI;
+        let (t, r, ts) = (self.turn, self.radius, self.turn_scale);
+        ensure(t >= 0.0, "local-recovery.turn", t, ">= 0 rad")?;
+        ensure(
+            r > 0.0 && r <= 2.0,
+            "local-recovery.radius",
+            r,
+            "in (0, 2] m",
+        )?;
+        ensure(ts >= 0.0, "local-recovery.turn-scale", ts, ">= 0")?;
+        let (ma, s, g) = (self.max_angle, self.step_growth, self.gain);
+        ensure(
+            ma > 0.0 && ma <= pi,
+            "local-recovery.max-angle",
+            ma,
+            "in (0, pi] rad",
+        )?;
+        ensure(s >= 0.0, "local-recovery.step-growth", s, ">= 0")?;
+        ensure(g >= 1.0, "local-recovery.gain", g, ">= 1")
     }
 }
 
@@ -166,14 +156,11 @@ impl LaserGraphSlam {
                 angular_window: angle,
                 angular_step: 0.0,
                 depth: c.loop_depth,
-                min_score: bar.min(1.0),
+                min_score: bar,
                 min_points: c.local_matcher.correlative.min_points,
             };
             let hit = matcher.match_in(&pyramid, scan, predicted).ok()??;
-            let m = match c.local_matcher.refine.match_prepared(grid, scan, &hit.pose) {
-                Ok(f) if f.pose.distance(&hit.pose) <= 2.0 * c.resolution => f,
-                _ => hit,
-            };
+            let m = self.refine_near(grid, scan, hit);
             (m.score >= bar).then_some(m)
         };
         let near = search(r.radius, turned, bar);
@@ -216,6 +203,34 @@ mod tests {
             (
                 LocalRecovery {
                     gain: f64::NAN,
+                    ..LocalRecovery::default()
+                },
+                "local-recovery.gain",
+            ),
+            (
+                LocalRecovery {
+                    turn_scale: -1.0,
+                    ..LocalRecovery::default()
+                },
+                "local-recovery.turn-scale",
+            ),
+            (
+                LocalRecovery {
+                    max_angle: 3.2,
+                    ..LocalRecovery::default()
+                },
+                "local-recovery.max-angle",
+            ),
+            (
+                LocalRecovery {
+                    step_growth: f64::INFINITY,
+                    ..LocalRecovery::default()
+                },
+                "local-recovery.step-growth",
+            ),
+            (
+                LocalRecovery {
+                    gain: 0.9,
                     ..LocalRecovery::default()
                 },
                 "local-recovery.gain",
