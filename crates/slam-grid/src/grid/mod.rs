@@ -350,15 +350,7 @@ impl OccupancyGrid {
     /// Inclusive range of cells covered by the tile table (`None` while empty): the
     /// rectangle the grid has grown to, of which only the observed tiles are stored.
     pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
-        let r = self.table.rect();
-        if r.len() == 0 {
-            return None;
-        }
-        let t = TILE_SIZE as i32;
-        Some((
-            CellIndex::new(r.tx0 * t, r.ty0 * t),
-            CellIndex::new((r.tx0 + r.tw) * t - 1, (r.ty0 + r.th) * t - 1),
-        ))
+        self.table.covered_cells()
     }
 
     /// The span (bounding box of every cell covered so far) once cells `min ..= max` are
