@@ -91,7 +91,7 @@ impl Drop for Levels {
 /// max(a, b) for values that are never NaN (a plain comparison, which vectorises; `f32::max`
 /// also handles NaN).
 #[inline(always)]
-fn larger(a: f32, b: f32) -> f32 {
+fn larger<T: PartialOrd>(a: T, b: T) -> T {
     if b > a {
         b
     } else {
@@ -103,7 +103,7 @@ fn larger(a: f32, b: f32) -> f32 {
 /// (x, y), (x + h, y), (x, y + h), (x + h, y + h), a cell outside the rectangle reading
 /// `far`. First along rows, then, in place, between a row and the one h above it (rows
 /// going up, so that row is read before it is overwritten).
-fn pool(prev: &[f32], next: &mut [f32], w: usize, half: usize, far: f32) {
+fn pool<T: PartialOrd + Copy>(prev: &[T], next: &mut [T], w: usize, half: usize, far: T) {
     let h = prev.len() / w;
     for (out, src) in next.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
         let m = w.saturating_sub(half);
@@ -127,6 +127,54 @@ fn pool(prev: &[f32], next: &mut [f32], w: usize, half: usize, far: f32) {
                 *v = larger(*v, far);
             }
         }
+    }
+}
+
+/// The 8-bit codes of [`Storage::Compact`] over the values' range [lo, hi].
+struct Coder {
+    lo: f32,
+    hi: f32,
+    /// The value code q reads: lo + (hi − lo)·q/255, and hi at 255.
+    table: [f32; 256],
+}
+
+impl Coder {
+    /// The codes over the range of `values` and `far`.
+    fn new(values: &[f32], far: f32) -> Self {
+        let (lo, hi) = values
+            .iter()
+            .fold((far, far), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let mut table = [0.0f32; 256];
+        for (q, t) in table.iter_mut().enumerate() {
+            *t = lo + (hi - lo) * (q as f32 / 255.0);
+        }
+        table[255] = hi;
+        Self { lo, hi, table }
+    }
+
+    /// The smallest code that reads at least `v` (255 above hi), from the estimate
+    /// ⌈255·(v − lo)/(hi − lo)⌉ (a nondecreasing function of `v`, as is the result).
+    #[inline]
+    fn code(&self, v: f32) -> u8 {
+        let (lo, hi) = (self.lo, self.hi);
+        let mut q = if hi > lo {
+            // ⌈x⌉ clamped to 0..=255, without the library call `ceil` is on x86-64 without
+            // SSE4.1 (x is finite; NaN would give 0, as `x.ceil() as usize` does).
+            let x = ((v - lo) / (hi - lo)) * 255.0;
+            let t = x as i32;
+            let c = if (t as f32) < x {
+                t.saturating_add(1)
+            } else {
+                t
+            };
+            c.clamp(0, 255) as usize
+        } else {
+            0
+        };
+        while q < 255 && self.table[q] < v {
+            q += 1;
+        }
+        q as u8
     }
 }
 
@@ -198,36 +246,20 @@ impl Levels {
         let mut table = [0.0f32; 256];
         let mut codes = Vec::new();
         if compact {
-            let (lo, hi) = data
-                .iter()
-                .fold((far, far), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-            for (q, t) in table.iter_mut().enumerate() {
-                *t = lo + (hi - lo) * (q as f32 / 255.0);
-            }
-            table[255] = hi;
-            let code = |v: f32| {
-                let mut q = if hi > lo {
-                    (((v - lo) / (hi - lo)) * 255.0).ceil().clamp(0.0, 255.0) as usize
-                } else {
-                    0
-                };
-                while q < 255 && table[q] < v {
-                    q += 1;
-                }
-                q as u8
-            };
-            // Two levels in `f32` at a time besides level 0: each is coded once computed.
+            let coder = Coder::new(&data, far);
+            table = coder.table;
+            // A code is a nondecreasing function of the value, so the code of a block's
+            // maximum is the maximum of its cells' codes: the levels above 0 are max-pooled
+            // from level 0's codes (one byte a cell), the same codes as those of the `f32`
+            // levels, and the cells outside read the code of `far`.
+            let base: Vec<u8> = data.iter().map(|&v| coder.code(v)).collect();
+            let far = coder.code(far);
             codes = vec![0u8; (depth as usize - 1) * n];
-            let mut prev = Vec::new();
-            let mut next = vec![far; if depth > 1 { n } else { 0 }];
             for k in 1..depth as usize {
                 let half = (stride as usize) << (k - 1);
-                pool(if k == 1 { &data } else { &prev }, &mut next, w, half, far);
-                for (q, &v) in codes[(k - 1) * n..k * n].iter_mut().zip(&next) {
-                    *q = code(v);
-                }
-                std::mem::swap(&mut prev, &mut next);
-                next.resize(n, far);
+                let (done, rest) = codes.split_at_mut((k - 1) * n);
+                let prev = if k == 1 { &base } else { &done[(k - 2) * n..] };
+                pool(prev, &mut rest[..n], w, half, far);
             }
         } else {
             for k in 1..depth as usize {
@@ -400,6 +432,8 @@ mod tests {
         let compact = Levels::build(min, max, depth, stride, far, fill, Storage::Compact).unwrap();
         let step = (496.0 - far) / 255.0;
         let n = full.width * full.height;
+        let coder = Coder::new(&full.data[..n], far);
+        assert_eq!(coder.table, compact.table);
         assert_eq!(compact.memory_bytes(), 4 * n + 3 * n + 1024);
         assert_eq!(full.memory_bytes(), 4 * 4 * n + 1024);
         for k in 0..depth {
@@ -407,6 +441,10 @@ mod tests {
                 for x in -20..50 {
                     let e = block_max(k, x, y, stride, (min, max));
                     let q = compact.value(k, CellIndex::new(x, y));
+                    // The pooled codes are the codes of the pooled values.
+                    let coded =
+                        coder.table[coder.code(full.value(k, CellIndex::new(x, y))) as usize];
+                    assert_eq!(q, if k == 0 { e } else { coded }, "level {k} at ({x}, {y})");
                     if k == 0 || x < full.origin.x || y < full.origin.y {
                         assert_eq!(q, e, "level {k} at ({x}, {y})");
                     } else {
