@@ -380,20 +380,24 @@ fn descend(
         }
         let half = 1i32 << (level - 1);
         let (cells, bounds) = lat.rotation(c.rotation as usize);
-        let mut children = [*c; 4];
+        let mut moves = [(0, 0); 4];
         let mut count = 0;
         for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
             let (dx, dy) = (c.dx + ox, c.dy + oy);
             if dx <= l && dy <= l {
-                children[count] = Candidate {
-                    rotation: c.rotation,
-                    dx,
-                    dy,
-                    score: levels.score(level - 1, cells, bounds, dx, dy)
-                        + bonus(c.rotation, dx, dy, level - 1),
-                };
+                moves[count] = (dx, dy);
                 count += 1;
             }
+        }
+        let scores = levels.score4(level - 1, cells, bounds, &moves[..count]);
+        let mut children = [*c; 4];
+        for ((child, &(dx, dy)), score) in children.iter_mut().zip(&moves[..count]).zip(scores) {
+            *child = Candidate {
+                rotation: c.rotation,
+                dx,
+                dy,
+                score: score + bonus(c.rotation, dx, dy, level - 1),
+            };
         }
         let children = &mut children[..count];
         sort_descending(children);

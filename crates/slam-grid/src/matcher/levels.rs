@@ -299,6 +299,23 @@ impl Levels {
         }
     }
 
+    /// The flat offset of translation (dx, dy) (lattice steps) when the box `bounds` moved
+    /// by it stays inside the stored cells: cell c then reads index c.y·w + c.x + offset.
+    #[inline]
+    fn offset_inside(&self, bounds: (CellIndex, CellIndex), dx: i32, dy: i32) -> Option<i64> {
+        let (dx, dy) = (
+            dx as i64 * self.stride as i64,
+            dy as i64 * self.stride as i64,
+        );
+        let (ox, oy) = (dx - self.origin.x as i64, dy - self.origin.y as i64);
+        let (lo, hi) = bounds;
+        let inside = lo.x as i64 + ox >= 0
+            && lo.y as i64 + oy >= 0
+            && hi.x as i64 + ox < self.width as i64
+            && hi.y as i64 + oy < self.height as i64;
+        inside.then_some(oy * self.width as i64 + ox)
+    }
+
     /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps. `bounds`, the
     /// inclusive box of `cells`, lets a box that stays inside the stored cells skip the
     /// per-cell bounds test; the sum is the same (the same values in the same order).
@@ -311,16 +328,8 @@ impl Levels {
         dx: i32,
         dy: i32,
     ) -> f32 {
-        let (dx, dy) = (dx * self.stride, dy * self.stride);
-        let (lo, hi) = bounds;
-        let x0 = lo.x as i64 + dx as i64 - self.origin.x as i64;
-        let y0 = lo.y as i64 + dy as i64 - self.origin.y as i64;
-        let x1 = hi.x as i64 + dx as i64 - self.origin.x as i64;
-        let y1 = hi.y as i64 + dy as i64 - self.origin.y as i64;
-        if x0 >= 0 && y0 >= 0 && x1 < self.width as i64 && y1 < self.height as i64 {
+        if let Some(offset) = self.offset_inside(bounds, dx, dy) {
             let w = self.width as i64;
-            let offset =
-                (dy as i64 - self.origin.y as i64) * w + (dx as i64 - self.origin.x as i64);
             let index = |c: &CellIndex| (c.y as i64 * w + c.x as i64 + offset) as usize;
             let n = self.width * self.height;
             let level = level as usize;
@@ -334,10 +343,60 @@ impl Levels {
             let values = &self.data[level * n..(level + 1) * n];
             return cells.iter().map(|c| values[index(c)]).sum();
         }
+        let (dx, dy) = (dx * self.stride, dy * self.stride);
         cells
             .iter()
             .map(|c| self.value(level, CellIndex::new(c.x + dx, c.y + dy)))
             .sum()
+    }
+
+    /// [`Levels::score`] of each translation of `moves` (at most 4): the same sums (each
+    /// adds the same values in the same order from the start `Iterator::sum` takes), as
+    /// four independent chains of additions when there are four and every moved box stays
+    /// inside the stored cells (a chain waits on its last addition; four overlap).
+    #[inline]
+    pub(crate) fn score4(
+        &self,
+        level: u32,
+        cells: &[CellIndex],
+        bounds: (CellIndex, CellIndex),
+        moves: &[(i32, i32)],
+    ) -> [f32; 4] {
+        let mut out = [0.0f32; 4];
+        let offsets = match moves {
+            [a, b, c, d] => [a, b, c, d].map(|&(dx, dy)| self.offset_inside(bounds, dx, dy)),
+            _ => [None; 4],
+        };
+        let [Some(a), Some(b), Some(c), Some(d)] = offsets else {
+            for (o, &(dx, dy)) in out.iter_mut().zip(moves) {
+                *o = self.score(level, cells, bounds, dx, dy);
+            }
+            return out;
+        };
+        let offsets = [a, b, c, d];
+        let w = self.width as i64;
+        let n = self.width * self.height;
+        let level = level as usize;
+        let start: f32 = std::iter::empty::<f32>().sum();
+        let mut sums = [start; 4];
+        if level > 0 && !self.codes.is_empty() {
+            let codes = &self.codes[(level - 1) * n..level * n];
+            for c in cells {
+                let i = c.y as i64 * w + c.x as i64;
+                for (s, o) in sums.iter_mut().zip(offsets) {
+                    *s += self.table[codes[(i + o) as usize] as usize];
+                }
+            }
+        } else {
+            let values = &self.data[level * n..(level + 1) * n];
+            for c in cells {
+                let i = c.y as i64 * w + c.x as i64;
+                for (s, o) in sums.iter_mut().zip(offsets) {
+                    *s += values[(i + o) as usize];
+                }
+            }
+        }
+        sums
     }
 
     /// Number of levels.
@@ -466,6 +525,21 @@ mod tests {
                     .map(|c| compact.value(k, CellIndex::new(c.x + dx * 2, c.y + dy * 2)))
                     .sum();
                 assert_eq!(compact.score(k, &cells, bounds, dx, dy), own);
+            }
+        }
+        // Four moves at once: each the sum alone, to the bit (inside and across the edge).
+        for levels in [&full, &compact] {
+            for (dx, dy) in [(0, 0), (-2, 1), (6, 2), (-40, 3), (3, -9)] {
+                let moves = [(dx, dy), (dx + 1, dy), (dx, dy + 2), (dx + 1, dy + 2)];
+                for k in 0..depth {
+                    let four = levels.score4(k, &cells, bounds, &moves);
+                    for (&(x, y), s) in moves.iter().zip(four) {
+                        let one = levels.score(k, &cells, bounds, x, y);
+                        assert_eq!(s.to_bits(), one.to_bits(), "level {k} move ({x}, {y})");
+                    }
+                    let three = levels.score4(k, &cells, bounds, &moves[..3]);
+                    assert_eq!(three[..3], four[..3]);
+                }
             }
         }
     }
