@@ -335,15 +335,18 @@ pub(crate) fn branch_and_bound(
         let (cells, bounds) = lat.rotation(r);
         let mut dy = -l;
         while dy <= l {
-            let mut dx = -l;
-            while dx <= l {
-                roots.push(Candidate {
-                    rotation: r as u32,
-                    dx,
-                    dy,
-                    score: levels.score(top, cells, bounds, dx, dy) + bonus(r as u32, dx, dy, top),
-                });
-                dx += step;
+            // Four blocks of the row at a time (the same scores as one by one).
+            let row: Vec<(i32, i32)> = (-l..=l).step_by(step as usize).map(|dx| (dx, dy)).collect();
+            for moves in row.chunks(4) {
+                let scores = levels.score4(top, cells, bounds, moves);
+                for (&(dx, dy), score) in moves.iter().zip(scores) {
+                    roots.push(Candidate {
+                        rotation: r as u32,
+                        dx,
+                        dy,
+                        score: score + bonus(r as u32, dx, dy, top),
+                    });
+                }
             }
             dy += step;
         }
