@@ -482,24 +482,9 @@ pub(super) fn loop_pyramid(
     grid: &OccupancyGrid,
     depth: u32,
 ) -> Result<Option<MaxPyramid>, GraphError> {
-    let Some((lo, hi)) = grid.known_bounds() else {
+    let Some((min, max)) = grid.obstacle_bounds() else {
         return Ok(None);
     };
-    let (mut min, mut max) = (
-        slam_grid::CellIndex::new(i32::MAX, i32::MAX),
-        slam_grid::CellIndex::new(i32::MIN, i32::MIN),
-    );
-    for y in lo.y..=hi.y {
-        for x in lo.x..=hi.x {
-            if grid.is_obstacle(slam_grid::CellIndex::new(x, y)) {
-                min = slam_grid::CellIndex::new(min.x.min(x), min.y.min(y));
-                max = slam_grid::CellIndex::new(max.x.max(x), max.y.max(y));
-            }
-        }
-    }
-    if min.x > max.x {
-        return Ok(None);
-    }
     let reach = (grid.likelihood_params().max_distance / grid.resolution()).ceil() as i32 + 2;
     let min = slam_grid::CellIndex::new(min.x - reach, min.y - reach);
     let max = slam_grid::CellIndex::new(max.x + reach, max.y + reach);

@@ -294,6 +294,12 @@ impl<'a> DistanceField<'a> {
         self.frame.resolution / DISTANCE_UNITS_PER_CELL
     }
 
+    /// The inclusive cell rectangle of the grid's table (every tile it covers); every cell
+    /// outside it reads [`DistanceField::max_units`]. `None` for an empty grid.
+    pub(crate) fn covered(&self) -> Option<(CellIndex, CellIndex)> {
+        self.table.covered_cells()
+    }
+
     /// The stored tile (tx, ty), `None` when all far.
     #[inline]
     fn tile(&self, tx: i32, ty: i32) -> Option<&'a DistanceTile> {

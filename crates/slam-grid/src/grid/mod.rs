@@ -350,15 +350,7 @@ impl OccupancyGrid {
     /// Inclusive range of cells covered by the tile table (`None` while empty): the
     /// rectangle the grid has grown to, of which only the observed tiles are stored.
     pub fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
-        let r = self.table.rect();
-        if r.len() == 0 {
-            return None;
-        }
-        let t = TILE_SIZE as i32;
-        Some((
-            CellIndex::new(r.tx0 * t, r.ty0 * t),
-            CellIndex::new((r.tx0 + r.tw) * t - 1, (r.ty0 + r.th) * t - 1),
-        ))
+        self.table.covered_cells()
     }
 
     /// The span (bounding box of every cell covered so far) once cells `min ..= max` are
@@ -555,6 +547,32 @@ impl OccupancyGrid {
     /// The smallest rectangle of cells holding every observed (non-zero log-odds) cell, as
     /// inclusive corners; `None` for an empty grid.
     pub fn known_bounds(&self) -> Option<(CellIndex, CellIndex)> {
+        self.stored_bounds(|v| v != 0.0)
+    }
+
+    /// The smallest rectangle of cells holding every obstacle
+    /// ([`OccupancyGrid::is_obstacle`]) of [`OccupancyGrid::known_bounds`], as inclusive
+    /// corners; `None` without one. Read tile by tile; cell by cell under a negative
+    /// threshold, where unknown cells count as obstacles.
+    pub fn obstacle_bounds(&self) -> Option<(CellIndex, CellIndex)> {
+        let thr = self.params.occupied_threshold;
+        if thr >= 0.0 {
+            // An obstacle's log-odds exceed thr ≥ 0: it is an observed cell.
+            return self.stored_bounds(|v| v > thr);
+        }
+        let (lo, hi) = self.known_bounds()?;
+        let cells = (lo.y..=hi.y).flat_map(|y| (lo.x..=hi.x).map(move |x| CellIndex::new(x, y)));
+        cells.filter(|&c| self.is_obstacle(c)).fold(None, |b, c| {
+            let (l, h) = b.unwrap_or((c, c));
+            Some((
+                CellIndex::new(l.x.min(c.x), l.y.min(c.y)),
+                CellIndex::new(h.x.max(c.x), h.y.max(c.y)),
+            ))
+        })
+    }
+
+    /// The smallest rectangle of the stored cells whose log-odds `keep` holds.
+    fn stored_bounds(&self, keep: impl Fn(f32) -> bool) -> Option<(CellIndex, CellIndex)> {
         let t = TILE_SIZE as i32;
         let mut lo = CellIndex::new(i32::MAX, i32::MAX);
         let mut hi = CellIndex::new(i32::MIN, i32::MIN);
@@ -562,7 +580,7 @@ impl OccupancyGrid {
             let Some(tile) = tile else { continue };
             let (tx, ty) = self.table.tile_of_slot(s);
             for (k, &v) in tile.cells.iter().enumerate() {
-                if v != 0.0 {
+                if keep(v) {
                     let x = tx * t + (k % TILE_SIZE) as i32;
                     let y = ty * t + (k / TILE_SIZE) as i32;
                     lo.x = lo.x.min(x);

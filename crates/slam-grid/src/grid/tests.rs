@@ -500,3 +500,49 @@ fn check_integrable_agrees_with_the_integration() {
         );
     }
 }
+
+/// `obstacle_bounds` is the box of the walls of a room (x from −7 to 1 m, y from 3 to 11 m,
+/// within two cells), and the brute-force box of `is_obstacle` over the observed rectangle
+/// under thresholds above, at and below zero (below: unknown cells count) and above every
+/// cell (`None`).
+#[test]
+fn obstacle_bounds_is_the_box_of_the_obstacles() {
+    for thr in [0.0, 0.5, -0.5, 100.0] {
+        let params = LikelihoodParams {
+            occupied_threshold: thr,
+            ..Default::default()
+        };
+        let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+            .with_likelihood(params)
+            .unwrap();
+        g.integrate_scan(
+            &Pose2::new(-3.0, 7.0, 0.3),
+            &room_scan(&Pose2::new(0.0, 0.0, 0.3), 4.0, 360),
+        );
+        let (lo, hi) = g.known_bounds().unwrap();
+        let mut brute: Option<(CellIndex, CellIndex)> = None;
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                if g.is_obstacle(CellIndex::new(x, y)) {
+                    let (a, b) = brute.unwrap_or((CellIndex::new(x, y), CellIndex::new(x, y)));
+                    brute = Some((
+                        CellIndex::new(a.x.min(x), a.y.min(y)),
+                        CellIndex::new(b.x.max(x), b.y.max(y)),
+                    ));
+                }
+            }
+        }
+        assert_eq!(g.obstacle_bounds(), brute, "threshold {thr}");
+        assert_eq!(brute.is_none(), thr == 100.0, "threshold {thr}");
+        if thr == 0.0 {
+            let (a, b) = brute.unwrap();
+            let walls = [(a.x, -7.0), (b.x, 1.0), (a.y, 3.0), (b.y, 11.0)];
+            for (cell, metres) in walls {
+                assert!(
+                    (cell as f64 * 0.05 - metres).abs() <= 0.1,
+                    "{cell} vs {metres} m"
+                );
+            }
+        }
+    }
+}

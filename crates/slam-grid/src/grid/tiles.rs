@@ -250,6 +250,19 @@ pub(crate) struct TileTable {
 }
 
 impl TileTable {
+    /// The inclusive range of cells the covered rectangle spans (`None` while empty).
+    pub(crate) fn covered_cells(&self) -> Option<(CellIndex, CellIndex)> {
+        let r = self.rect;
+        if r.len() == 0 {
+            return None;
+        }
+        let t = TILE_SIZE as i32;
+        Some((
+            CellIndex::new(r.tx0 * t, r.ty0 * t),
+            CellIndex::new((r.tx0 + r.tw) * t - 1, (r.ty0 + r.th) * t - 1),
+        ))
+    }
+
     /// The covered rectangle.
     #[inline]
     pub(crate) fn rect(&self) -> TileLayout {

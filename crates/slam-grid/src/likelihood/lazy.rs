@@ -236,11 +236,20 @@ impl OccupancyGrid {
     /// row-major buffer
     /// (tile by tile; cells outside the table get the far value).
     pub fn field_window(&self, min: CellIndex, w: usize, h: usize) -> Vec<f32> {
+        let mut out = vec![0.0; w * h];
+        self.field_window_into(min, w, &mut out);
+        out
+    }
+
+    /// [`OccupancyGrid::field_window`] into `out`, every element of it written: the
+    /// `out.len() / w` rows of `w` cells from `min`.
+    pub(crate) fn field_window_into(&self, min: CellIndex, w: usize, out: &mut [f32]) {
         let far = self.lazy_state().far.values[0];
-        let mut out = vec![far; w * h];
-        if w == 0 || h == 0 {
-            return out;
+        out.fill(far);
+        if w == 0 || out.len() < w {
+            return;
         }
+        let h = out.len() / w;
         let t = TILE_SIZE as i32;
         let max_x = min.x + w as i32 - 1;
         let max_y = min.y + h as i32 - 1;
@@ -262,7 +271,6 @@ impl OccupancyGrid {
                 }
             }
         }
-        out
     }
 }
 

@@ -7,13 +7,14 @@
 //! initial guess can be metres and tens of degrees off: a [`MaxPyramid`] of a map region is
 //! built once and reused for every scan searched against that region.
 
+pub(crate) use super::levels::Levels;
+pub use super::pyramids::MaxPyramid;
 use super::{
     check_input, covariance_from_log_likelihood, transform_points, validate_window, MatchResult,
 };
 use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
-use crate::likelihood::LikelihoodParams;
 use crate::scan::RangeData;
 use serde::{Deserialize, Serialize};
 use slam_models::Pose2;
@@ -26,336 +27,6 @@ pub const MAX_PYRAMID_CELLS: usize = 16_000_000;
 
 /// Deepest pyramid: the coarsest level's blocks are 2^(depth−1) cells wide.
 pub const MAX_PYRAMID_DEPTH: u32 = 12;
-
-/// The likelihood field of a rectangle of cells and its max-pooled coarser copies
-/// (Hess et al. 2016, §V-B, "precomputed grids"):
-///
-/// P₀(c) = s(c), the likelihood-field value of cell c, and
-/// P_k(x, y) = max of P₀ over the 2^k × 2^k block [x, x + 2^k) × [y, y + 2^k),
-///
-/// computed level by level as P_k(x, y) = max(P_{k−1}(x, y), P_{k−1}(x + h, y),
-/// P_{k−1}(x, y + h), P_{k−1}(x + h, y + h)) with h = 2^(k−1). Every level keeps the full
-/// resolution, so Σᵢ P_k(cᵢ + o) bounds from above the score Σᵢ P₀(cᵢ + o') of every
-/// translation o' in the block o … o + (2^k − 1, 2^k − 1).
-///
-/// Cells outside the rectangle read the field's far value (its minimum, PR §6.4: the value
-/// at `max_distance`), as the grid does outside its tiles; the levels are stored from
-/// 2^(depth−1) − 1 cells below the rectangle so that blocks overlapping it from below are
-/// bounded correctly.
-#[derive(Debug, Clone)]
-pub struct MaxPyramid {
-    frame: GridFrame,
-    params: LikelihoodParams,
-    levels: Levels,
-}
-
-/// Max-pooled levels of any per-cell score over a rectangle of cells, with a lattice
-/// stride m ≥ 1 (translations in steps of m cells): P₀(c) = v(c) and
-/// P_k(x, y) = max of P₀ over {x + a·m : 0 ≤ a < 2^k} × {y + b·m : 0 ≤ b < 2^k}, computed as
-/// P_k(x, y) = max(P_{k−1}(x, y), P_{k−1}(x + h, y), P_{k−1}(x, y + h), P_{k−1}(x + h, y + h))
-/// with h = m·2^(k−1). Cells outside the rectangle read `far`, the score's minimum.
-#[derive(Debug, Clone)]
-pub(crate) struct Levels {
-    /// Lowest stored cell (the rectangle's minimum corner less the padding).
-    origin: CellIndex,
-    width: usize,
-    height: usize,
-    stride: i32,
-    far: f32,
-    /// The levels' values, row-major; empty for a level stored as `codes`.
-    levels: Vec<Vec<f32>>,
-    /// Levels stored compactly ([`Levels::compact`]): 8-bit codes read through `table`;
-    /// empty for a level stored as `levels`.
-    codes: Vec<Vec<u8>>,
-    /// The value of each code.
-    table: [f32; 256],
-}
-
-impl Levels {
-    /// The `depth` levels over the inclusive rectangle `min … max` with lattice stride
-    /// `stride`; `base(origin, w, h)` gives the row-major values of the `w × h` cells from
-    /// `origin` (the rectangle grown by the padding below it, which reads `far`).
-    pub(crate) fn build(
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-        stride: i32,
-        far: f32,
-        base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
-    ) -> Result<Self, GridError> {
-        Self::build_with(min, max, depth, stride, far, false, base)
-    }
-
-    /// [`Levels::build`], with the levels above 0 stored as 8-bit codes when `compact`:
-    /// code q reads lo + (hi − lo)·q/255 over the values' range [lo, hi] (level 0's and
-    /// `far`: max-pooling stays in it), and each value takes the smallest code that reads
-    /// at least it. The coarse levels then bound the scores from above by at most
-    /// (hi − lo)/255 more per end point; level 0, the exact scores, is kept as it is, so
-    /// a branch and bound over them finds a pose of the same best score (of equally
-    /// scoring poses possibly another: the visiting order follows the bounds). Each level
-    /// is coded once the next is computed, so at most two are held in `f32`.
-    pub(crate) fn build_with(
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-        stride: i32,
-        far: f32,
-        compact: bool,
-        base: impl FnOnce(CellIndex, usize, usize) -> Vec<f32>,
-    ) -> Result<Self, GridError> {
-        ensure_config(
-            (1..=MAX_PYRAMID_DEPTH).contains(&depth),
-            "pyramid depth",
-            depth as f64,
-            "in 1..=12",
-        )?;
-        let stride = stride.max(1);
-        let pad = ((1i64 << (depth - 1)) - 1) * stride as i64;
-        let w = max.x as i64 - min.x as i64 + 1 + pad;
-        let h = max.y as i64 - min.y as i64 + 1 + pad;
-        if w <= pad || h <= pad {
-            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
-                "branch-and-bound matcher",
-                "pyramid rectangle (cells)",
-                0.0,
-                "max ≥ min in x and y",
-            )));
-        }
-        if w.saturating_mul(h) > MAX_PYRAMID_CELLS as i64 {
-            return Err(GridError::InvalidConfig(slam_models::ConfigError::new(
-                "branch-and-bound matcher",
-                "pyramid level (cells)",
-                w as f64 * h as f64,
-                "at most 16e6 cells: a smaller region or a coarser grid",
-            )));
-        }
-        let (w, h) = (w as usize, h as usize);
-        let origin = CellIndex::new(min.x - pad as i32, min.y - pad as i32);
-        let mut base = base(origin, w, h);
-        for y in 0..h {
-            for x in 0..w {
-                if x < pad as usize || y < pad as usize {
-                    base[y * w + x] = far;
-                }
-            }
-        }
-        let (lo, hi) = base
-            .iter()
-            .fold((far, far), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-        let mut table = [0.0f32; 256];
-        for (q, t) in table.iter_mut().enumerate() {
-            *t = lo + (hi - lo) * (q as f32 / 255.0);
-        }
-        table[255] = hi;
-        let encode = |values: Vec<f32>| -> Vec<u8> {
-            values
-                .iter()
-                .map(|&v| {
-                    let mut q = if hi > lo {
-                        (((v - lo) / (hi - lo)) * 255.0).ceil().clamp(0.0, 255.0) as usize
-                    } else {
-                        0
-                    };
-                    while q < 255 && table[q] < v {
-                        q += 1;
-                    }
-                    q as u8
-                })
-                .collect()
-        };
-        let mut codes = vec![Vec::new(); depth as usize];
-        let mut levels = Vec::with_capacity(depth as usize);
-        levels.push(base);
-        for k in 1..depth as usize {
-            let half = (stride as usize) << (k - 1);
-            let prev = &levels[k - 1];
-            let at = |x: usize, y: usize| {
-                if x < w && y < h {
-                    prev[y * w + x]
-                } else {
-                    far
-                }
-            };
-            let mut next = vec![far; w * h];
-            for y in 0..h {
-                for x in 0..w {
-                    next[y * w + x] = at(x, y)
-                        .max(at(x + half, y))
-                        .max(at(x, y + half))
-                        .max(at(x + half, y + half));
-                }
-            }
-            levels.push(next);
-            // Level k − 1 (above 0) has fed level k: code it.
-            if compact && k >= 2 {
-                codes[k - 1] = encode(std::mem::take(&mut levels[k - 1]));
-            }
-        }
-        if compact && depth >= 2 {
-            let top = depth as usize - 1;
-            codes[top] = encode(std::mem::take(&mut levels[top]));
-        }
-        Ok(Self {
-            origin,
-            width: w,
-            height: h,
-            stride,
-            far,
-            levels,
-            codes,
-            table,
-        })
-    }
-
-    /// P_level(c); `far` outside the stored cells.
-    #[inline]
-    pub(crate) fn value(&self, level: u32, c: CellIndex) -> f32 {
-        let x = c.x as i64 - self.origin.x as i64;
-        let y = c.y as i64 - self.origin.y as i64;
-        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
-            return self.far;
-        }
-        let i = y as usize * self.width + x as usize;
-        match self.levels[level as usize].get(i) {
-            Some(&v) => v,
-            None => self.table[self.codes[level as usize][i] as usize],
-        }
-    }
-
-    /// Σ over `cells` of P_level(c + m·(dx, dy)), (dx, dy) in lattice steps. `bounds`, the
-    /// inclusive box of `cells`, lets a box that stays inside the stored cells skip the
-    /// per-cell bounds test; the sum is the same (the same values in the same order).
-    #[inline]
-    pub(crate) fn score(
-        &self,
-        level: u32,
-        cells: &[CellIndex],
-        bounds: (CellIndex, CellIndex),
-        dx: i32,
-        dy: i32,
-    ) -> f32 {
-        let (dx, dy) = (dx * self.stride, dy * self.stride);
-        let (lo, hi) = bounds;
-        let x0 = lo.x as i64 + dx as i64 - self.origin.x as i64;
-        let y0 = lo.y as i64 + dy as i64 - self.origin.y as i64;
-        let x1 = hi.x as i64 + dx as i64 - self.origin.x as i64;
-        let y1 = hi.y as i64 + dy as i64 - self.origin.y as i64;
-        if x0 >= 0 && y0 >= 0 && x1 < self.width as i64 && y1 < self.height as i64 {
-            let w = self.width as i64;
-            let offset =
-                (dy as i64 - self.origin.y as i64) * w + (dx as i64 - self.origin.x as i64);
-            let index = |c: &CellIndex| (c.y as i64 * w + c.x as i64 + offset) as usize;
-            let values = &self.levels[level as usize];
-            if values.is_empty() {
-                let codes = &self.codes[level as usize];
-                return cells
-                    .iter()
-                    .map(|c| self.table[codes[index(c)] as usize])
-                    .sum();
-            }
-            return cells.iter().map(|c| values[index(c)]).sum();
-        }
-        cells
-            .iter()
-            .map(|c| self.value(level, CellIndex::new(c.x + dx, c.y + dy)))
-            .sum()
-    }
-
-    fn depth(&self) -> u32 {
-        self.levels.len() as u32
-    }
-}
-
-impl MaxPyramid {
-    /// The pyramid of `depth` levels over the inclusive cell rectangle `min … max` of
-    /// `grid`'s likelihood field.
-    ///
-    /// Errors for a depth outside 1..=[`MAX_PYRAMID_DEPTH`], an empty rectangle, or one
-    /// whose padded levels exceed [`MAX_PYRAMID_CELLS`] cells.
-    pub fn new(
-        grid: &OccupancyGrid,
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-    ) -> Result<Self, GridError> {
-        Self::build(grid, min, max, depth, false)
-    }
-
-    /// [`MaxPyramid::new`], compact or not ([`Levels::build_with`]).
-    fn build(
-        grid: &OccupancyGrid,
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-        compact: bool,
-    ) -> Result<Self, GridError> {
-        let params = grid.likelihood_params();
-        // The padding reads the far value too: the grid returns it outside its tiles, and
-        // inside them the rectangle is what the caller asked for.
-        let far = params.far_value();
-        let levels = Levels::build_with(min, max, depth, 1, far, compact, |origin, w, h| {
-            grid.field_window(origin, w, h)
-        })?;
-        Ok(Self {
-            frame: grid.frame(),
-            params,
-            levels,
-        })
-    }
-
-    /// The pyramid over every cell `grid` covers (its allocated tiles), e.g. a finished
-    /// submap; `None` for an empty grid.
-    pub fn covering(grid: &OccupancyGrid, depth: u32) -> Result<Option<Self>, GridError> {
-        match grid.covered_cells() {
-            Some((min, max)) => Self::new(grid, min, max, depth).map(Some),
-            None => Ok(None),
-        }
-    }
-
-    /// Number of levels.
-    pub fn depth(&self) -> u32 {
-        self.levels.depth()
-    }
-
-    /// The grid geometry the pyramid was built on.
-    pub fn frame(&self) -> GridFrame {
-        self.frame
-    }
-
-    /// Bytes held by the levels.
-    pub fn memory_bytes(&self) -> usize {
-        let l = &self.levels;
-        l.levels
-            .iter()
-            .map(|v| v.len() * std::mem::size_of::<f32>())
-            .sum::<usize>()
-            + l.codes.iter().map(Vec::len).sum::<usize>()
-            + std::mem::size_of_val(&l.table)
-    }
-
-    /// [`MaxPyramid::new`] with the levels above 0 in 8-bit codes, rounded up: a quarter
-    /// of their memory (and of the transient while building), and
-    /// [`value`](Self::value) above level 0 reads at most 1/255 of the field's range more
-    /// (the maximum over the block, or above it: still a bound). A
-    /// [`BranchBoundMatcher`] search scores its poses on level 0, which is kept exact, so
-    /// it finds a pose of the same best score (of equally scoring poses, possibly
-    /// another).
-    pub fn new_compact(
-        grid: &OccupancyGrid,
-        min: CellIndex,
-        max: CellIndex,
-        depth: u32,
-    ) -> Result<Self, GridError> {
-        Self::build(grid, min, max, depth, true)
-    }
-
-    /// P_level(c): the maximum field value over the 2^level-cell block whose lowest corner
-    /// is `c` (level 0: the field value of `c`); the far value outside the stored cells.
-    #[inline]
-    pub fn value(&self, level: u32, c: CellIndex) -> f32 {
-        self.levels.value(level, c)
-    }
-}
 
 /// Branch-and-bound search of a window of poses (Hess et al. 2016, §V, Algorithm 3; Olson
 /// 2009, §IV-C) that returns the same optimum as brute force over the same lattice:
@@ -664,15 +335,18 @@ pub(crate) fn branch_and_bound(
         let (cells, bounds) = lat.rotation(r);
         let mut dy = -l;
         while dy <= l {
-            let mut dx = -l;
-            while dx <= l {
-                roots.push(Candidate {
-                    rotation: r as u32,
-                    dx,
-                    dy,
-                    score: levels.score(top, cells, bounds, dx, dy) + bonus(r as u32, dx, dy, top),
-                });
-                dx += step;
+            // Four blocks of the row at a time (the same scores as one by one).
+            let row: Vec<(i32, i32)> = (-l..=l).step_by(step as usize).map(|dx| (dx, dy)).collect();
+            for moves in row.chunks(4) {
+                let scores = levels.score4(top, cells, bounds, moves);
+                for (&(dx, dy), score) in moves.iter().zip(scores) {
+                    roots.push(Candidate {
+                        rotation: r as u32,
+                        dx,
+                        dy,
+                        score: score + bonus(r as u32, dx, dy, top),
+                    });
+                }
             }
             dy += step;
         }
@@ -709,20 +383,24 @@ fn descend(
         }
         let half = 1i32 << (level - 1);
         let (cells, bounds) = lat.rotation(c.rotation as usize);
-        let mut children = [*c; 4];
+        let mut moves = [(0, 0); 4];
         let mut count = 0;
         for (ox, oy) in [(0, 0), (half, 0), (0, half), (half, half)] {
             let (dx, dy) = (c.dx + ox, c.dy + oy);
             if dx <= l && dy <= l {
-                children[count] = Candidate {
-                    rotation: c.rotation,
-                    dx,
-                    dy,
-                    score: levels.score(level - 1, cells, bounds, dx, dy)
-                        + bonus(c.rotation, dx, dy, level - 1),
-                };
+                moves[count] = (dx, dy);
                 count += 1;
             }
+        }
+        let scores = levels.score4(level - 1, cells, bounds, &moves[..count]);
+        let mut children = [*c; 4];
+        for ((child, &(dx, dy)), score) in children.iter_mut().zip(&moves[..count]).zip(scores) {
+            *child = Candidate {
+                rotation: c.rotation,
+                dx,
+                dy,
+                score: score + bonus(c.rotation, dx, dy, level - 1),
+            };
         }
         let children = &mut children[..count];
         sort_descending(children);
@@ -732,172 +410,6 @@ fn descend(
 
 /// Sorts by decreasing score; ties keep their order (a stable sort), so the search is
 /// deterministic.
-/// Most cells of a [`MinPyramid`] level: beyond this the coarse search falls back to brute
-/// force (4 MB per level; an indoor scan's window needs about 10⁵ cells).
-pub(crate) const MAX_MIN_PYRAMID_CELLS: usize = 4_000_000;
-
-/// Min-pooled truncated distances of a rectangle of cells, a two-dimensional sparse table of
-/// square blocks (the distance analogue of [`MaxPyramid`]):
-///
-/// Q₀(c) = d(c), and Q_L(x, y) = min of d over [x, x + 2^L) × [y, y + 2^L),
-///
-/// computed level by level as Q_L(x, y) = min(Q_{L−1}(x, y), Q_{L−1}(x + h, y),
-/// Q_{L−1}(x, y + h), Q_{L−1}(x + h, y + h)) with h = 2^(L−1), separably (rows, then
-/// columns), on `u8` distances so the passes vectorise. Any box of cells is the union of
-/// squares of the side 2^L ≤ its shorter side, so [`MinPyramid::min_over`] is the exact
-/// minimum of d over the box in a few look-ups. Since the endpoint model's cost min(d, r)²
-/// grows with d, that minimum bounds from above every beam whose bilinear read (a blend of
-/// four cells, never below the smallest) lies in the box: the bound the coarse search
-/// ([`super::endpoint::grid_search`]) prunes with.
-#[derive(Debug, Clone)]
-pub(crate) struct MinPyramid {
-    origin: CellIndex,
-    width: usize,
-    height: usize,
-    /// Level L holds Q_L at row-major index (y − origin.y)·width + (x − origin.x) for the
-    /// squares inside the rectangle; entries whose square leaves it are 0 (never read).
-    /// Levels below the bottom one are empty.
-    levels: Vec<Vec<u8>>,
-}
-
-impl MinPyramid {
-    /// Levels `bottom` ..= `top` of the inclusive rectangle `min … max` (the lower ones
-    /// are dropped once built: boxes whose shorter side is below 2^`bottom` read 0), the
-    /// distances read a row at a time: `row(start, out)` fills `out` with d(start),
-    /// d(start + (1, 0)), ….
-    ///
-    /// Errors for an empty rectangle, `bottom` above `top`, a `top` above
-    /// [`MAX_PYRAMID_DEPTH`] − 1, or more than [`MAX_MIN_PYRAMID_CELLS`] cells.
-    pub(crate) fn build(
-        min: CellIndex,
-        max: CellIndex,
-        bottom: u32,
-        top: u32,
-        mut row: impl FnMut(CellIndex, &mut [u8]),
-    ) -> Result<Self, GridError> {
-        ensure_config(
-            bottom <= top,
-            "min-pyramid bottom level",
-            bottom as f64,
-            "at most the top level",
-        )?;
-        ensure_config(
-            top < MAX_PYRAMID_DEPTH,
-            "min-pyramid top level",
-            top as f64,
-            "below 12",
-        )?;
-        let w = max.x as i64 - min.x as i64 + 1;
-        let h = max.y as i64 - min.y as i64 + 1;
-        ensure_config(
-            w > 0 && h > 0,
-            "min-pyramid rectangle (cells)",
-            w.min(h) as f64,
-            "max ≥ min in x and y",
-        )?;
-        ensure_config(
-            w.saturating_mul(h) <= MAX_MIN_PYRAMID_CELLS as i64,
-            "min-pyramid level (cells)",
-            w as f64 * h as f64,
-            "at most 4e6 cells",
-        )?;
-        let (w, h) = (w as usize, h as usize);
-        let mut base = vec![0u8; w * h];
-        for (y, out) in base.chunks_exact_mut(w).enumerate() {
-            row(CellIndex::new(min.x, min.y + y as i32), out);
-        }
-        let mut levels = Vec::with_capacity(top as usize + 1);
-        levels.push(base);
-        for level in 1..=top as usize {
-            let half = 1usize << (level - 1);
-            let prev = &levels[level - 1];
-            // Rows: min of the cell and the one `half` to its right.
-            let mut next = vec![0u8; w * h];
-            if half < w {
-                for (out, src) in next.chunks_exact_mut(w).zip(prev.chunks_exact(w)) {
-                    for ((o, a), b) in out.iter_mut().zip(src).zip(&src[half..]) {
-                        *o = (*a).min(*b);
-                    }
-                }
-            }
-            // Columns, in place: the same between a row and the one `half` above it (read
-            // before it is overwritten, the rows going up).
-            for y in 0..h {
-                let (low, high) = next.split_at_mut((y + 1) * w);
-                let row = &mut low[y * w..];
-                // Row y + half starts (half − 1) rows into `high`.
-                match high.get((half - 1) * w..half * w) {
-                    Some(above) if y + half < h => {
-                        for (o, b) in row.iter_mut().zip(above) {
-                            *o = (*o).min(*b);
-                        }
-                    }
-                    _ => row.fill(0),
-                }
-            }
-            levels.push(next);
-            // Below `bottom` a level only feeds the next one.
-            if level - 1 < bottom as usize {
-                levels[level - 1] = Vec::new();
-            }
-        }
-        Ok(Self {
-            origin: min,
-            width: w,
-            height: h,
-            levels,
-        })
-    }
-
-    /// The highest level built.
-    #[inline]
-    pub(crate) fn top(&self) -> u32 {
-        self.levels.len() as u32 - 1
-    }
-
-    /// min d over the inclusive box `lo … hi` (lo ≤ hi), or 0 (the least distance, so
-    /// still a valid lower bound) when the box leaves the rectangle.
-    #[inline]
-    pub(crate) fn min_over(&self, lo: CellIndex, hi: CellIndex) -> u8 {
-        let x0 = lo.x as i64 - self.origin.x as i64;
-        let y0 = lo.y as i64 - self.origin.y as i64;
-        let x1 = hi.x as i64 - self.origin.x as i64;
-        let y1 = hi.y as i64 - self.origin.y as i64;
-        if x0 < 0 || y0 < 0 || x1 >= self.width as i64 || y1 >= self.height as i64 {
-            return 0;
-        }
-        let side = (x1 - x0).min(y1 - y0) + 1;
-        if side <= 0 {
-            return 0;
-        }
-        // The largest square that fits: 2^level ≤ the shorter side.
-        let level = (63 - side.leading_zeros()).min(self.top());
-        let size = 1i64 << level;
-        let q = &self.levels[level as usize];
-        if q.is_empty() {
-            return 0;
-        }
-        let mut m = u8::MAX;
-        let mut y = y0;
-        loop {
-            let row = &q[(y as usize) * self.width..];
-            let mut x = x0;
-            loop {
-                m = m.min(row[x as usize]);
-                if x + size > x1 {
-                    break;
-                }
-                x = (x + size).min(x1 + 1 - size);
-            }
-            if y + size > y1 {
-                break;
-            }
-            y = (y + size).min(y1 + 1 - size);
-        }
-        m
-    }
-}
-
 fn sort_descending(c: &mut [Candidate]) {
     c.sort_by(|a, b| b.score.total_cmp(&a.score));
 }
@@ -922,58 +434,7 @@ impl super::ScanMatcher for BranchBoundMatcher {
 mod tests {
     use super::*;
     use crate::matcher::ScanMatcher;
-    use crate::testutil::SegmentWorld;
-    use crate::InverseSensorModel;
-
-    /// The office map from noise-free 360° scans at known poses.
-    fn office_map(res: f64) -> OccupancyGrid {
-        let world = SegmentWorld::office();
-        let mut g = OccupancyGrid::new(res, InverseSensorModel::default())
-            .with_origin(slam_models::Point2::new(-0.0137, -0.0311))
-            .unwrap();
-        for &(x, y) in &[(1.5, 3.0), (5.0, 3.5), (10.5, 2.0), (2.0, 6.5), (9.0, 6.5)] {
-            for k in 0..4 {
-                let pose = Pose2::new(x, y, k as f64 * 1.57);
-                g.integrate_scan(
-                    &pose,
-                    &world.scan(&pose, 720, std::f64::consts::TAU * 0.999, 30.0),
-                );
-            }
-        }
-        g
-    }
-
-    /// The pyramid's level k is the block maximum of level 0, checked cell by cell by
-    /// brute force (cells outside the stored area read the far value).
-    #[test]
-    fn pyramid_levels_are_block_maxima() {
-        let g = office_map(0.1);
-        let p = MaxPyramid::new(&g, CellIndex::new(10, 5), CellIndex::new(60, 40), 4).unwrap();
-        for k in 0..4u32 {
-            for y in -2..45 {
-                for x in 0..66 {
-                    let mut m = f32::NEG_INFINITY;
-                    for yy in y..y + (1 << k) {
-                        for xx in x..x + (1 << k) {
-                            let c = CellIndex::new(xx, yy);
-                            let inside = (10..=60).contains(&xx) && (5..=40).contains(&yy);
-                            let v = if inside {
-                                g.likelihood(c)
-                            } else {
-                                p.levels.far
-                            };
-                            m = m.max(v);
-                        }
-                    }
-                    assert_eq!(
-                        p.value(k, CellIndex::new(x, y)),
-                        m,
-                        "level {k} at ({x}, {y})"
-                    );
-                }
-            }
-        }
-    }
+    use crate::testutil::{office_map, SegmentWorld};
 
     /// Exactness: the optimum equals brute force over the same lattice, scored
     /// independently with the grid's own field lookups at each pose.
@@ -1027,34 +488,7 @@ mod tests {
 
     /// A known offset of 0.8 m and 20° on the simulated office is recovered to within a
     /// cell and an angular step, with a positive-definite covariance, from a pyramid built
-    /// once over the whole map and reused.
-    /// The compact pyramid: level 0 as the exact one, every coarser level at or above the
-    /// exact block maximum by less than 1/255 of the value range (searches on it:
-    /// `recovers_a_known_offset`).
-    #[test]
-    fn compact_pyramid_levels_bound_the_block_maxima() {
-        let res = 0.05;
-        let g = office_map(res);
-        let (min, max) = g.covered_cells().unwrap();
-        let exact = MaxPyramid::new(&g, min, max, 6).unwrap();
-        let compact = MaxPyramid::new_compact(&g, min, max, 6).unwrap();
-        assert!(4 * compact.memory_bytes() < 2 * exact.memory_bytes());
-        let step = (1.0 - exact.levels.far) / 255.0;
-        for k in 0..6u32 {
-            for y in (min.y - 40..=max.y + 5).step_by(3) {
-                for x in (min.x - 40..=max.x + 5).step_by(3) {
-                    let c = CellIndex::new(x, y);
-                    let (e, q) = (exact.value(k, c), compact.value(k, c));
-                    if k == 0 {
-                        assert_eq!(q, e, "level 0 at ({x}, {y})");
-                    } else {
-                        assert!(q >= e && q - e <= step * 1.001, "level {k}: {q} vs {e}");
-                    }
-                }
-            }
-        }
-    }
-
+    /// once over the whole map and reused; the compact pyramid finds the same pose and score.
     #[test]
     fn recovers_a_known_offset() {
         let res = 0.05;
@@ -1130,52 +564,5 @@ mod tests {
         assert!(err.to_string().contains("depth"), "{err}");
         let pyramid = MaxPyramid::covering(&g, 3).unwrap().unwrap();
         assert!(m.match_in(&pyramid, &scan, &truth).is_err());
-    }
-
-    /// The min-pyramid's box minimum equals the brute-force minimum over the box, for boxes
-    /// of every shape (thin, square, wider than the top level's squares) on random values,
-    /// and reads 0 for a box that leaves the rectangle.
-    #[test]
-    fn min_pyramid_box_minimum_is_exact() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(7);
-        let values: Vec<u8> = (0..70 * 50).map(|_| rng.random_range(3..=255)).collect();
-        let (lo, hi) = (CellIndex::new(-20, 5), CellIndex::new(49, 54));
-        let d = |c: CellIndex| values[((c.y - 5) * 70 + c.x + 20) as usize];
-        let rows = |start: CellIndex, out: &mut [u8]| {
-            for (x, v) in out.iter_mut().enumerate() {
-                *v = d(CellIndex::new(start.x + x as i32, start.y));
-            }
-        };
-        let p = MinPyramid::build(lo, hi, 0, 3, rows).unwrap();
-        assert_eq!(p.top(), 3);
-        for _ in 0..20_000 {
-            let x0 = rng.random_range(-20..=49);
-            let y0 = rng.random_range(5..=54);
-            let x1 = rng.random_range(x0..=(x0 + 40).min(49));
-            let y1 = rng.random_range(y0..=(y0 + 40).min(54));
-            let mut m = u8::MAX;
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    m = m.min(d(CellIndex::new(x, y)));
-                }
-            }
-            let (a, b) = (CellIndex::new(x0, y0), CellIndex::new(x1, y1));
-            assert_eq!(p.min_over(a, b), m, "box {a:?} … {b:?}");
-        }
-        assert_eq!(p.min_over(CellIndex::new(-21, 5), CellIndex::new(0, 6)), 0);
-        assert_eq!(
-            p.min_over(CellIndex::new(40, 50), CellIndex::new(45, 55)),
-            0
-        );
-        // Without levels 0 and 1, boxes narrower than 4 cells read 0, the others the same.
-        let upper = MinPyramid::build(lo, hi, 2, 3, rows).unwrap();
-        let (a, b) = (CellIndex::new(0, 10), CellIndex::new(2, 30));
-        assert_eq!(upper.min_over(a, b), 0);
-        let b = CellIndex::new(3, 30);
-        assert_eq!(upper.min_over(a, b), p.min_over(a, b));
-        assert!(MinPyramid::build(hi, lo, 0, 3, rows).is_err());
-        assert!(MinPyramid::build(lo, hi, 3, 2, rows).is_err());
-        assert!(MinPyramid::build(lo, CellIndex::new(3000, 3000), 0, 3, rows).is_err());
     }
 }

@@ -146,12 +146,14 @@ impl CorrelativeMatcher {
         let blocks: Vec<i32> = (0..).map(|b| b * f).take_while(|&o| o <= 2 * l).collect();
         let mut candidates: Vec<(f32, u32, i32, i32)> =
             Vec::with_capacity(n_rot * blocks.len() * blocks.len());
+        let (mut offsets, mut sums) = (Vec::new(), Vec::new());
         for r in 0..n_rot {
             let pts = &idx[r * n..(r + 1) * n];
             for &by in &blocks {
-                for &bx in &blocks {
-                    let off = by as usize * w + bx as usize;
-                    let ub: f32 = pts.iter().map(|&i| coarse[i as usize + off]).sum();
+                offsets.clear();
+                offsets.extend(blocks.iter().map(|&bx| by as usize * w + bx as usize));
+                sums_at(&coarse, pts, &offsets, &mut sums);
+                for (&bx, &ub) in blocks.iter().zip(&sums) {
                     candidates.push((ub, r as u32, bx, by));
                 }
             }
@@ -165,10 +167,12 @@ impl CorrelativeMatcher {
                 break;
             }
             let pts = &idx[r as usize * n..(r as usize + 1) * n];
+            let xs = bx..(bx + f).min(2 * l + 1);
             for oy in by..(by + f).min(2 * l + 1) {
-                for ox in bx..(bx + f).min(2 * l + 1) {
-                    let off = oy as usize * w + ox as usize;
-                    let s: f32 = pts.iter().map(|&i| fine[i as usize + off]).sum();
+                offsets.clear();
+                offsets.extend(xs.clone().map(|ox| oy as usize * w + ox as usize));
+                sums_at(&fine, pts, &offsets, &mut sums);
+                for (ox, &s) in xs.clone().zip(&sums) {
                     if s > best.0 {
                         best = (s, r, ox, oy);
                     }
@@ -187,6 +191,33 @@ impl CorrelativeMatcher {
             score: s as f64 / n as f64,
             covariance,
         })
+    }
+}
+
+/// Σ over `pts` of `values[i + offset]` for each of `offsets`, into `sums` (resized): four
+/// at a time in independent chains of additions, each the same sum as alone (the same
+/// values in the same order from the start `Iterator::sum` takes); a chain waits on its
+/// last addition, four overlap.
+fn sums_at(values: &[f32], pts: &[u32], offsets: &[usize], sums: &mut Vec<f32>) {
+    let start: f32 = std::iter::empty::<f32>().sum();
+    sums.clear();
+    sums.resize(offsets.len(), start);
+    for (offs, out) in offsets.chunks(4).zip(sums.chunks_mut(4)) {
+        if let &[a, b, c, d] = offs {
+            let mut s = [start; 4];
+            for &i in pts {
+                let i = i as usize;
+                s[0] += values[i + a];
+                s[1] += values[i + b];
+                s[2] += values[i + c];
+                s[3] += values[i + d];
+            }
+            out.copy_from_slice(&s);
+        } else {
+            for (o, &off) in out.iter_mut().zip(offs) {
+                *o = pts.iter().map(|&i| values[i as usize + off]).sum();
+            }
+        }
     }
 }
 
@@ -227,6 +258,25 @@ super::scan_matcher_by_inherent_method!(CorrelativeMatcher);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Four sums at once are each the sum alone, to the bit, for 1 to 9 offsets.
+    #[test]
+    fn sums_at_equals_each_sum_alone() {
+        let values: Vec<f32> = (0..400)
+            .map(|i| ((i * 7919) % 101) as f32 * 0.37 - 9.0)
+            .collect();
+        let pts: Vec<u32> = (0..50).map(|i| (i * 37) % 300).collect();
+        let mut sums = Vec::new();
+        for k in 1..=9 {
+            let offsets: Vec<usize> = (0..k).map(|j| j * 11).collect();
+            sums_at(&values, &pts, &offsets, &mut sums);
+            assert_eq!(sums.len(), k);
+            for (&off, s) in offsets.iter().zip(&sums) {
+                let alone: f32 = pts.iter().map(|&i| values[i as usize + off]).sum();
+                assert_eq!(s.to_bits(), alone.to_bits(), "offset {off}");
+            }
+        }
+    }
 
     #[test]
     fn sliding_max_matches_brute_force() {

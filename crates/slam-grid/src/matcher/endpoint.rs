@@ -18,8 +18,10 @@
 //! that a pose several centimetres off still feels the walls; the fine phase with the
 //! model's own r, so that beams ending on clutter pull the mode less.
 
-use super::branch_bound::{branch_and_bound, Lattice, Levels, MinPyramid};
+use super::branch_bound::{branch_and_bound, Lattice, Levels};
 use super::hill_climb::{climb, Climb};
+use super::levels::Storage;
+use super::pyramids::MinPyramid;
 use super::MAX_PYRAMID_DEPTH;
 use crate::cell::CellIndex;
 use crate::error::{ensure_config, GridError};
@@ -925,17 +927,39 @@ pub fn wide_search(
     // Distances are whole units: one value per unit, looked up per cell.
     let values: Vec<f32> = (0..=u8::MAX).map(cell_value).collect();
     let far = (-scale * model.k * model.radius * model.radius) as f32;
-    let mut cells = 0;
-    let levels = Levels::build(lo, hi, depth, stride, far, |origin, w, h| {
-        cells = w * h;
-        let mut out = Vec::with_capacity(w * h);
-        for y in 0..h as i32 {
-            for x in 0..w as i32 {
-                out.push(values[field.dist(CellIndex::new(origin.x + x, origin.y + y)) as usize]);
+    // Cells outside the grid's table read the truncated distance, whose value is `far` when
+    // the field reaches the model's radius, and so would every level there: the pyramid
+    // over the part of the reach the table covers then holds the same values
+    // (`Levels::value` reads far outside it) in fewer cells (a 30 m scan's reach, turned by
+    // ±0.8 rad, is much larger than a local map). One far cell when they do not meet.
+    let (lo, hi) = match field.covered() {
+        _ if values[field.max_units() as usize] != far => (lo, hi),
+        Some((a, b)) => {
+            let (l, h) = (
+                CellIndex::new(lo.x.max(a.x), lo.y.max(a.y)),
+                CellIndex::new(hi.x.min(b.x), hi.y.min(b.y)),
+            );
+            if l.x <= h.x && l.y <= h.y {
+                (l, h)
+            } else {
+                (lo, lo)
             }
         }
-        out
-    })?;
+        None => (lo, lo),
+    };
+    let mut cells = 0;
+    let base = |origin: CellIndex, w: usize, _h: usize, out: &mut [f32]| {
+        cells = out.len();
+        // A row of distances at a time, tile by tile (the same as `field.dist` per cell).
+        let mut row = vec![0u8; w];
+        for (y, out) in out.chunks_exact_mut(w).enumerate() {
+            field.read_row(CellIndex::new(origin.x, origin.y + y as i32), &mut row);
+            for (o, &d) in out.iter_mut().zip(&row) {
+                *o = values[d as usize];
+            }
+        }
+    };
+    let levels = Levels::build(lo, hi, depth, stride, far, base, Storage::Pooled)?;
     let info = &window.information;
     let k0 = lat.k_max;
     let dtheta = lat.dtheta;

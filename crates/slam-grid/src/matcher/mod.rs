@@ -28,6 +28,8 @@ mod correlative;
 pub mod endpoint;
 mod gauss_newton;
 mod hill_climb;
+mod levels;
+mod pyramids;
 mod refined;
 
 pub use branch_bound::{BranchBoundMatcher, MaxPyramid, MAX_PYRAMID_CELLS, MAX_PYRAMID_DEPTH};
