@@ -28,50 +28,88 @@ fn assert_closures_true(slam: &LaserGraphSlam, truth: &[TimedPose]) {
     }
 }
 
-/// Two laps of the office: the loop is closed (closures join records more than a third of
-/// the run apart), every closure is true, and the trajectory at every record is within
-/// 0.2 m RMSE of the truth (gridfast's bound in tests/gridfast.rs) and at least four times
-/// better than the odometry (dead reckoning drifts 1.3–3.3 m on seeds 1–7).
+/// The trajectory's shape against the truth: the aligned ATE (SE(2) least squares,
+/// slam-eval) and the scale a similarity alignment would apply on top (the estimate's
+/// spread about its centroid against the truth's, both aligned: above 1 when the map is
+/// too small).
+fn shape(slam: &LaserGraphSlam, truth: &[TimedPose]) -> (f64, f64) {
+    let traj = slam.trajectory();
+    let aligned = slam::eval::metrics::ate(&traj, truth).unwrap().rmse_aligned;
+    assert_eq!(traj.len(), truth.len());
+    let a: Vec<_> = traj.iter().map(|p| p.pose.translation()).collect();
+    let b: Vec<_> = truth.iter().map(|p| p.pose.translation()).collect();
+    let t = slam::eval::metrics::align_se2(&a, &b);
+    let a: Vec<_> = a.iter().map(|p| t.transform_point(p)).collect();
+    let mean = |v: &[slam::models::Point2]| {
+        v.iter()
+            .fold(nalgebra::Vector2::zeros(), |s, p| s + p.coords)
+            / v.len() as f64
+    };
+    let (ca, cb) = (mean(&a), mean(&b));
+    let (mut num, mut den) = (0.0, 0.0);
+    for (p, q) in a.iter().zip(&b) {
+        num += (p.coords - ca).dot(&(q.coords - cb));
+        den += (p.coords - ca).norm_squared();
+    }
+    (aligned, num / den)
+}
+
+/// Two laps of the office over seeds 1–5 with the defaults. Every seed: the loop is
+/// closed and every accepted closure is true; on seeds 3 and 5 the closures join the second
+/// lap to the first (records more than a third of the run apart) and the trajectory at
+/// every record is within 0.2 m RMSE of the truth (gridfast's bound in tests/gridfast.rs)
+/// and at least four times better than the odometry (dead reckoning drifts 1.3–3.3 m on
+/// seeds 1–7). (With the acceptance score lowered to 0.45 and the widest window from the
+/// start, seed 1 accepts a closure 5 m off along a corridor: the defaults' margin is not
+/// large; docs/results/graph.md.)
+///
+/// The shape, over the five seeds: the median aligned ATE within one grid cell (5 cm), the
+/// worst within 8 cm, and every seed's scale within 1 % of the truth. Before the trajectory
+/// graph held the keyframes and degenerate matches took the odometry along the corridors
+/// (docs/results/graph.md), re-estimating the keyframes jointly with the odometry gave
+/// 0.061 / 0.046 / 0.091 / 0.046 / 0.064 m on seeds 1–5 (median 0.061, worst 0.091 m);
+/// holding the keyframes without the degenerate fusion, 0.29–0.59 m with the map 4.1 % too
+/// small (seed 1: the corridor matches slid 2.9 % short).
 #[test]
-fn office_loop_is_closed() {
-    for seed in [3, 5] {
+fn office_over_five_seeds() {
+    let mut aligned = Vec::new();
+    for seed in 1..=5 {
         let (records, truth) = common::office(seed);
         let slam = run(&records, LaserGraphConfig::default());
         let stats = slam.stats();
         let err = common::rmse(&slam.trajectory(), &truth);
         let odo = common::rmse(&common::dead_reckoning(&records), &truth);
-        eprintln!("office seed {seed}: {stats:?}, RMSE {err:.3} m, odometry {odo:.3} m");
-        assert!(stats.loop_closures > 0, "no loop closure found");
-        // Closures join the second lap to the first: records far apart in time.
-        let span = slam
-            .loop_closures()
-            .iter()
-            .map(|(a, b, _)| b - a)
-            .max()
-            .unwrap();
+        let (a, scale) = shape(&slam, &truth);
+        eprintln!(
+            "office seed {seed}: {stats:?}, RMSE {err:.3} m, odometry {odo:.3} m, aligned ATE {a:.4} m, Sim(2) scale {scale:.5}"
+        );
         assert!(
-            span > records.len() / 3,
-            "longest closure spans {span} records"
+            stats.loop_closures > 0,
+            "seed {seed}: no loop closure found"
         );
         assert_closures_true(&slam, &truth);
-        assert!(err < 0.2, "RMSE {err} m");
-        assert!(err * 4.0 < odo, "RMSE {err} m against odometry {odo} m");
+        assert!((scale - 1.0).abs() < 0.01, "seed {seed}: scale {scale}");
+        aligned.push(a);
+        if seed == 3 || seed == 5 {
+            // Closures join the second lap to the first: records far apart in time.
+            let span = slam
+                .loop_closures()
+                .iter()
+                .map(|(a, b, _)| b - a)
+                .max()
+                .unwrap();
+            assert!(
+                span > records.len() / 3,
+                "seed {seed}: longest closure spans {span} records"
+            );
+            assert!(err < 0.2, "seed {seed}: RMSE {err} m");
+            assert!(err * 4.0 < odo, "RMSE {err} m against odometry {odo} m");
+        }
     }
-}
-
-/// A false-closure-free run: over three more seeds with the defaults, every accepted closure
-/// is true and the loop is closed. (With the acceptance score lowered to 0.45 and the
-/// widest window from the start, seed 1 accepts a closure 5 m off along a corridor: the
-/// defaults' margin is not large; docs/results/graph.md.)
-#[test]
-fn default_closures_are_all_true() {
-    for seed in [1, 2, 4] {
-        let (records, truth) = common::office(seed);
-        let slam = run(&records, LaserGraphConfig::default());
-        eprintln!("office seed {seed}: {:?}", slam.stats());
-        assert!(slam.stats().loop_closures > 0);
-        assert_closures_true(&slam, &truth);
-    }
+    aligned.sort_by(f64::total_cmp);
+    let (median, worst) = (aligned[2], aligned[4]);
+    assert!(median < 0.05, "median aligned ATE {median} m: {aligned:?}");
+    assert!(worst < 0.08, "worst aligned ATE {worst} m: {aligned:?}");
 }
 
 /// The first 3,000 records of the Intel benchmark input (≈ 200 scans, 10 minutes): far
@@ -173,7 +211,11 @@ fn constructor_shape() {
     );
     // The odometry frame placed in the world: the trajectory is the identity run's, moved
     // by that placement. Not bit for bit: a moved scan falls on the grid's cells with other
-    // rounding, and a match can settle one lattice step (1 cm, 0.25°) apart; 3 cm here.
+    // rounding, and a match can settle one lattice step (1 cm, 0.25°) apart. The keyframes
+    // are the keyframe graph's (the trajectory graph holds them), so such a step is not
+    // averaged with the odometry and shows down the chain: 0.25° over the 10 m driven
+    // before the first loop closure is 4.4 cm (6–9 cm here; 3 cm when the trajectory
+    // graph moved the keyframes). A wrong placement would be off by metres.
     let identity = a.trajectory();
     for place in [Pose2::new(2.0, -1.0, 0.0), Pose2::new(-3.0, 4.5, 0.7)] {
         let mut b = LaserGraphSlam::new(LaserGraphConfig::default(), place, 0).unwrap();
@@ -189,7 +231,7 @@ fn constructor_shape() {
                 d.x.hypot(d.y) + d.theta.abs()
             })
             .fold(0.0, f64::max);
-        assert!(worst < 0.05, "placement {place:?}: worst deviation {worst}");
+        assert!(worst < 0.12, "placement {place:?}: worst deviation {worst}");
     }
     let e = LaserGraphSlam::new(
         LaserGraphConfig::default(),

@@ -129,6 +129,18 @@ pub struct LaserGraphConfig {
     /// far better than 0.01 rad, the earlier floor, which let the odometry's heading
     /// errors into the office's map (docs/results/graph.md).
     pub match_min_std: [f64; 2],
+    /// A local match whose translational σ_max / σ_min (of its edge's information, the
+    /// floor included) is this or more is degenerate along σ_max's direction (a
+    /// corridor's axis: the scan does not fix the position along it, and the match slides
+    /// there, short of the truth); along that direction alone the keyframe graph's edge
+    /// takes the odometry increment, by least squares with the odometry's variance along
+    /// it, the odometry's weight ramping up from 0 at this ratio to full at 1.5× it (Zhang,
+    /// Kaess and Singh, ICRA 2016; `covariance::fuse_degenerate`). The submaps keep the
+    /// match's pose (the fused one in the submaps cost 0.24 m on edmonton-hard). ≥ 1, or 0
+    /// for never. Default 2. Without it, holding the keyframes (the default) left the
+    /// simulated office 4.1 % too small: its corridor matches were 2.9 % short
+    /// (docs/results/graph.md).
+    pub degenerate_anisotropy: f64,
     /// Scans per submap (≥ 2, ≤ [`MAX_SUBMAP_SCANS`]); a new submap starts every half of
     /// this, so two overlap and the older (fuller) one is matched against (Hess et al.
     /// 2016 §IV). Default 20.
@@ -214,6 +226,17 @@ pub struct LaserGraphConfig {
     /// see `slam_graph::optimizer`), warm-started from the current keyframe poses (no LAGO
     /// initialisation), at most 20 iterations.
     pub optimizer: OptimizerConfig,
+    /// Whether the trajectory graph (one node per record) holds every keyframe at the
+    /// keyframe graph's optimum. `true` (the default): it places only the records between
+    /// keyframes, each run of them the odometry chain bent to meet the two keyframes at
+    /// its ends, the correction shared in proportion to the odometry edges' uncertainty;
+    /// the keyframes' poses are the keyframe graph's, which has no odometry edges.
+    /// `false`: the keyframes are estimated again, jointly with every record's odometry
+    /// edge, the scan-matching edges and the loop closures (the odometry then weighs on
+    /// the keyframes too). On the simulated campus the joint estimate shrank the map by
+    /// 0.28 % and doubled its aligned ATE (0.536 m against 0.28 m); on Intel's relations
+    /// it cost 5 mm (docs/results/graph.md, "the trajectory graph").
+    pub smoother_holds_keyframes: bool,
     /// The optimiser of the trajectory graph (one node per record). Default: LM without a
     /// robust kernel, at most 20 iterations: a kernel on every edge would down-weight the
     /// odometry edges that disagree most with the scan matches, which are exactly the
@@ -222,7 +245,8 @@ pub struct LaserGraphConfig {
     pub smoother: OptimizerConfig,
     /// A loop closure whose squared error eᵀΩe in the optimised keyframe graph exceeds
     /// this is treated as false (the robust kernel rejected it) and left out of the
-    /// trajectory graph. Default 16.27, the χ²(3) 99.9 % quantile.
+    /// trajectory graph (only when the trajectory graph does not hold the keyframes,
+    /// `smoother-holds-keyframes = false`). Default 16.27, the χ²(3) 99.9 % quantile.
     pub smoother_max_closure_chi2: f64,
     /// The largest odometry jump between two consecutive records, and whether a larger
     /// one is an error (default: beyond 5 m) or skipped.
@@ -275,6 +299,8 @@ impl Default for LaserGraphConfig {
                 max_iterations: 20,
                 ..OptimizerConfig::default()
             },
+            smoother_holds_keyframes: true,
+            degenerate_anisotropy: 2.0,
             smoother: OptimizerConfig {
                 initialisation: Initialisation::Input,
                 closure_kernel: RobustKernel::None,
@@ -419,6 +445,13 @@ impl LaserGraphConfig {
         )?;
         let r = self.loop_ambiguity_ratio;
         ensure(r > 0.0 && r <= 1.0, "loop-ambiguity-ratio", r, "in (0, 1]")?;
+        let a = self.degenerate_anisotropy;
+        ensure(
+            a == 0.0 || a >= 1.0,
+            "degenerate-anisotropy",
+            a,
+            ">= 1, or 0 for never",
+        )?;
         let a = self.loop_max_anisotropy;
         ensure(a >= 1.0, "loop-max-anisotropy", a, ">= 1")?;
         for (f, v) in [

@@ -139,6 +139,100 @@ pub(crate) fn response_covariance(
     Some((cov + cov.transpose()) * 0.5)
 }
 
+impl super::LaserGraphSlam {
+    /// [`fuse_degenerate`] for the local match `z` (information `information`) of the
+    /// keyframe at record `b` against the odometry since the keyframe at record `a`, with
+    /// `degenerate-anisotropy`; `None` when that is 0 or the match is not degenerate.
+    pub(super) fn degenerate_edge(
+        &self,
+        z: &Pose2,
+        information: &Matrix3,
+        a: usize,
+        b: usize,
+    ) -> Option<(Pose2, Matrix3)> {
+        let min_anisotropy = self.config.degenerate_anisotropy;
+        if min_anisotropy <= 0.0 {
+            return None;
+        }
+        let odometry = self.odometry[a].between(&self.odometry[b]);
+        let covariance = self.odometry_chain_covariance(a, b);
+        fuse_degenerate(z, information, &odometry, &covariance, min_anisotropy)
+    }
+}
+
+/// The translational σ_max / σ_min of an information matrix's x-y block and the unit
+/// direction of σ_max (the eigenvector of the block's smaller eigenvalue).
+fn weak_direction(information: &Matrix3) -> (f64, [f64; 2]) {
+    let (a, b, d) = (
+        information[(0, 0)],
+        information[(0, 1)],
+        information[(1, 1)],
+    );
+    let mean = 0.5 * (a + d);
+    let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    let (hi, lo) = (mean + r, (mean - r).max(f64::MIN_POSITIVE));
+    // Eigenvector of the smaller eigenvalue `lo`: (b, lo − a), or (lo − d, b); the larger
+    // of the two is the better conditioned (both vanish only for an isotropic block).
+    let (u, v) = ((b, lo - a), (lo - d, b));
+    let e = if u.0.hypot(u.1) >= v.0.hypot(v.1) {
+        u
+    } else {
+        v
+    };
+    let n = e.0.hypot(e.1);
+    let dir = if n > 0.0 {
+        [e.0 / n, e.1 / n]
+    } else {
+        [1.0, 0.0]
+    };
+    ((hi / lo).sqrt(), dir)
+}
+
+/// A scan-matching edge that is degenerate along one direction takes the odometry along
+/// it (after Zhang, Kaess and Singh, "On degeneracy of optimization-based state
+/// estimation problems", ICRA 2016: in the directions the measurement does not
+/// constrain, keep the prior). `z`, `information`: the match's relative pose and
+/// information in the earlier keyframe's frame; `odometry`, `odometry_covariance`: the
+/// odometry increment over the same records and its covariance in the same frame.
+///
+/// With ρ the information's translational σ_max / σ_min and w the unit direction of
+/// σ_max: when ρ < `min_anisotropy` (a), `None` (the match stands). Otherwise, along w
+/// only, the two are combined by their variances there, σ_m² = wᵀ Σ_m w (Σ_m = Ω⁻¹, its
+/// x-y block) and σ_o² = wᵀ Σ_o w, the odometry's weighed by the ramp
+/// f = min(1, (ρ − a) / (a / 2)) so that the result is continuous in ρ:
+/// z' = z + w · f σ_m² / (f σ_m² + σ_o²) · wᵀ(o − z) (x-y only; the heading and the
+/// position across w stay the match's), and Ω' = Ω + (f / σ_o²) w wᵀ on the x-y block.
+pub(crate) fn fuse_degenerate(
+    z: &Pose2,
+    information: &Matrix3,
+    odometry: &Pose2,
+    odometry_covariance: &Matrix3,
+    min_anisotropy: f64,
+) -> Option<(Pose2, Matrix3)> {
+    let (rho, [wx, wy]) = weak_direction(information);
+    // NaN-safe: a NaN ratio is not degenerate.
+    if rho.partial_cmp(&min_anisotropy) == Some(std::cmp::Ordering::Less) || rho.is_nan() {
+        return None;
+    }
+    let f = ((rho - min_anisotropy) / (0.5 * min_anisotropy)).min(1.0);
+    let sigma_m = information.try_inverse()?;
+    let along = |c: &Matrix3| wx * wx * c[(0, 0)] + 2.0 * wx * wy * c[(0, 1)] + wy * wy * c[(1, 1)];
+    let (var_m, var_o) = (along(&sigma_m), along(odometry_covariance));
+    if var_m.is_nan() || var_o.is_nan() || var_m <= 0.0 || var_o <= 0.0 || f <= 0.0 {
+        return None;
+    }
+    let gain = f * var_m / (f * var_m + var_o);
+    let e = wx * (odometry.x - z.x) + wy * (odometry.y - z.y);
+    let pose = Pose2::new(z.x + gain * e * wx, z.y + gain * e * wy, z.theta);
+    let mut fused = *information;
+    let k = f / var_o;
+    fused[(0, 0)] += k * wx * wx;
+    fused[(0, 1)] += k * wx * wy;
+    fused[(1, 0)] += k * wx * wy;
+    fused[(1, 1)] += k * wy * wy;
+    Some((pose, fused))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -228,5 +322,43 @@ mod tests {
         );
         assert!(sx < 0.03 && sy < 0.03, "room: σ = ({sx}, {sy}) m");
         assert!(cov.cholesky().is_some());
+    }
+
+    /// A corridor along x (information 100× weaker along x than along y): the fused edge
+    /// takes the odometry's x, by the weights of least squares, and keeps the match's y
+    /// and heading; an isotropic match is left alone. The expected values are worked out
+    /// by hand from the formula, not taken from the function.
+    #[test]
+    fn a_degenerate_match_takes_the_odometry_along_its_weak_direction() {
+        let info = Matrix3::from_diagonal(&slam_models::Vector3::new(1.0, 100.0, 1000.0));
+        let z = Pose2::new(0.40, 0.00, 0.00);
+        let odo = Pose2::new(0.50, 0.03, 0.01);
+        let odo_cov = Matrix3::from_diagonal(&slam_models::Vector3::new(0.25, 0.25, 0.01));
+        let (f, omega) = fuse_degenerate(&z, &info, &odo, &odo_cov, 2.0).unwrap();
+        // Along x: (1 · 0.40 + 4 · 0.50) / (1 + 4) = 0.48; y and θ untouched.
+        assert!((f.x - 0.48).abs() < 1e-12, "{f:?}");
+        assert!(f.y.abs() < 1e-12 && f.theta.abs() < 1e-12, "{f:?}");
+        assert!((omega[(0, 0)] - 5.0).abs() < 1e-12 && (omega[(1, 1)] - 100.0).abs() < 1e-12);
+        // Rotated corridor: the weak direction is (cos 30°, sin 30°).
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let info_r = r * info * r.transpose();
+        let z_r = Pose2::new(0.40 * c, 0.40 * s, 0.0);
+        let odo_r = Pose2::new(0.50 * c, 0.50 * s, 0.0);
+        let (f, _) = fuse_degenerate(&z_r, &info_r, &odo_r, &odo_cov, 2.0).unwrap();
+        assert!(
+            (f.x - 0.48 * c).abs() < 1e-9 && (f.y - 0.48 * s).abs() < 1e-9,
+            "{f:?}"
+        );
+        // Near the threshold the odometry's weight ramps up from zero: at ρ = 10 and a = 8,
+        // f = (10 − 8) / 4 = 0.5, so the gain is 0.5 · 1 / (0.5 · 1 + 0.25) = 2/3 and
+        // x = 0.40 + 2/3 · 0.1.
+        let (f, omega) = fuse_degenerate(&z, &info, &odo, &odo_cov, 8.0).unwrap();
+        assert!((f.x - (0.40 + 0.1 * 2.0 / 3.0)).abs() < 1e-12, "{f:?}");
+        assert!((omega[(0, 0)] - 3.0).abs() < 1e-12, "{omega}");
+        // σ ratio 10 ≥ 2 fused; an isotropic match (ratio 1) and a threshold above 10 not.
+        let iso = Matrix3::from_diagonal(&slam_models::Vector3::new(100.0, 100.0, 1000.0));
+        assert!(fuse_degenerate(&z, &iso, &odo, &odo_cov, 2.0).is_none());
+        assert!(fuse_degenerate(&z, &info, &odo, &odo_cov, 10.5).is_none());
     }
 }

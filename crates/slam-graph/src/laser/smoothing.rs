@@ -79,12 +79,19 @@ impl LaserGraphSlam {
             graph.add_pose(i as u64, *p)?;
         }
         graph.fix(0)?;
+        let hold = self.config.smoother_holds_keyframes;
+        if hold {
+            for kf in &self.keyframes {
+                graph.fix(kf.record as u64)?;
+            }
+        }
         for i in 1..initial.len() {
             let delta = self.odometry[i - 1].between(&self.odometry[i]);
             let info = invert(&self.odometry_covariance(&delta));
             graph.add_between(i as u64 - 1, i as u64, delta, info)?;
         }
-        for c in &self.constraints {
+        // Held keyframes: their edges join fixed nodes and change nothing.
+        for c in self.constraints.iter().filter(|_| !hold) {
             if c.loop_closure && self.chi2(c) > self.config.smoother_max_closure_chi2 {
                 continue;
             }
