@@ -230,12 +230,13 @@ pub struct LaserGraphConfig {
     /// keyframe graph's optimum. `true` (the default): it places only the records between
     /// keyframes, each run of them the odometry chain bent to meet the two keyframes at
     /// its ends, the correction shared in proportion to the odometry edges' uncertainty;
-    /// the keyframes' poses are the keyframe graph's, which has no odometry edges.
+    /// the keyframes' poses are the keyframe graph's (odometry there only where a match
+    /// failed or was degenerate).
     /// `false`: the keyframes are estimated again, jointly with every record's odometry
     /// edge, the scan-matching edges and the loop closures (the odometry then weighs on
     /// the keyframes too). On the simulated campus the joint estimate shrank the map by
     /// 0.28 % and doubled its aligned ATE (0.536 m against 0.28 m); on Intel's relations
-    /// it cost 5 mm (docs/results/graph.md, "the trajectory graph").
+    /// it cost 6 mm (docs/results/graph.md, "the trajectory graph").
     pub smoother_holds_keyframes: bool,
     /// The optimiser of the trajectory graph (one node per record). Default: LM without a
     /// robust kernel, at most 20 iterations: a kernel on every edge would down-weight the

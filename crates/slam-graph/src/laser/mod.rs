@@ -47,7 +47,7 @@
 //!   (without a robust kernel; loop closures the keyframe graph's kernel rejected are
 //!   left out). The joint estimate lets the odometry pull on the keyframes; on the
 //!   simulated campus it shrank the map by 0.28 % and doubled the aligned ATE, on Intel's
-//!   relations it cost 5 mm, so it is not the default.
+//!   relations it cost 6 mm, so it is not the default.
 //! * **The map** is rendered from the keyframes' scans at their smoothed poses. Keyframes
 //!   keep their scans as recorded and prepare them again when needed.
 //!
