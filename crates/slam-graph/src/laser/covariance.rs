@@ -141,33 +141,30 @@ pub(crate) fn response_covariance(
 
 impl super::LaserGraphSlam {
     /// [`fuse_degenerate`] for the local match `z` (information `information`) of the
-    /// keyframe at record `b` against the odometry since the keyframe at record `a`, with
-    /// `degenerate-anisotropy`; `None` when that is 0 or the match is not degenerate.
+    /// keyframe at record `b` against the odometry increment `odometry` since the keyframe
+    /// at record `a`, with `degenerate-anisotropy`; `None` when that is 0 or the match is
+    /// not degenerate.
     pub(super) fn degenerate_edge(
         &self,
         z: &Pose2,
         information: &Matrix3,
-        a: usize,
-        b: usize,
+        odometry: &Pose2,
+        (a, b): (usize, usize),
     ) -> Option<(Pose2, Matrix3)> {
         let min_anisotropy = self.config.degenerate_anisotropy;
         if min_anisotropy <= 0.0 {
             return None;
         }
-        let odometry = self.odometry[a].between(&self.odometry[b]);
         let covariance = self.odometry_chain_covariance(a, b);
-        fuse_degenerate(z, information, &odometry, &covariance, min_anisotropy)
+        fuse_degenerate(z, information, odometry, &covariance, min_anisotropy)
     }
 }
 
-/// The translational σ_max / σ_min of an information matrix's x-y block and the unit
-/// direction of σ_max (the eigenvector of the block's smaller eigenvalue).
-fn weak_direction(information: &Matrix3) -> (f64, [f64; 2]) {
-    let (a, b, d) = (
-        information[(0, 0)],
-        information[(0, 1)],
-        information[(1, 1)],
-    );
+/// The x-y block's √(λ_max / λ_min) of a covariance or information matrix (σ_max / σ_min
+/// either way) and the unit eigenvector of λ_min (of an information matrix: the direction
+/// of σ_max, the weak one).
+pub(super) fn xy_anisotropy(m: &Matrix3) -> (f64, [f64; 2]) {
+    let (a, b, d) = (m[(0, 0)], m[(0, 1)], m[(1, 1)]);
     let mean = 0.5 * (a + d);
     let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
     let (hi, lo) = (mean + r, (mean - r).max(f64::MIN_POSITIVE));
@@ -209,9 +206,8 @@ pub(crate) fn fuse_degenerate(
     odometry_covariance: &Matrix3,
     min_anisotropy: f64,
 ) -> Option<(Pose2, Matrix3)> {
-    let (rho, [wx, wy]) = weak_direction(information);
-    // NaN-safe: a NaN ratio is not degenerate.
-    if rho.partial_cmp(&min_anisotropy) == Some(std::cmp::Ordering::Less) || rho.is_nan() {
+    let (rho, [wx, wy]) = xy_anisotropy(information);
+    if rho.is_nan() || rho < min_anisotropy {
         return None;
     }
     let f = ((rho - min_anisotropy) / (0.5 * min_anisotropy)).min(1.0);

@@ -81,12 +81,7 @@ impl LaserGraphSlam {
         let Some(cov) = covariance::response_covariance(grid, scan, pose, &sampling) else {
             return true;
         };
-        let (a, b, d) = (cov[(0, 0)], cov[(0, 1)], cov[(1, 1)]);
-        // Eigenvalues of the 2 × 2 block [[a, b], [b, d]].
-        let mean = 0.5 * (a + d);
-        let r = (0.25 * (a - d) * (a - d) + b * b).sqrt();
-        let (hi, lo) = (mean + r, (mean - r).max(f64::MIN_POSITIVE));
-        (hi / lo).sqrt() > self.config.loop_max_anisotropy
+        covariance::xy_anisotropy(&cov).0 > self.config.loop_max_anisotropy
     }
 
     /// Searches finished submaps for loop closures of keyframe `k` and adds the matches to

@@ -391,7 +391,8 @@ impl LaserGraphSlam {
                     Some((pose, cov)) => {
                         let information = self.match_information(&cov, prev_local.theta);
                         let z = prev_local.between(&pose);
-                        let fused = self.degenerate_edge(&z, &information, prev_record, i);
+                        let fused =
+                            self.degenerate_edge(&z, &information, &delta, (prev_record, i));
                         match fused {
                             // The submaps keep the match's pose; the graph gets the
                             // fused edge.

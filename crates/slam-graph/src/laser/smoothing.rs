@@ -90,13 +90,15 @@ impl LaserGraphSlam {
             let info = invert(&self.odometry_covariance(&delta));
             graph.add_between(i as u64 - 1, i as u64, delta, info)?;
         }
-        // Held keyframes: their edges join fixed nodes and change nothing.
-        for c in self.constraints.iter().filter(|_| !hold) {
-            if c.loop_closure && self.chi2(c) > self.config.smoother_max_closure_chi2 {
-                continue;
+        // Held keyframes: their edges would join fixed nodes and change nothing.
+        if !hold {
+            for c in &self.constraints {
+                if c.loop_closure && self.chi2(c) > self.config.smoother_max_closure_chi2 {
+                    continue;
+                }
+                let (a, b) = (self.keyframes[c.from].record, self.keyframes[c.to].record);
+                graph.add_between(a as u64, b as u64, c.z, c.information)?;
             }
-            let (a, b) = (self.keyframes[c.from].record, self.keyframes[c.to].record);
-            graph.add_between(a as u64, b as u64, c.z, c.information)?;
         }
         let mut opt = Optimizer::new(&graph, self.config.smoother)?;
         opt.optimize(&mut graph)?;
