@@ -34,18 +34,13 @@ pub(crate) struct Setup<'a> {
     pub sim_noise: Option<NoiseModels>,
     /// `--preset` (gridfast).
     pub preset: Option<&'a str>,
-    /// The first scan of a recording whose odometry is laser odometry (withheld or
-    /// missing), `None` otherwise: gridfast's proposal window is then widened
-    /// ([`LASER_ODOMETRY_PROPOSAL_RANGE_XY`]).
-    pub laser_odometry_scan: Option<&'a slam_models::LaserScan>,
+    /// The filter is fed laser odometry (the recording has none, it is withheld, or the
+    /// node was started with `--odom-topic none`): gridfast is told so
+    /// (`[motion] odometry-source = "laser"`), which widens its proposal's window to at
+    /// least [`slam_gridfast::LASER_ODOMETRY_SEARCH_RANGE_XY`] unless the configuration
+    /// sets `matching.search-range-xy`.
+    pub laser_odometry: bool,
 }
-
-/// With laser odometry, gridfast's proposal searches at least ± this in x and y (metres)
-/// unless the configuration sets `matching.search-range-xy`: laser odometry's wrong steps
-/// are single jumps of 0.5–1.5 m along a corridor, not wheel odometry's centimetres, and
-/// the indoor preset's ±0.3 m cannot reach back over them (Intel without odometry, seeds
-/// 0–4: relations 0.880 → 0.197 m median; docs/results.md, "Laser-only mapping").
-pub(crate) const LASER_ODOMETRY_PROPOSAL_RANGE_XY: f64 = 1.0;
 
 impl<'a> Setup<'a> {
     /// The setup `slam run`'s arguments ask for, from `initial_pose` with the simulator's
@@ -62,7 +57,7 @@ impl<'a> Setup<'a> {
             initial_pose,
             sim_noise,
             preset: args.preset.as_deref(),
-            laser_odometry_scan: None,
+            laser_odometry: false,
         }
     }
 }
@@ -225,14 +220,11 @@ pub(crate) fn build_scan(
             Some(_) => slam_gridfast::Preset::Auto,
             None => c.preset,
         };
-        // Laser odometry's wrong steps are up to about a metre: the proposal's window
-        // reaches at least that far (the preset's when wider), unless the file sets it.
-        if let (Some(scan), None) = (setup.laser_odometry_scan, c.matching.search_range_xy) {
-            let preset = c.resolve(Some(scan)).ok();
-            let range = preset
-                .and_then(|r| r.matching.search_range_xy)
-                .unwrap_or(0.0);
-            c.matching.search_range_xy = Some(range.max(LASER_ODOMETRY_PROPOSAL_RANGE_XY));
+        // Laser odometry's wrong steps are up to about a metre: gridfast's proposal
+        // window reaches at least that far (the preset's when wider), unless the file sets
+        // it (`slam_gridfast::OdometrySource::Laser`).
+        if setup.laser_odometry {
+            c.motion.odometry_source = slam_gridfast::OdometrySource::Laser;
         }
     }
     let filter = parsed

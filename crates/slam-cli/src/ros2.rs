@@ -128,6 +128,21 @@ fn options(a: &Ros2Args) -> Result<NodeOptions, CliError> {
 
 /// Runs `slam ros2` until Ctrl-C.
 pub fn ros2(a: &Ros2Args, out: &mut dyn Write) -> Result<NodeReport, CliError> {
+    let (opts, built) = node_and_filter(a)?;
+    let live = crate::start_live(a.live.as_deref(), |o| opts.topic(o), out)?;
+    let mut log = |line: &str| {
+        let _ = writeln!(out, "{line}");
+        let _ = out.flush();
+    };
+    slam_ros::run_node(&opts, built.filter, &crate::STOP, live.as_ref(), &mut log)
+        .map_err(|e| CliError::Ros(Box::new(e)))
+}
+
+/// The node's options and its filter, built as `slam run` builds a filter for a recording
+/// (with `--odom-topic none`, as for a recording without odometry).
+fn node_and_filter(
+    a: &Ros2Args,
+) -> Result<(NodeOptions, filters::Built<dyn slam_models::ScanSlam>), CliError> {
     let info = filters::find(&a.filter)?;
     let info = slam_eval::factory::find_for(info.name, DataKind::Laser).ok_or_else(|| {
         CliError::InvalidArgument(format!(
@@ -146,17 +161,12 @@ pub fn ros2(a: &Ros2Args, out: &mut dyn Write) -> Result<NodeReport, CliError> {
         initial_pose: slam_models::Pose2::default(),
         sim_noise: None,
         preset: a.preset.as_deref(),
-        // A node cannot know before the first messages whether odometry will come.
-        laser_odometry_scan: None,
+        // `--odom-topic none`: the node makes laser odometry from the scans, as `slam run`
+        // does for a recording without odometry, and tells the filter so.
+        laser_odometry: opts.odometry == OdomSource::None,
     };
     let built = filters::build_scan(&info, &setup)?;
-    let live = crate::start_live(a.live.as_deref(), |o| opts.topic(o), out)?;
-    let mut log = |line: &str| {
-        let _ = writeln!(out, "{line}");
-        let _ = out.flush();
-    };
-    slam_ros::run_node(&opts, built.filter, &crate::STOP, live.as_ref(), &mut log)
-        .map_err(|e| CliError::Ros(Box::new(e)))
+    Ok((opts, built))
 }
 
 #[cfg(test)]
@@ -199,5 +209,30 @@ mod tests {
         assert!(e.to_string().contains("NAME is one of"), "{e}");
         assert!(options(&parse(&["--topic", "nothing"])).is_err());
         assert!(options(&parse(&["--map-interval", "0"])).is_err());
+    }
+
+    /// `--odom-topic none` feeds the filter laser odometry, as `slam run` does for a
+    /// recording without odometry: grid FastSLAM is told so and its proposal's window is
+    /// then as wide as `slam run`'s (at least ±1 m on an indoor scan, not the preset's
+    /// ±0.3 m); with odometry from a topic it keeps the preset's.
+    #[test]
+    fn a_laser_only_node_widens_gridfast_like_slam_run() {
+        let indoor = slam_models::LaserScan {
+            angle_min: -1.5,
+            angle_increment: 0.01,
+            ranges: vec![2.0; 301],
+            max_range: 30.0,
+            sensor_pose: slam_models::Pose2::default(),
+        };
+        let window = |args: &[&str]| {
+            let (_, built) = node_and_filter(&parse(args)).unwrap();
+            let slam_eval::factory::FilterConfig::Gridfast(c) = built.config else {
+                panic!("gridfast expected")
+            };
+            c.resolve(Some(&indoor)).unwrap().matching.search_range_xy
+        };
+        let laser_only = ["--filter", "gridfast", "--odom-topic", "none"];
+        assert_eq!(window(&laser_only), Some(1.0));
+        assert_eq!(window(&["--filter", "gridfast"]), Some(0.3));
     }
 }

@@ -565,9 +565,7 @@ fn run_scan(
         });
     }
     let mut setup = Setup::of_run(ctx.args, slam_models::Pose2::default(), None);
-    if input.laser_odometry.is_some() {
-        setup.laser_odometry_scan = dataset.records.iter().find_map(|r| r.scan.as_ref());
-    }
+    setup.laser_odometry = input.laser_odometry.is_some();
     let built = filters::build_scan(info, &setup)?;
     let mut filter = built.filter;
     let mut mcap = McapRecorder::create(ctx.args, dataset.records.len(), None)?;

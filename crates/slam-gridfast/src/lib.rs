@@ -46,9 +46,9 @@ mod proposal;
 mod setup;
 
 pub use config::{
-    median_return_range, GridFastConfig, MapConfig, MatchingConfig, MotionConfig, Preset, Proposal,
-    ProposalConfig, RecoveryConfig, ResamplingConfig, SensorConfig, StartChoice,
-    AUTO_OUTDOOR_MEDIAN_RANGE, MAX_PARTICLES,
+    median_return_range, GridFastConfig, MapConfig, MatchingConfig, MotionConfig, OdometrySource,
+    Preset, Proposal, ProposalConfig, RecoveryConfig, ResamplingConfig, SensorConfig, StartChoice,
+    AUTO_OUTDOOR_MEDIAN_RANGE, LASER_ODOMETRY_SEARCH_RANGE_XY, MAX_PARTICLES,
 };
 pub use error::GridFastError;
 pub use filter::GridFastSlam;

@@ -341,10 +341,37 @@ impl Default for ResamplingConfig {
     }
 }
 
+/// Where the odometry the filter is fed comes from, which decides how far the improved
+/// proposal's coarse search must reach around the odometry's prediction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OdometrySource {
+    /// The robot's own odometry (wheel encoders, an IMU, a visual odometry): its error
+    /// between two updates is a drift of centimetres, which the preset's window covers.
+    #[default]
+    Robot,
+    /// Laser odometry (slam-grid's `LaserOdometry`: each scan matched against the scans
+    /// before it), made when a recording has no odometry or it is withheld. Its errors are
+    /// single wrong steps of 0.5–1.5 m along a corridor instead, so the preset's window
+    /// [`MatchingConfig::search_range_xy`] is widened to at least
+    /// [`LASER_ODOMETRY_SEARCH_RANGE_XY`] (a value set in the configuration is kept).
+    Laser,
+}
+
+/// With [`OdometrySource::Laser`], the improved proposal's coarse search reaches at least
+/// ± this in x and y around the prediction, metres (the preset's window when wider): the
+/// indoor preset's ±0.3 m cannot reach back over laser odometry's wrong steps (`bench/intel.log`
+/// without odometry, filter seeds 0–4: relations 0.880 m median with ±0.3 m, 0.197 m with
+/// ±1 m; docs/results.md, "Laser-only mapping").
+pub const LASER_ODOMETRY_SEARCH_RANGE_XY: f64 = 1.0;
+
 /// The motion between processed scans.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct MotionConfig {
+    /// Where the odometry comes from ([`OdometrySource`]). Default `robot`; `slam run` and
+    /// `slam ros2` set `laser` when they feed the filter laser odometry.
+    pub odometry_source: OdometrySource,
     /// Odometry motion model (PR table 5.6). Default α = (0.05, 0.002, 0.02, 0.002): 22 %
     /// of a rotation, 4.5 cm of heading per metre as rotation noise; 14 % of the
     /// translation as translation noise. Both of its keys must be given in a file (a
@@ -359,6 +386,7 @@ pub struct MotionConfig {
 impl Default for MotionConfig {
     fn default() -> Self {
         Self {
+            odometry_source: OdometrySource::Robot,
             odometry: OdometryModel::new([0.05, 0.002, 0.02, 0.002]),
             min_std: [0.01, 0.005],
         }
@@ -441,7 +469,8 @@ impl Default for GridFastConfig {
 impl GridFastConfig {
     /// The same configuration with the preset's values for every `None` of `preset`
     /// ([`Preset::Auto`] stands for [`Preset::Indoor`] here), the range limit left as it
-    /// is.
+    /// is; with [`OdometrySource::Laser`] the search window is at least
+    /// [`LASER_ODOMETRY_SEARCH_RANGE_XY`].
     pub fn with_preset(&self, preset: Preset) -> GridFastConfig {
         let p = preset.values();
         let mut c = self.clone();
@@ -455,7 +484,11 @@ impl GridFastConfig {
         m.field_radius.get_or_insert(p.field_radius);
         m.likelihood_radius.get_or_insert(p.likelihood_radius);
         m.linear_step.get_or_insert(p.linear_step);
-        m.search_range_xy.get_or_insert(p.search_range_xy);
+        m.search_range_xy
+            .get_or_insert(match c.motion.odometry_source {
+                OdometrySource::Robot => p.search_range_xy,
+                OdometrySource::Laser => p.search_range_xy.max(LASER_ODOMETRY_SEARCH_RANGE_XY),
+            });
         m.search_step_xy.get_or_insert(p.search_step_xy);
         m.search_range_theta.get_or_insert(p.search_range_theta);
         m.search_step_theta.get_or_insert(p.search_step_theta);

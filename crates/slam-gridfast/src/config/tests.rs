@@ -202,3 +202,37 @@ fn resolve_takes_the_sensor_and_the_preset_from_the_data() {
     // Resolving twice changes nothing.
     assert_eq!(r.resolve(Some(&office)).unwrap(), r);
 }
+
+/// Laser odometry widens the preset's coarse window to ±1 m indoors (the outdoor preset's
+/// ±1.2 m is wider and stays); a window set in the configuration is kept either way.
+#[test]
+fn laser_odometry_widens_the_preset_window_only() {
+    let indoor = scan(vec![2.0; 181], 30.0);
+    let outdoor = scan(vec![20.0; 181], 80.0);
+    let window = |source, set: Option<f64>, s: &LaserScan| {
+        let mut c = GridFastConfig::default();
+        c.motion.odometry_source = source;
+        c.matching.search_range_xy = set;
+        c.resolve(Some(s))
+            .unwrap()
+            .matching
+            .search_range_xy
+            .unwrap()
+    };
+    assert_eq!(window(OdometrySource::Robot, None, &indoor), 0.3);
+    assert_eq!(
+        window(OdometrySource::Laser, None, &indoor),
+        LASER_ODOMETRY_SEARCH_RANGE_XY
+    );
+    assert_eq!(window(OdometrySource::Robot, None, &outdoor), 1.2);
+    assert_eq!(window(OdometrySource::Laser, None, &outdoor), 1.2);
+    assert_eq!(window(OdometrySource::Laser, Some(0.5), &indoor), 0.5);
+    // A file says it in words.
+    let c: GridFastConfig =
+        serde_json::from_str(r#"{"motion": {"odometry-source": "laser"}}"#).unwrap();
+    assert_eq!(c.motion.odometry_source, OdometrySource::Laser);
+    assert!(
+        serde_json::from_str::<GridFastConfig>(r#"{"motion": {"odometry-source": "wheels"}}"#)
+            .is_err()
+    );
+}
