@@ -10,9 +10,13 @@
 //! pose of an ambiguous step ([`super::LaserOdometry::propose`]'s alternatives) starts a
 //! branch: a copy of the laser odometry (its own local map, prediction and pose chain)
 //! that takes that pose. Every branch matches the next scans on its own; `lag` scans after
-//! the first split the branch whose matched poses fit the most end points, summed over the
-//! scans since that split (Σ inliers / end points of each scan; a failed match adds 0),
-//! is kept and the others are dropped. Every branch shares the poses before the split, so
+//! the first split the branch whose matched poses fit the most end points where its map
+//! has observed anything, summed over the scans since that split (Σ inliers / end points
+//! in observed cells of each scan, [`super::LaserOdometry::known_fit`]; a failed match
+//! adds 0), is kept and the others are dropped. End points in unmapped space are left
+//! out: counted as misses they favour a pose that lays the scan over the mapped part (the
+//! branch stuck behind the robot in a corridor wins on the plain inlier fraction over 5,
+//! 10 and 20 scans on acapulco). Every branch shares the poses before the split, so
 //! the sums compare like with like.
 //!
 //! Branch 0 always takes the match [`super::LaserOdometry::process`] would take (the
@@ -36,7 +40,7 @@ struct Branch {
     lo: LaserOdometry,
     /// Its poses of the scans not yet decided, in order.
     poses: Vec<Pose2>,
-    /// Σ inliers / end points over the scans since the open split.
+    /// Σ inliers / end points in observed cells over the scans since the open split.
     fit: f64,
 }
 

@@ -84,7 +84,7 @@ pub struct LaserOdometryRun {
 /// Runs [`LaserOdometry`] over `records` in file order (their own odometry is ignored),
 /// with the rotation prior from `rates` (sorted by time here) when given; with
 /// `branch-lag` above 0 ambiguous steps are followed as branches and decided that many
-/// scans later ([`super::hypotheses`]), otherwise each scan's pose is
+/// scans later (the module documentation, step 4), otherwise each scan's pose is
 /// [`LaserOdometry::process`]'s.
 pub fn laser_odometry(
     records: &[ScanRecord],
