@@ -244,6 +244,19 @@ impl OccupancyGrid {
     /// [`OccupancyGrid::field_window`] into `out`, every element of it written: the
     /// `out.len() / w` rows of `w` cells from `min`.
     pub(crate) fn field_window_into(&self, min: CellIndex, w: usize, out: &mut [f32]) {
+        self.field_window_tiles_into(min, w, out, |_, _| true);
+    }
+
+    /// [`OccupancyGrid::field_window_into`] over the tiles (tx, ty) (cell x >> TILE_BITS,
+    /// y >> TILE_BITS) for which `wanted` is true; the cells of the other tiles get the far
+    /// value, and those tiles' fields are neither read nor computed.
+    pub(crate) fn field_window_tiles_into(
+        &self,
+        min: CellIndex,
+        w: usize,
+        out: &mut [f32],
+        wanted: impl Fn(i32, i32) -> bool,
+    ) {
         let far = self.lazy_state().far.values[0];
         out.fill(far);
         if w == 0 || out.len() < w {
@@ -255,7 +268,7 @@ impl OccupancyGrid {
         let max_y = min.y + h as i32 - 1;
         for ty in (min.y >> tiles::TILE_BITS)..=(max_y >> tiles::TILE_BITS) {
             for tx in (min.x >> tiles::TILE_BITS)..=(max_x >> tiles::TILE_BITS) {
-                let Some(slot) = self.table.slot(tx, ty) else {
+                let Some(slot) = self.table.slot(tx, ty).filter(|_| wanted(tx, ty)) else {
                     continue;
                 };
                 let f = self.field_tile(slot);
