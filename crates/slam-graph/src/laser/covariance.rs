@@ -82,7 +82,12 @@ pub(crate) fn response_covariance(
     let min = CellIndex::new(lo.x - l, lo.y - l);
     let w = (hi.x - lo.x + 2 * l + 1) as usize;
     let h = (hi.y - lo.y + 2 * l + 1) as usize;
-    let ll = log_likelihood_window(grid, min, w, h, &cells, l);
+    let params = grid.likelihood_params();
+    let ll: Vec<f32> = grid
+        .field_window(min, w, h)
+        .into_iter()
+        .map(|s| params.log_likelihood(s) as f32)
+        .collect();
     // ℓ at every lattice pose, indexed [k][j][i].
     let side = (2 * l + 1) as usize;
     // Accumulated end point by end point (each pose's sum still adds the end points in
@@ -132,54 +137,6 @@ pub(crate) fn response_covariance(
         cov[(u, u)] += step * step / 12.0;
     }
     Some((cov + cov.transpose()) * 0.5)
-}
-
-/// The per-cell log-likelihood ln p(z | cell) (as `f32`) over the `w × h` cells from
-/// `min`, row-major, at the cells the sampling reads: the (2l + 1)² block around each of
-/// `cells`; the others are left 0. The field is read (and its tiles computed) only in the
-/// tiles holding such cells, instead of over the scan's whole box.
-fn log_likelihood_window(
-    grid: &OccupancyGrid,
-    min: CellIndex,
-    w: usize,
-    h: usize,
-    cells: &[CellIndex],
-    l: i32,
-) -> Vec<f32> {
-    let side = (2 * l + 1) as usize;
-    let mut needed = vec![false; w * h];
-    for c in cells {
-        let x0 = (c.x - l - min.x) as usize;
-        for y in (c.y - l - min.y) as usize..(c.y - l - min.y) as usize + side {
-            needed[y * w + x0..y * w + x0 + side].fill(true);
-        }
-    }
-    let params = grid.likelihood_params();
-    let mut ll = vec![0.0f32; w * h];
-    // Blocks of the grid's tiles: each block's field read computes at most one tile.
-    const TILE: i32 = slam_grid::TILE_SIZE as i32;
-    let (max_x, max_y) = (min.x + w as i32 - 1, min.y + h as i32 - 1);
-    for ty in min.y.div_euclid(TILE)..=max_y.div_euclid(TILE) {
-        let (y0, y1) = ((ty * TILE).max(min.y), (ty * TILE + TILE - 1).min(max_y));
-        for tx in min.x.div_euclid(TILE)..=max_x.div_euclid(TILE) {
-            let (x0, x1) = ((tx * TILE).max(min.x), (tx * TILE + TILE - 1).min(max_x));
-            let (bw, bh) = ((x1 - x0 + 1) as usize, (y1 - y0 + 1) as usize);
-            let row = |y: i32| (y - min.y) as usize * w + (x0 - min.x) as usize;
-            if !(y0..=y1).any(|y| needed[row(y)..row(y) + bw].contains(&true)) {
-                continue;
-            }
-            let values = grid.field_window(CellIndex::new(x0, y0), bw, bh);
-            for (b, y) in (y0..=y1).enumerate() {
-                let r = row(y);
-                for (a, v) in values[b * bw..(b + 1) * bw].iter().enumerate() {
-                    if needed[r + a] {
-                        ll[r + a] = params.log_likelihood(*v) as f32;
-                    }
-                }
-            }
-        }
-    }
-    ll
 }
 
 impl super::LaserGraphSlam {
