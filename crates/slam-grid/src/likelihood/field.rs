@@ -59,6 +59,7 @@ pub(crate) fn compute_region(
     let mut out = Vec::with_capacity(w * h);
     let mut dist2 = Vec::with_capacity(w * h);
     let dmax = params.max_distance;
+    let (far, far_d2) = (params.field_value(dmax), (dmax * dmax) as f32);
     // Surfaces of the obstacle sites, fitted on first use (many cells share a site).
     let mut surfaces: Vec<Option<Surface>> = if params.subcell {
         vec![None; gw * gh]
@@ -81,8 +82,14 @@ pub(crate) fn compute_region(
             } else {
                 d2[k].sqrt() * res
             };
-            out.push(params.field_value(d));
-            dist2.push((d.min(dmax) * d.min(dmax)) as f32);
+            if d >= dmax {
+                // The far value (d clamped to dmax), without its exp.
+                out.push(far);
+                dist2.push(far_d2);
+            } else {
+                out.push(params.field_value(d));
+                dist2.push((d.min(dmax) * d.min(dmax)) as f32);
+            }
         }
     }
     Some((out, dist2))

@@ -244,6 +244,19 @@ impl OccupancyGrid {
     /// [`OccupancyGrid::field_window`] into `out`, every element of it written: the
     /// `out.len() / w` rows of `w` cells from `min`.
     pub(crate) fn field_window_into(&self, min: CellIndex, w: usize, out: &mut [f32]) {
+        self.field_window_tiles_into(min, w, out, |_, _| true);
+    }
+
+    /// [`OccupancyGrid::field_window_into`] over the tiles (tx, ty) (cell x >> TILE_BITS,
+    /// y >> TILE_BITS) for which `wanted` is true; the cells of the other tiles get the far
+    /// value, and those tiles' fields are neither read nor computed.
+    pub(crate) fn field_window_tiles_into(
+        &self,
+        min: CellIndex,
+        w: usize,
+        out: &mut [f32],
+        wanted: impl Fn(i32, i32) -> bool,
+    ) {
         let far = self.lazy_state().far.values[0];
         out.fill(far);
         if w == 0 || out.len() < w {
@@ -255,7 +268,7 @@ impl OccupancyGrid {
         let max_y = min.y + h as i32 - 1;
         for ty in (min.y >> tiles::TILE_BITS)..=(max_y >> tiles::TILE_BITS) {
             for tx in (min.x >> tiles::TILE_BITS)..=(max_x >> tiles::TILE_BITS) {
-                let Some(slot) = self.table.slot(tx, ty) else {
+                let Some(slot) = self.table.slot(tx, ty).filter(|_| wanted(tx, ty)) else {
                     continue;
                 };
                 let f = self.field_tile(slot);
@@ -331,5 +344,55 @@ mod tests {
         assert_eq!(g.likelihood_params(), q);
         // Far from every obstacle the field reads the new parameters' far value.
         assert_eq!(g.likelihood(CellIndex::new(1000, 1000)), q.far_value());
+    }
+
+    /// A window over wanted tiles only: those tiles' cells equal the full window's (the
+    /// field computed as on any read), every other cell is the far value, and a fresh
+    /// grid has computed no field tile outside the wanted ones.
+    #[test]
+    fn a_window_over_some_tiles_reads_those_and_the_far_value_elsewhere() {
+        let g = crate::testutil::office_map(0.05);
+        let (lo, hi) = g.covered_cells().unwrap();
+        let min = CellIndex::new(lo.x - 5, lo.y - 3);
+        let (w, h) = ((hi.x - min.x + 7) as usize, (hi.y - min.y + 2) as usize);
+        let full = g.field_window(min, w, h);
+        let far = g.likelihood_params().far_value();
+        let wanted = |tx: i32, ty: i32| (tx + 2 * ty) % 3 == 0;
+        let fresh = crate::testutil::office_map(0.05);
+        let mut part = vec![0.0f32; w * h];
+        fresh.field_window_tiles_into(min, w, &mut part, wanted);
+        let bits = tiles::TILE_BITS;
+        let (mut kept, mut far_cells) = (0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let c = CellIndex::new(min.x + x as i32, min.y + y as i32);
+                let (k, v) = (y * w + x, part[y * w + x]);
+                if wanted(c.x >> bits, c.y >> bits) {
+                    assert_eq!(v.to_bits(), full[k].to_bits(), "wanted cell {c:?}");
+                    kept += (v != far) as usize;
+                } else {
+                    assert_eq!(v, far, "unwanted cell {c:?}");
+                    far_cells += (full[k] != far) as usize;
+                }
+            }
+        }
+        assert!(
+            kept > 100 && far_cells > 100,
+            "{kept} near cells kept, {far_cells} left far"
+        );
+        let computed = fresh
+            .fields
+            .get()
+            .map_or(0, |f| f.iter().filter(|t| t.get().is_some()).count());
+        let wanted_slots = (0..fresh.table.len())
+            .filter(|&s| {
+                let (tx, ty) = fresh.table.tile_of_slot(s);
+                wanted(tx, ty)
+            })
+            .count();
+        assert!(
+            computed > 0 && computed <= wanted_slots,
+            "{computed} tiles computed, {wanted_slots} wanted"
+        );
     }
 }

@@ -134,7 +134,27 @@ impl CorrelativeMatcher {
             )));
         }
         let (w, h) = (w as usize, h as usize);
-        let fine = grid.field_window(min, w, h);
+        // The field only in the tiles some read reaches: an end point's sums read the
+        // cells [c − l, c + l + f − 1] (fine offsets up to 2l, coarse maxima f wide), at
+        // most 2 × 2 tiles (their cells outside hold the far value, never read).
+        let bits = crate::grid::tiles::TILE_BITS;
+        let t0 = (min.x >> bits, min.y >> bits);
+        let tw = (((min.x + w as i32 - 1) >> bits) - t0.0 + 1) as usize;
+        let th = (((min.y + h as i32 - 1) >> bits) - t0.1 + 1) as usize;
+        let mut wanted = vec![false; tw * th];
+        for c in &cells {
+            let (x0, y0) = ((c.x - l) >> bits, (c.y - l) >> bits);
+            let (x1, y1) = ((c.x + l + f - 1) >> bits, (c.y + l + f - 1) >> bits);
+            for ty in y0..=y1 {
+                for tx in x0..=x1 {
+                    wanted[(ty - t0.1) as usize * tw + (tx - t0.0) as usize] = true;
+                }
+            }
+        }
+        let mut fine = vec![0.0f32; w * h];
+        grid.field_window_tiles_into(min, w, &mut fine, |tx, ty| {
+            wanted[(ty - t0.1) as usize * tw + (tx - t0.0) as usize]
+        });
         let coarse = sliding_max(&fine, w, h, f as usize);
         // Linear indices of each rotation's end points at offset (−l, −l).
         let idx: Vec<u32> = cells
