@@ -2,7 +2,8 @@
 //! recording: the same scans, as messages through the node's processing core
 //! ([`slam_ros::ScanStepper`]) and offline as `slam run` reads a recording without odometry
 //! (slam-eval's `withhold_odometry`: [`slam_grid::laser_odometry()`] over the records, then
-//! the filter), must give the same estimates.
+//! the filter), must give the same estimates where no step is ambiguous (offline, laser
+//! odometry follows an ambiguous step as branches; the node decides each step at once).
 
 use slam_eval::factory::{DataKind, FilterConfig};
 use slam_eval::input::{self, InputData};
