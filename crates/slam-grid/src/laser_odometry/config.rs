@@ -103,8 +103,9 @@ pub struct LaserOdometryConfig {
     /// With branches on: when the match taken fits less than this fraction of the end
     /// points, the wide search also runs over the headings from `search-range-theta` to
     /// `turn-search-range` either side of the last pose (a turn faster than the window),
-    /// and its best is a branch when it is ambiguous with the match taken as above; 0:
-    /// never. Default 0.
+    /// and its best is a branch when it fits more end points than the match taken (and is
+    /// a distinct pose); 0: never. Default 0.7 (a turn candidate kept when it merely fit
+    /// within `ambiguity-margin` took fhw's turn on the spot 113° the wrong way).
     pub turn_search_fit: f64,
     /// The largest heading change from the last pose the turn search covers, radians, in
     /// [0, π] (at most `search-range-theta`: no turn search). Default 1.6 rad (92°; the
