@@ -246,9 +246,9 @@ fn constructor_shape() {
 }
 
 /// Finished submaps keep no grid: the loop search rebuilds it from the keyframes' scans.
-/// With a cache of one loop map (a rebuild at almost every search) the run is the same, to
-/// the bit, as with a cache of a hundred (every map built once): the rebuilt grids are the
-/// grids.
+/// With a cache of one loop map (a rebuild at almost every search), or a byte budget of 0
+/// (one pyramid kept), the run is the same, to the bit, as with a cache of a hundred and
+/// no byte limit (every map built once): the rebuilt grids are the grids.
 #[test]
 fn loop_map_cache_size_does_not_change_the_result() {
     let (records, _) = common::office(3);
@@ -259,16 +259,26 @@ fn loop_map_cache_size_does_not_change_the_result() {
             ..Default::default()
         },
     );
+    let no_bytes = run(
+        &records,
+        LaserGraphConfig {
+            loop_pyramid_cache_bytes: 0,
+            ..Default::default()
+        },
+    );
     let large = run(
         &records,
         LaserGraphConfig {
             loop_pyramid_cache: 100,
+            loop_pyramid_cache_bytes: 1 << 40,
             ..Default::default()
         },
     );
     assert!(small.stats().loop_closures > 0);
-    assert_eq!(small.stats(), large.stats());
-    assert_eq!(small.trajectory(), large.trajectory());
+    for other in [&no_bytes, &large] {
+        assert_eq!(small.stats(), other.stats());
+        assert_eq!(small.trajectory(), other.trajectory());
+    }
 }
 
 /// The end-of-run flush: a log that ends while the first closures of the office's second

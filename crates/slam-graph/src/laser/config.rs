@@ -216,10 +216,17 @@ pub struct LaserGraphConfig {
     /// Loop closure: at most this many submaps (the nearest) are searched per keyframe.
     /// Default 3.
     pub loop_max_candidates: usize,
-    /// Loop closure: finished submaps' grids and pyramids kept for reuse (least recently
-    /// used dropped; a submap not in the cache is rebuilt from its keyframes' scans). The
-    /// front end's memory beyond its keyframes is about this many submaps. Default 6.
+    /// Loop closure: at most this many finished submaps' grids and pyramids kept for
+    /// reuse (least recently used dropped; a submap not in the cache is rebuilt from its
+    /// keyframes' scans, the same grid and pyramid). Default 64: the byte budget
+    /// `loop-pyramid-cache-bytes` is what bounds it on real logs.
     pub loop_pyramid_cache: usize,
+    /// Loop closure: the cached pyramids' bytes are kept under this, less one pyramid of
+    /// the cache's mean size, before a new one is built (least recently used dropped; at
+    /// least one kept). Default 48 MiB: on `bench/intel.log` (2 MB per pyramid) about 24
+    /// submaps, which saves most of the 154 rebuilds of its 71 submaps that a cache of 6
+    /// made (a sixth of the run's CPU); on acapulco (8 MB per pyramid) about 6, as before.
+    pub loop_pyramid_cache_bytes: usize,
     /// The optimiser (slam-graph's Levenberg-Marquardt), run after every keyframe that
     /// added a loop closure. Default: the optimiser's default treatment of loop closures
     /// (DCS Φ = 1 on them, then the consistent ones back at full weight; odometry untouched:
@@ -294,7 +301,8 @@ impl Default for LaserGraphConfig {
             loop_depth: 6,
             loop_min_scan_gap: 30,
             loop_max_candidates: 3,
-            loop_pyramid_cache: 6,
+            loop_pyramid_cache: 64,
+            loop_pyramid_cache_bytes: 48 << 20,
             optimizer: OptimizerConfig {
                 initialisation: Initialisation::Input,
                 max_iterations: 20,
@@ -504,6 +512,12 @@ impl LaserGraphConfig {
             "loop-pyramid-cache",
             self.loop_pyramid_cache as f64,
             "in 1..=1000",
+        )?;
+        ensure(
+            self.loop_pyramid_cache_bytes <= 1 << 40,
+            "loop-pyramid-cache-bytes",
+            self.loop_pyramid_cache_bytes as f64,
+            "at most 2^40 (0 keeps one pyramid)",
         )?;
         self.optimizer.validate()?;
         self.smoother.validate()?;

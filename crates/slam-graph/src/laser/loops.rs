@@ -12,6 +12,7 @@ use crate::error::GraphError;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{LaserScan, Pose2};
 use std::cmp::Reverse;
+use std::collections::VecDeque;
 
 impl LaserGraphSlam {
     /// Once the pending group of candidate closures is complete (`loop-group-span`
@@ -345,7 +346,8 @@ impl LaserGraphSlam {
 
     /// Puts finished submap `s`'s loop-closure pyramid (and grid) at the back of the
     /// cache, rebuilding them from its keyframes' scans if needed (the least recently used
-    /// entry is dropped beyond `loop-pyramid-cache`, and the grids of all but the
+    /// entries are dropped beyond `loop-pyramid-cache` entries or
+    /// `loop-pyramid-cache-bytes`, and the grids of all but the
     /// `loop-max-candidates` most recently used, the submaps one keyframe searches: the
     /// search reads only the pyramid, and a match on a submap whose grid was dropped
     /// rebuilds it); false for an empty submap.
@@ -354,8 +356,17 @@ impl LaserGraphSlam {
             let entry = self.loop_maps.remove(pos).expect("position is valid");
             self.loop_maps.push_back(entry);
         } else {
-            // Room first, so that the new entry is not built alongside a full cache.
-            if self.loop_maps.len() >= self.config.loop_pyramid_cache {
+            // Room first, so that the new entry is not built alongside a full cache: under
+            // the count, and under the byte budget with room for one more of the mean size.
+            let bytes = |maps: &VecDeque<LoopMap>| -> usize {
+                maps.iter().map(|m| m.pyramid.memory_bytes()).sum()
+            };
+            while let Some(mean) = bytes(&self.loop_maps).checked_div(self.loop_maps.len()) {
+                let full = self.loop_maps.len() >= self.config.loop_pyramid_cache
+                    || bytes(&self.loop_maps) + mean > self.config.loop_pyramid_cache_bytes;
+                if !full {
+                    break;
+                }
                 self.loop_maps.pop_front();
             }
             let mut grid = self.loop_grid(s)?;

@@ -29,7 +29,7 @@
 //!   (`loop-ambiguity-ratio`), is refined by Gauss-Newton and becomes an edge from the
 //!   submap's keyframe nearest to the match. Finished submaps keep no grid: the search
 //!   rebuilds one from its keyframes' scans (the same insertions, so the same grid) and
-//!   keeps it with its pyramid in a small cache (`loop-pyramid-cache`), so memory does not
+//!   keeps it with its pyramid in a cache (`loop-pyramid-cache-bytes`), so memory does not
 //!   grow with the number of submaps (the pyramids' coarse levels in 8-bit codes,
 //!   [`MaxPyramid::new_compact`]; the grids only of the `loop-max-candidates` most
 //!   recently searched). After every keyframe that added a closure the
