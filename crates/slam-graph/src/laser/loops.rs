@@ -12,7 +12,6 @@ use crate::error::GraphError;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{LaserScan, Pose2};
 use std::cmp::Reverse;
-use std::collections::VecDeque;
 
 impl LaserGraphSlam {
     /// Once the pending group of candidate closures is complete (`loop-group-span`
@@ -358,16 +357,20 @@ impl LaserGraphSlam {
         } else {
             // Room first, so that the new entry is not built alongside a full cache: under
             // the count, and under the byte budget with room for one more of the mean size.
-            let bytes = |maps: &VecDeque<LoopMap>| -> usize {
-                maps.iter().map(|m| m.pyramid.memory_bytes()).sum()
-            };
-            while let Some(mean) = bytes(&self.loop_maps).checked_div(self.loop_maps.len()) {
+            let mut bytes: usize = self
+                .loop_maps
+                .iter()
+                .map(|m| m.pyramid.memory_bytes())
+                .sum();
+            while let Some(mean) = bytes.checked_div(self.loop_maps.len()) {
                 let full = self.loop_maps.len() >= self.config.loop_pyramid_cache
-                    || bytes(&self.loop_maps) + mean > self.config.loop_pyramid_cache_bytes;
+                    || bytes + mean > self.config.loop_pyramid_cache_bytes;
                 if !full {
                     break;
                 }
-                self.loop_maps.pop_front();
+                if let Some(dropped) = self.loop_maps.pop_front() {
+                    bytes -= dropped.pyramid.memory_bytes();
+                }
             }
             let mut grid = self.loop_grid(s)?;
             let Some(pyramid) = loop_pyramid(&grid, self.config.loop_depth)? else {

@@ -88,7 +88,7 @@ pub(crate) fn compute_region(
                 dist2.push(far_d2);
             } else {
                 out.push(params.field_value(d));
-                dist2.push((d.min(dmax) * d.min(dmax)) as f32);
+                dist2.push((d * d) as f32);
             }
         }
     }

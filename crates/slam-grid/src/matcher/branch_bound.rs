@@ -12,7 +12,7 @@ pub use super::pyramids::MaxPyramid;
 use super::{
     check_input, covariance_from_log_likelihood, transform_points, validate_window, MatchResult,
 };
-use crate::cell::{floor_i32, CellIndex, GridFrame};
+use crate::cell::{CellIndex, GridFrame};
 use crate::error::{ensure_config, GridError};
 use crate::grid::OccupancyGrid;
 use crate::scan::RangeData;
@@ -124,27 +124,20 @@ impl Lattice {
         let rotations = (2 * k_max + 1) as usize;
         let mut cells = vec![CellIndex::default(); rotations * n];
         let mut bounds = Vec::with_capacity(rotations);
-        let inv = 1.0 / frame.resolution;
-        let (ox, oy) = (frame.origin.x, frame.origin.y);
-        let (x, y) = (initial.x, initial.y);
         for (k, out) in (-k_max..=k_max).zip(cells.chunks_mut(n.max(1))) {
-            // The arithmetic of `transform_points` at Pose2::new(x, y, θ) then
-            // `GridFrame::world_to_cell`, in one pass that also takes the rotation's box.
-            let theta = slam_models::normalize_angle(initial.theta + k as f64 * dtheta);
-            let (s, c) = theta.sin_cos();
-            let (mut lo_x, mut lo_y) = (i32::MAX, i32::MAX);
-            let (mut hi_x, mut hi_y) = (i32::MIN, i32::MIN);
-            for (cell, p) in out.iter_mut().zip(points) {
-                let wx = x + c * p.x - s * p.y;
-                let wy = y + s * p.x + c * p.y;
-                let (cx, cy) = (floor_i32((wx - ox) * inv), floor_i32((wy - oy) * inv));
-                lo_x = lo_x.min(cx);
-                lo_y = lo_y.min(cy);
-                hi_x = hi_x.max(cx);
-                hi_y = hi_y.max(cy);
-                *cell = CellIndex::new(cx, cy);
+            // Each rotation's cells and their box in one pass.
+            let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * dtheta);
+            let (mut lo, mut hi) = (
+                CellIndex::new(i32::MAX, i32::MAX),
+                CellIndex::new(i32::MIN, i32::MIN),
+            );
+            for (cell, p) in out.iter_mut().zip(transform_points(points, &pose)) {
+                let c = frame.world_to_cell(&p);
+                lo = CellIndex::new(lo.x.min(c.x), lo.y.min(c.y));
+                hi = CellIndex::new(hi.x.max(c.x), hi.y.max(c.y));
+                *cell = c;
             }
-            bounds.push((CellIndex::new(lo_x, lo_y), CellIndex::new(hi_x, hi_y)));
+            bounds.push((lo, hi));
         }
         Ok(Self {
             dtheta,
