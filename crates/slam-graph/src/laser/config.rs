@@ -587,6 +587,20 @@ mod tests {
             ),
             (
                 LaserGraphConfig {
+                    loop_sampling_ratio: 0.0,
+                    ..Default::default()
+                },
+                "loop-sampling-ratio",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_sampling_ratio: f64::NAN,
+                    ..Default::default()
+                },
+                "loop-sampling-ratio",
+            ),
+            (
+                LaserGraphConfig {
                     match_min_std: [0.0, 0.01],
                     ..Default::default()
                 },
