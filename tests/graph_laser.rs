@@ -359,7 +359,8 @@ fn error_at_end(trajectory: &[TimedPose], truth: &[TimedPose]) -> f64 {
 /// more than 3 m from the truth), so the revisit is found only by a window sized from the
 /// graph distance. With the defaults the loop is closed (a closure joins records most of
 /// the run apart), every closure is true, and the last pose ends within 0.5 m (the issue's
-/// campus bar) of the truth.
+/// campus bar) of the truth; sampling half the candidacies (`loop-sampling-ratio` ½)
+/// runs fewer searches and still closes it, as truly and as well.
 #[test]
 fn long_loop_beyond_the_narrow_window_is_closed() {
     let (records, truth) = campus_block(1);
@@ -375,8 +376,23 @@ fn long_loop_beyond_the_narrow_window_is_closed() {
         },
     );
     let drift = error_at_end(&open.trajectory(), &truth);
+    // Half the candidacies searched (`loop-sampling-ratio` ½): fewer searches, and the
+    // same loop must still be closed.
+    let sampled = run(
+        &records,
+        LaserGraphConfig {
+            loop_sampling_ratio: 0.5,
+            ..config.clone()
+        },
+    );
     let slam = run(&records, config);
     let closed = error_at_end(&slam.trajectory(), &truth);
+    assert!(
+        sampled.stats().loop_searches < slam.stats().loop_searches,
+        "sampled {} searches, every candidate {}",
+        sampled.stats().loop_searches,
+        slam.stats().loop_searches
+    );
     let span = slam
         .loop_closures()
         .iter()
@@ -395,4 +411,24 @@ fn long_loop_beyond_the_narrow_window_is_closed() {
     );
     assert_closures_true(&slam, &truth);
     assert!(closed < 0.5, "last pose {closed} m from the truth");
+    let sampled_span = sampled
+        .loop_closures()
+        .iter()
+        .map(|(a, b, _)| b - a)
+        .max()
+        .unwrap_or(0);
+    let sampled_closed = error_at_end(&sampled.trajectory(), &truth);
+    eprintln!(
+        "sampled ½: last pose {sampled_closed:.3} m; longest closure {sampled_span}; {:?}",
+        sampled.stats()
+    );
+    assert!(
+        sampled_span > records.len() * 2 / 3,
+        "sampled: longest closure spans {sampled_span} records"
+    );
+    assert_closures_true(&sampled, &truth);
+    assert!(
+        sampled_closed < 0.5,
+        "sampled: last pose {sampled_closed} m from the truth"
+    );
 }

@@ -216,6 +216,16 @@ pub struct LaserGraphConfig {
     /// Loop closure: at most this many submaps (the nearest) are searched per keyframe.
     /// Default 3.
     pub loop_max_candidates: usize,
+    /// Loop closure: the fraction of its candidacies in which a submap is searched, in
+    /// (0, 1]. Each submap counts the keyframes for which it is among the
+    /// `loop-max-candidates` nearest (n) and the searches run (m), and is searched when
+    /// m / n < ratio after counting this one (Cartographer's per-submap `FixedRatioSampler`,
+    /// `constraint_builder.sampling_ratio`, 0.3 there): its first candidacy is always
+    /// searched, then one in 1 / ratio; deterministic. Default 1, every candidate
+    /// searched: on the robustness suite 0.5 cut Intel's CPU by a quarter but lost
+    /// closures elsewhere (acapulco-moderate 0.18 → 0.69 m aligned ATE;
+    /// docs/results/graph.md).
+    pub loop_sampling_ratio: f64,
     /// Loop closure: at most this many finished submaps' grids and pyramids kept for
     /// reuse (least recently used dropped; a submap not in the cache is rebuilt from its
     /// keyframes' scans, the same grid and pyramid). Default 64: the byte budget
@@ -301,6 +311,7 @@ impl Default for LaserGraphConfig {
             loop_depth: 6,
             loop_min_scan_gap: 30,
             loop_max_candidates: 3,
+            loop_sampling_ratio: 1.0,
             loop_pyramid_cache: 64,
             loop_pyramid_cache_bytes: 48 << 20,
             optimizer: OptimizerConfig {
@@ -507,6 +518,8 @@ impl LaserGraphConfig {
             self.loop_max_candidates as f64,
             "in 0..=100 (0 switches loop closure off)",
         )?;
+        let r = self.loop_sampling_ratio;
+        ensure(r > 0.0 && r <= 1.0, "loop-sampling-ratio", r, "in (0, 1]")?;
         ensure(
             (1..=1000).contains(&self.loop_pyramid_cache),
             "loop-pyramid-cache",
@@ -571,6 +584,20 @@ mod tests {
                     ..Default::default()
                 },
                 "loop-min-scan-gap",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_sampling_ratio: 0.0,
+                    ..Default::default()
+                },
+                "loop-sampling-ratio",
+            ),
+            (
+                LaserGraphConfig {
+                    loop_sampling_ratio: f64::NAN,
+                    ..Default::default()
+                },
+                "loop-sampling-ratio",
             ),
             (
                 LaserGraphConfig {

@@ -1,6 +1,7 @@
 //! Loop closure of the laser front end: the search of finished submaps around the pose the
 //! graph predicts, in a window sized from the graph distance between the two places
-//! ([`loop_window`]), under a per-keyframe budget; the checks a match must pass (unique,
+//! ([`loop_window`]), under a per-keyframe budget and a per-submap sampling of the
+//! candidacies ([`Sampler`]); the checks a match must pass (unique,
 //! not flat); the group of candidates and its consistency test
 //! ([`consistency::dominant_group`]); the end-of-run flush of that group.
 
@@ -124,6 +125,7 @@ impl LaserGraphSlam {
         }
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         // The per-keyframe budget: at most `loop-max-candidates` submaps, nearest first,
+        // each in a fraction `loop-sampling-ratio` of its candidacies ([`Sampler`]),
         // each searched first in the narrow window (the window capped at `loop-wide-radius`
         // and `loop-wide-angle`); a search in the whole window, when it is wider and the
         // narrow one found nothing acceptable, at most one per keyframe and, after one that
@@ -134,6 +136,10 @@ impl LaserGraphSlam {
         };
         let mut found = false;
         for &(_, s, radius, angle) in candidates.iter().take(c.loop_max_candidates) {
+            let ratio = self.config.loop_sampling_ratio;
+            if !self.submaps[s].sampler.pulse(ratio) {
+                continue;
+            }
             let c = &self.config;
             let narrow = (radius.min(c.loop_wide_radius), angle.min(c.loop_wide_angle));
             let mut closure = self.loop_candidate(k, s, narrow.0, narrow.1)?;
@@ -316,14 +322,17 @@ impl LaserGraphSlam {
     /// True when some pose 0.25 m, 0.5 m or 1 m away from `best` (8 directions, each
     /// followed by a small branch-and-bound search of ±0.1 m, ±0.2 m, ±0.2 m and
     /// ±0.05 rad) scores at least
-    /// `loop-ambiguity-ratio` × `score`: the match is not unique.
+    /// `loop-ambiguity-ratio` × `score`: the match is not unique. The searches start
+    /// from blocks of 8 × 8 cells (pyramid level 3): fewer roots to score than blocks of
+    /// 4 × 4, and the answer is the same for any depth (the search is exact, and only
+    /// whether a pose reaches the bar is asked).
     fn ambiguous(&self, pyramid: &MaxPyramid, scan: &RangeData, best: &Pose2, score: f64) -> bool {
         let bar = self.config.loop_ambiguity_ratio * score;
         let local = BranchBoundMatcher {
             linear_window: 0.2,
             angular_window: 0.05,
             angular_step: 0.0,
-            depth: 3.min(pyramid.depth()),
+            depth: 4.min(pyramid.depth()),
             min_score: bar.clamp(0.0, 1.0),
             min_points: 1,
         };
@@ -432,6 +441,28 @@ impl LaserGraphSlam {
             grid.try_integrate_prepared(&kf.local, &self.prepare(&kf.scan)?)?;
         }
         Ok(grid)
+    }
+}
+
+/// A deterministic sampler of a fixed ratio (Cartographer's `common::FixedRatioSampler`):
+/// of the `pulses` so far, `samples` returned true.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct Sampler {
+    pulses: u64,
+    samples: u64,
+}
+
+impl Sampler {
+    /// Counts one pulse and returns true when the fraction of pulses sampled so far is
+    /// below `ratio` (then counting this one as sampled): the first pulse is sampled, and
+    /// after n pulses ⌈ratio·n⌉ have been; `ratio` ≥ 1 samples every pulse.
+    pub(super) fn pulse(&mut self, ratio: f64) -> bool {
+        self.pulses += 1;
+        if (self.samples as f64) < ratio * self.pulses as f64 {
+            self.samples += 1;
+            return true;
+        }
+        false
     }
 }
 

@@ -84,6 +84,8 @@ struct Submap {
     keyframes: Vec<usize>,
     /// True once it receives no more scans.
     finished: bool,
+    /// The loop search's sampler of this submap (`loop-sampling-ratio`).
+    sampler: loops::Sampler,
 }
 
 /// A finished submap's grid, rebuilt from its keyframes' scans at their local poses (the
@@ -532,6 +534,7 @@ impl LaserGraphSlam {
                 grid: Some(self.empty_submap_grid()?),
                 keyframes: Vec::new(),
                 finished: false,
+                sampler: loops::Sampler::default(),
             });
             self.active.push(self.submaps.len() - 1);
         }

@@ -318,3 +318,32 @@ fn a_turn_the_odometry_got_wrong_is_recovered() {
     assert_eq!(recovered, 0);
     assert!(errors[0] > 0.2, "{errors:?}");
 }
+
+/// The loop search's sampler is Cartographer's fixed-ratio sampler: after n pulses
+/// ⌈ratio·n⌉ were sampled (ratios exact in binary, so the bound is exact), the first
+/// always, every one at ratio 1 (the search before sampling existed), and never two in a
+/// row at ratio ½.
+#[test]
+fn loop_sampler_takes_a_fixed_ratio() {
+    for ratio in [1.0, 0.5, 0.25, 0.125] {
+        let mut s = loops::Sampler::default();
+        let mut taken = 0u32;
+        let mut previous = false;
+        for n in 1..=200u32 {
+            let t = s.pulse(ratio);
+            if n == 1 {
+                assert!(t, "ratio {ratio}: the first pulse");
+            }
+            if ratio == 0.5 {
+                assert!(!(t && previous), "two in a row at pulse {n}");
+            }
+            previous = t;
+            taken += u32::from(t);
+            assert_eq!(
+                taken,
+                (ratio * n as f64).ceil() as u32,
+                "ratio {ratio}, n {n}"
+            );
+        }
+    }
+}
