@@ -243,6 +243,13 @@ pub struct LaserGraphConfig {
     /// see `slam_graph::optimizer`), warm-started from the current keyframe poses (no LAGO
     /// initialisation), at most 20 iterations.
     pub optimizer: OptimizerConfig,
+    /// Whether the loop closures into one submap share one closure's information in the
+    /// keyframe graph (each weighed by 1 / their number): they match against the same
+    /// grid, so their errors are largely common. Default true. `false` counts every
+    /// closure as independent, as before: on the simulated campus without odometry (seed
+    /// 2) a hundred closures into a submap then outweighed the scan-matching chain and
+    /// bent the map by up to 1 m (docs/results/graph.md).
+    pub closures_share_submap: bool,
     /// Whether the trajectory graph (one node per record) holds every keyframe at the
     /// keyframe graph's optimum. `true` (the default): it places only the records between
     /// keyframes, each run of them the odometry chain bent to meet the two keyframes at
@@ -319,6 +326,7 @@ impl Default for LaserGraphConfig {
                 max_iterations: 20,
                 ..OptimizerConfig::default()
             },
+            closures_share_submap: true,
             smoother_holds_keyframes: true,
             degenerate_anisotropy: 2.0,
             smoother: OptimizerConfig {

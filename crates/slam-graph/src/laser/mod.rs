@@ -34,7 +34,9 @@
 //!   [`MaxPyramid::new_compact`]; the grids only of the `loop-max-candidates` most
 //!   recently searched). After every keyframe that added a closure the
 //!   keyframe graph is optimised (Levenberg-Marquardt with the configured robust kernel,
-//!   DCS by default, against false closures).
+//!   DCS by default, against false closures); the closures into one submap share one
+//!   closure's information there (`closures-share-submap`: their errors are the grid's,
+//!   common to all of them).
 //! * **Poses at every record**: the trajectory comes from a second graph with **one node
 //!   per record**, consecutive records joined by odometry edges (increment o_{i−1}⁻¹ ⊕ o_i,
 //!   covariance from [`OdometryNoise`]). By default it holds every keyframe at the keyframe

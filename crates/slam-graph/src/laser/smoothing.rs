@@ -18,8 +18,9 @@ impl LaserGraphSlam {
             graph.add_pose(k as u64, kf.global)?;
         }
         graph.fix(0)?;
-        for c in &self.constraints {
-            graph.add_between(c.from as u64, c.to as u64, c.z, c.information)?;
+        let shares = self.closure_shares();
+        for (c, &n) in self.constraints.iter().zip(&shares) {
+            graph.add_between(c.from as u64, c.to as u64, c.z, c.information / n as f64)?;
         }
         let mut opt = Optimizer::new(&graph, self.config.optimizer)?;
         opt.optimize(&mut graph)?;
@@ -32,6 +33,48 @@ impl LaserGraphSlam {
             *cached = None;
         }
         Ok(())
+    }
+
+    /// For every constraint, the number of loop closures that share its information: with
+    /// `closures-share-submap` (the default), a loop closure's is shared with every other
+    /// closure whose earlier keyframe lies in the same submap (the first submap the
+    /// keyframe was inserted into), so that their information adds up to one closure's;
+    /// 1 for the scan-matching edges and otherwise.
+    ///
+    /// Those closures match scans against one grid: its errors (the keyframes' local
+    /// poses it was built from, the anchoring keyframe's jitter in it) are common to all
+    /// of them, and n measurements whose errors are shared are worth about one, not n
+    /// (covariance intersection's conservative bound for fully correlated estimates,
+    /// Julier and Uhlmann 1997: each weighed by 1/n). Counted as independent, a hundred
+    /// such closures outweighed the scan-matching chain (docs/results/graph.md).
+    pub(super) fn closure_shares(&self) -> Vec<usize> {
+        let mut shares = vec![1; self.constraints.len()];
+        if !self.config.closures_share_submap {
+            return shares;
+        }
+        let mut first = vec![usize::MAX; self.keyframes.len()];
+        for (s, submap) in self.submaps.iter().enumerate() {
+            for &k in &submap.keyframes {
+                if first[k] == usize::MAX {
+                    first[k] = s;
+                }
+            }
+        }
+        // A keyframe in no submap (none is, before the first scan) is a group of its own.
+        let group = |c: &Constraint| match first.get(c.from) {
+            Some(&s) if s != usize::MAX => Ok(s),
+            _ => Err(c.from),
+        };
+        let mut count = std::collections::HashMap::new();
+        for c in self.constraints.iter().filter(|c| c.loop_closure) {
+            *count.entry(group(c)).or_insert(0usize) += 1;
+        }
+        for (share, c) in shares.iter_mut().zip(&self.constraints) {
+            if c.loop_closure {
+                *share = count[&group(c)];
+            }
+        }
+        shares
     }
 
     /// The pose of every record before smoothing: the last keyframe's optimised pose

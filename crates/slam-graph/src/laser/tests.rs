@@ -347,3 +347,91 @@ fn loop_sampler_takes_a_fixed_ratio() {
         }
     }
 }
+
+/// A straight chain of 40 keyframes 0.5 m apart (stiff scan-matching edges, σ = 1 cm and
+/// 1 mrad, exact) and `n` loop closures from keyframes 0–9 (one submap) to keyframes 30–39,
+/// every one of them 0.1 m off across the chain (a shared error, as the closures into one
+/// submap share the submap's): the mean lateral offset of keyframes 30–39 after the
+/// keyframe graph's optimisation (no robust kernel).
+fn offset_from_shared_closures(n: usize, share: bool) -> f64 {
+    let config = LaserGraphConfig {
+        closures_share_submap: share,
+        optimizer: crate::optimizer::OptimizerConfig {
+            closure_kernel: crate::kernel::RobustKernel::None,
+            ..LaserGraphConfig::default().optimizer
+        },
+        ..LaserGraphConfig::default()
+    };
+    let mut f = LaserGraphSlam::new(config, Pose2::IDENTITY, 0).unwrap();
+    let diag = |a: f64, b: f64, c: f64| {
+        Matrix3::from_diagonal(&slam_models::Vector3::new(1.0 / a, 1.0 / b, 1.0 / c))
+    };
+    let scan = room_scan(2.5, 1.5);
+    for k in 0..40 {
+        let p = Pose2::new(0.5 * k as f64, 0.0, 0.0);
+        f.times.push(k as f64);
+        f.odometry.push(p);
+        f.last_keyframe_at.push(Some(k));
+        f.keyframes.push(Keyframe {
+            record: k,
+            scan: scan.clone(),
+            local: p,
+            global: p,
+            path: 0.5 * k as f64,
+        });
+        if k > 0 {
+            f.constraints.push(Constraint {
+                from: k - 1,
+                to: k,
+                z: Pose2::new(0.5, 0.0, 0.0),
+                information: diag(1e-4, 1e-4, 1e-6),
+                loop_closure: false,
+            });
+        }
+    }
+    f.submaps.push(Submap {
+        grid: None,
+        keyframes: (0..20).collect(),
+        finished: true,
+    });
+    f.submaps.push(Submap {
+        grid: None,
+        keyframes: (10..40).collect(),
+        finished: true,
+    });
+    for i in 0..n {
+        let (a, b) = (i % 10, 30 + (i * 7) % 10);
+        f.constraints.push(Constraint {
+            from: a,
+            to: b,
+            z: Pose2::new(0.5 * (b - a) as f64, 0.1, 0.0),
+            information: diag(1e-2, 1e-2, 4e-4),
+            loop_closure: true,
+        });
+    }
+    f.optimize_keyframes().unwrap();
+    f.keyframes[30..].iter().map(|k| k.global.y).sum::<f64>() / 10.0
+}
+
+/// Loop closures into one submap share its errors, so twenty of them must not pull the
+/// estimate further than one does (`closures-share-submap`): with the sharing, twenty
+/// closures with a common 0.1 m error move the far keyframes within 30 % of what one such
+/// closure moves them (one closure of σ = 0.1 m against the stiffer chain moves them by a
+/// fraction of the error, under 0.05 m); counted as independent, twenty move them more
+/// than twice as far (the test has teeth). Keyframes in no submap are groups of their own (the square test above).
+#[test]
+fn closures_into_one_submap_weigh_as_one() {
+    let one = offset_from_shared_closures(1, true);
+    let shared = offset_from_shared_closures(20, true);
+    let independent = offset_from_shared_closures(20, false);
+    eprintln!("lateral offset: one closure {one:.4} m, 20 shared {shared:.4} m, 20 independent {independent:.4} m");
+    assert!(one > 0.0 && one < 0.05, "one closure moved {one} m");
+    assert!(
+        (shared / one - 1.0).abs() < 0.3,
+        "{shared} m against {one} m"
+    );
+    assert!(
+        independent > 2.0 * one && independent > 0.05,
+        "{independent} m"
+    );
+}
