@@ -9,7 +9,11 @@
 //! uncertainty it must represent keeps that shape: along the corridor the response is
 //! flat and the sampled variance approaches the window's, across it the response is sharp
 //! and the variance is the lattice's.
+//!
+//! Also the front end's use of it: a local match's covariance by the configured
+//! [`MatchCovariance`] and the edge information from it (the `match-min-std` floor).
 
+use super::{LaserGraphSlam, MatchCovariance};
 use slam_grid::{CellIndex, OccupancyGrid, RangeData};
 use slam_models::{Matrix3, Pose2};
 
@@ -227,6 +231,58 @@ pub(crate) fn fuse_degenerate(
     fused[(1, 0)] += k * wx * wy;
     fused[(1, 1)] += k * wy * wy;
     Some((pose, fused))
+}
+
+impl LaserGraphSlam {
+    /// The covariance of a match at `pose` on `grid` ([`MatchCovariance`]), `matcher`'s
+    /// own when so configured or when the sampling has nothing to sample.
+    pub(super) fn match_covariance(
+        &self,
+        grid: &OccupancyGrid,
+        scan: &RangeData,
+        pose: &Pose2,
+        matcher: Matrix3,
+    ) -> Matrix3 {
+        match self.config.match_covariance {
+            MatchCovariance::Matcher => matcher,
+            MatchCovariance::Response {
+                linear_window,
+                angular_window,
+                temperature,
+            } => {
+                let sampling = ResponseSampling {
+                    linear_window,
+                    angular_window,
+                    temperature,
+                };
+                response_covariance(grid, scan, pose, &sampling).unwrap_or(matcher)
+            }
+        }
+    }
+
+    /// Information of a match whose world-frame covariance is `cov`, expressed in the frame
+    /// of a pose with heading `theta` (the edge's), with the `match-min-std` floor.
+    pub(super) fn match_information(&self, cov: &Matrix3, theta: f64) -> Matrix3 {
+        let (s, c) = theta.sin_cos();
+        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let mut local = r.transpose() * cov * r * self.config.match_covariance_scale;
+        let [sxy, sth] = self.config.match_min_std;
+        local[(0, 0)] += sxy * sxy;
+        local[(1, 1)] += sxy * sxy;
+        local[(2, 2)] += sth * sth;
+        invert(&local)
+    }
+}
+
+/// The inverse of a symmetric positive-definite 3×3 matrix, symmetrised (a covariance to an
+/// information); a tiny diagonal is added if the inversion fails.
+pub(super) fn invert(cov: &Matrix3) -> Matrix3 {
+    let m = cov.try_inverse().unwrap_or_else(|| {
+        (cov + Matrix3::identity() * 1e-12)
+            .try_inverse()
+            .unwrap_or(Matrix3::identity())
+    });
+    (m + m.transpose()) * 0.5
 }
 
 #[cfg(test)]

@@ -67,6 +67,8 @@ mod smoothing;
 pub use config::{LaserGraphConfig, MatchCovariance, OdometryNoise, MAX_SUBMAP_SCANS};
 pub use recovery::LocalRecovery;
 
+use covariance::invert;
+
 use crate::error::GraphError;
 use slam_grid::{MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{
@@ -479,45 +481,6 @@ impl LaserGraphSlam {
         Some((m.pose, covariance))
     }
 
-    /// The covariance of a match at `pose` on `grid` ([`MatchCovariance`]), `matcher`'s
-    /// own when so configured or when the sampling has nothing to sample.
-    fn match_covariance(
-        &self,
-        grid: &OccupancyGrid,
-        scan: &RangeData,
-        pose: &Pose2,
-        matcher: Matrix3,
-    ) -> Matrix3 {
-        match self.config.match_covariance {
-            MatchCovariance::Matcher => matcher,
-            MatchCovariance::Response {
-                linear_window,
-                angular_window,
-                temperature,
-            } => {
-                let sampling = covariance::ResponseSampling {
-                    linear_window,
-                    angular_window,
-                    temperature,
-                };
-                covariance::response_covariance(grid, scan, pose, &sampling).unwrap_or(matcher)
-            }
-        }
-    }
-
-    /// Information of a match whose world-frame covariance is `cov`, expressed in the frame
-    /// of a pose with heading `theta` (the edge's), with the `match-min-std` floor.
-    fn match_information(&self, cov: &Matrix3, theta: f64) -> Matrix3 {
-        let (s, c) = theta.sin_cos();
-        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-        let mut local = r.transpose() * cov * r * self.config.match_covariance_scale;
-        let [sxy, sth] = self.config.match_min_std;
-        local[(0, 0)] += sxy * sxy;
-        local[(1, 1)] += sxy * sxy;
-        local[(2, 2)] += sth * sth;
-        invert(&local)
-    }
-
     /// Inserts keyframe `k`'s scan into the active submaps, starting and finishing submaps
     /// as the module documentation describes.
     fn insert_into_submaps(
@@ -573,17 +536,6 @@ impl LaserGraphSlam {
                 .with_likelihood(self.config.likelihood)?,
         )
     }
-}
-
-/// The inverse of a symmetric positive-definite 3×3 matrix, symmetrised (a covariance to an
-/// information); a tiny diagonal is added if the inversion fails.
-fn invert(cov: &Matrix3) -> Matrix3 {
-    let m = cov.try_inverse().unwrap_or_else(|| {
-        (cov + Matrix3::identity() * 1e-12)
-            .try_inverse()
-            .unwrap_or(Matrix3::identity())
-    });
-    (m + m.transpose()) * 0.5
 }
 
 slam_models::from_config_by_new!(LaserGraphSlam, LaserGraphConfig, GraphError);

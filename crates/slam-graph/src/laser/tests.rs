@@ -393,11 +393,13 @@ fn offset_from_shared_closures(n: usize, share: bool) -> f64 {
         grid: None,
         keyframes: (0..20).collect(),
         finished: true,
+        sampler: loops::Sampler::default(),
     });
     f.submaps.push(Submap {
         grid: None,
         keyframes: (10..40).collect(),
         finished: true,
+        sampler: loops::Sampler::default(),
     });
     for i in 0..n {
         let (a, b) = (i % 10, 30 + (i * 7) % 10);
