@@ -12,7 +12,8 @@
 //!   relative pose and, as information, the inverse of the match's covariance estimated
 //!   from the tempered likelihood sampled over a window of poses (Olson 2009's response
 //!   covariance, [`MatchCovariance`]; rotated into the earlier keyframe's frame, floored by
-//!   `match-min-std`): in a corridor it is large along the axis, so there a loop closure
+//!   `match-min-std`, and given to the optimiser in the frame of the edge's error, the
+//!   measured later pose's): in a corridor it is large along the axis, so there a loop closure
 //!   moves the keyframe along the corridor more easily than across it. A match that is
 //!   degenerate (`degenerate-anisotropy`: a corridor slides short along its axis) takes
 //!   the odometry along its weak direction in that edge; the submaps keep the match.
@@ -124,9 +125,28 @@ struct Keyframe {
 struct Constraint {
     from: usize,
     to: usize,
+    /// The measured pose of `to` in the frame of `from`.
     z: Pose2,
+    /// Information of `z` as (x, y, θ) with x, y in `from`'s frame (the frame the match's
+    /// covariance was rotated into, and the one the consistency test composes in).
     information: Matrix3,
     loop_closure: bool,
+}
+
+impl Constraint {
+    /// The information of the graph edge's error: g2o's `EDGE_SE2` error
+    /// e = z⁻¹ ⊕ (x_from⁻¹ ⊕ x_to) has its translation in the frame of the measured `to`
+    /// pose, e_t = R_zᵀ (R_fromᵀ (t_to − t_from) − z_t), so a covariance C of z_t in
+    /// `from`'s frame is R_zᵀ C R_z there and the information R_zᵀ Ω R_z (R_z the rotation
+    /// by z_θ, the identity on θ). Without it a closure from a keyframe heading the other
+    /// way across a corridor has its weak direction turned by the keyframes' relative
+    /// heading (90° at a junction: the corridor's axis taken for its firm direction).
+    fn edge_information(&self) -> Matrix3 {
+        let (s, c) = self.z.theta.sin_cos();
+        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let m = r.transpose() * self.information * r;
+        (m + m.transpose()) * 0.5
+    }
 }
 
 /// Counters of what the front end did (diagnostics, not errors).

@@ -20,7 +20,8 @@ impl LaserGraphSlam {
         graph.fix(0)?;
         let shares = self.closure_shares();
         for (c, &n) in self.constraints.iter().zip(&shares) {
-            graph.add_between(c.from as u64, c.to as u64, c.z, c.information / n as f64)?;
+            let information = c.edge_information() / n as f64;
+            graph.add_between(c.from as u64, c.to as u64, c.z, information)?;
         }
         let mut opt = Optimizer::new(&graph, self.config.optimizer)?;
         opt.optimize(&mut graph)?;
@@ -140,7 +141,7 @@ impl LaserGraphSlam {
                     continue;
                 }
                 let (a, b) = (self.keyframes[c.from].record, self.keyframes[c.to].record);
-                graph.add_between(a as u64, b as u64, c.z, c.information)?;
+                graph.add_between(a as u64, b as u64, c.z, c.edge_information())?;
             }
         }
         let mut opt = Optimizer::new(&graph, self.config.smoother)?;
@@ -156,7 +157,7 @@ impl LaserGraphSlam {
             .between(&self.keyframes[c.to].global);
         let e = c.z.between(&rel);
         let v = slam_models::Vector3::new(e.x, e.y, normalize_angle(e.theta));
-        (v.transpose() * c.information * v)[(0, 0)]
+        (v.transpose() * c.edge_information() * v)[(0, 0)]
     }
 
     /// The map rendered at `resolution` from every keyframe's scan at its smoothed pose.
