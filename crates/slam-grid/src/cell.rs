@@ -32,15 +32,30 @@ impl CellIndex {
 /// ⌊u⌋ as an `i32`, saturating beyond the `i32` range (0 for NaN): the same value as
 /// `u.floor() as i32`, without the library call `floor` is on x86-64 without SSE4.1 (the
 /// cell lookup of every end point of every scan-matching pose goes through it).
-#[inline]
+#[inline(always)]
 pub(crate) fn floor_i32(u: f64) -> i32 {
+    // Without a branch, so that loops over many points vectorise (`Lattice::new`): the
+    // truncation lowered by one where it lies above u, except at i32::MIN (saturated).
     let t = u as i32;
-    if (t as f64) > u {
-        t.saturating_sub(1)
-    } else {
-        t
-    }
+    t - i32::from((t as f64) > u && t != i32::MIN)
 }
+
+/// ⌊u⌋ as an `i32` for |u| < 2³⁰, equal to [`floor_i32`] there (any other u gives some
+/// value, never a panic): u + 1.5·2⁵² rounds u to the nearest integer (ties to even; exact
+/// for |u| < 2⁵¹) and holds it in its low 32 bits, lowered by one where it lies above u.
+/// Neither a branch nor a float-to-integer conversion (saturating in Rust, scalar on
+/// x86-64's SSE2), so loops over many points vectorise (`Lattice::new`). The caller
+/// bounds |u| first.
+#[inline(always)]
+pub(crate) fn floor_i32_bounded(u: f64) -> i32 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²
+    let shifted = u + MAGIC;
+    let rounded = shifted - MAGIC;
+    (shifted.to_bits() as u32 as i32) - i32::from(rounded > u)
+}
+
+/// The bound on |u| below which [`floor_i32_bounded`] is exact.
+pub(crate) const FLOOR_BOUNDED_LIMIT: f64 = 1_073_741_824.0; // 2³⁰
 
 /// The affine map between world points and cells: an origin (world position of the
 /// lower-left corner of cell (0, 0), metres) and a resolution (cell edge, metres).
@@ -137,6 +152,9 @@ mod tests {
         }
         for u in values {
             assert_eq!(floor_i32(u), u.floor() as i32, "u = {u:e}");
+            if u.abs() < FLOOR_BOUNDED_LIMIT {
+                assert_eq!(floor_i32_bounded(u), u.floor() as i32, "u = {u:e}");
+            }
         }
     }
 }

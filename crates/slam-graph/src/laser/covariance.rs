@@ -87,10 +87,20 @@ pub(crate) fn response_covariance(
     let w = (hi.x - lo.x + 2 * l + 1) as usize;
     let h = (hi.y - lo.y + 2 * l + 1) as usize;
     let params = grid.likelihood_params();
+    // Cells at or beyond `max-distance` all hold the far value, in long runs: the last
+    // logarithm is kept (the same function of the same value, so the same bits).
+    let mut last: Option<(u32, f32)> = None;
     let ll: Vec<f32> = grid
         .field_window(min, w, h)
         .into_iter()
-        .map(|s| params.log_likelihood(s) as f32)
+        .map(|s| match last {
+            Some((bits, v)) if bits == s.to_bits() => v,
+            _ => {
+                let v = params.log_likelihood(s) as f32;
+                last = Some((s.to_bits(), v));
+                v
+            }
+        })
         .collect();
     // ℓ at every lattice pose, indexed [k][j][i].
     let side = (2 * l + 1) as usize;

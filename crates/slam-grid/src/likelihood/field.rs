@@ -66,10 +66,20 @@ pub(crate) fn compute_region(
     } else {
         Vec::new()
     };
+    // A surface lies within `Surface::REACH` cells of its obstacle cell's centre, so a cell
+    // whose centre is that much beyond `max_distance` from the nearest obstacle centre is
+    // far from the surface too: its far value without fitting the surface.
+    let reach = if params.surface_lines {
+        Surface::REACH_SEGMENT
+    } else {
+        Surface::REACH_POINT
+    };
+    let far_centre = dmax / res + reach;
+    let far_centre2 = far_centre * far_centre;
     for y in 0..h {
         for x in 0..w {
             let k = (y + m) * gw + x + m;
-            let d = if !d2[k].is_finite() {
+            let d = if !d2[k].is_finite() || (params.subcell && d2[k] >= far_centre2) {
                 f64::INFINITY
             } else if params.subcell {
                 // Distance to the surface around the nearest obstacle cell (chosen by
@@ -157,6 +167,15 @@ fn run_end(ts: impl Iterator<Item = f64>, start: f64) -> f64 {
 }
 
 impl Surface {
+    /// The farthest a point surface lies from its obstacle cell's centre, cells: the mean
+    /// of hit means in the 3×3 neighbourhood, each within half a cell of its cell's centre
+    /// (offsets of ±128/256), so within 1.5 cells per axis, 1.5·√2 < 2.13.
+    const REACH_POINT: f64 = 2.13;
+    /// The same for a segment: its ends are projections onto the line of hit means in the
+    /// 5×5 neighbourhood (within 2.5·√2 of the centre) lying within half a cell of the
+    /// line, moved on by at most half a cell (`run_end`): 2.5·√2 + 0.5 + 0.5 < 4.55.
+    const REACH_SEGMENT: f64 = 4.55;
+
     /// Fits the surface of obstacle cell `s` (see the variants); `lines` false always gives
     /// the point.
     fn fit(

@@ -124,18 +124,18 @@ impl Lattice {
         let rotations = (2 * k_max + 1) as usize;
         let mut cells = vec![CellIndex::default(); rotations * n];
         let mut bounds = Vec::with_capacity(rotations);
+        // Each rotation's cells (`PointCells::cells_at`, vectorised), then their box.
+        let arrays = super::PointCells::new(points);
         for (k, out) in (-k_max..=k_max).zip(cells.chunks_mut(n.max(1))) {
-            // Each rotation's cells and their box in one pass.
             let pose = Pose2::new(initial.x, initial.y, initial.theta + k as f64 * dtheta);
+            arrays.cells_at(frame, &pose, out);
             let (mut lo, mut hi) = (
                 CellIndex::new(i32::MAX, i32::MAX),
                 CellIndex::new(i32::MIN, i32::MIN),
             );
-            for (cell, p) in out.iter_mut().zip(transform_points(points, &pose)) {
-                let c = frame.world_to_cell(&p);
+            for c in out.iter() {
                 lo = CellIndex::new(lo.x.min(c.x), lo.y.min(c.y));
                 hi = CellIndex::new(hi.x.max(c.x), hi.y.max(c.y));
-                *cell = c;
             }
             bounds.push((lo, hi));
         }

@@ -162,6 +162,64 @@ pub(crate) fn transform_points<'a>(
         .map(move |p| Point2::new(x + c * p.x - s * p.y, y + s * p.x + c * p.y))
 }
 
+/// The end points of a scan whose cells under many poses ([`PointCells::cells_at`]) the
+/// search lattices take.
+pub(crate) struct PointCells<'a> {
+    points: &'a [Point2],
+    /// max |x| + |y| over the points (≥ each one's norm); NaN when one is not finite.
+    reach: f64,
+}
+
+impl<'a> PointCells<'a> {
+    pub(crate) fn new(points: &'a [Point2]) -> Self {
+        let finite = points.iter().all(|p| p.x.is_finite() && p.y.is_finite());
+        let reach = if finite {
+            points
+                .iter()
+                .map(|p| p.x.abs() + p.y.abs())
+                .fold(0.0, f64::max)
+        } else {
+            f64::NAN
+        };
+        Self { points, reach }
+    }
+
+    /// The cell of every end point under `pose` into `out` (one per point): the same
+    /// arithmetic as [`transform_points`] and [`crate::cell::GridFrame::world_to_cell`], so
+    /// the same cells, in a loop the compiler vectorises. When every cell coordinate is
+    /// bounded well inside the `i32` range (|u| ≤ (|t − origin| + |p|)/resolution, a
+    /// rotation keeping |p|; room left for rounding) the floor is
+    /// [`crate::cell::floor_i32_bounded`], without a float-to-integer conversion.
+    #[inline]
+    pub(crate) fn cells_at(
+        &self,
+        frame: &crate::cell::GridFrame,
+        pose: &Pose2,
+        out: &mut [crate::cell::CellIndex],
+    ) {
+        use crate::cell::{floor_i32, floor_i32_bounded, CellIndex, FLOOR_BOUNDED_LIMIT};
+        let (s, c) = pose.theta.sin_cos();
+        let (x, y) = (pose.x, pose.y);
+        let inv = 1.0 / frame.resolution;
+        let (ox, oy) = (frame.origin.x, frame.origin.y);
+        let extent = (x - ox).abs().max((y - oy).abs()) + self.reach + 1.0;
+        let cells = out.iter_mut().zip(self.points);
+        if extent * inv * 2.0 < FLOOR_BOUNDED_LIMIT {
+            for (cell, p) in cells {
+                let u = (x + c * p.x - s * p.y - ox) * inv;
+                let v = (y + s * p.x + c * p.y - oy) * inv;
+                *cell = CellIndex::new(floor_i32_bounded(u), floor_i32_bounded(v));
+            }
+        } else {
+            for (cell, p) in cells {
+                let u = (x + c * p.x - s * p.y - ox) * inv;
+                let v = (y + s * p.x + c * p.y - oy) * inv;
+                *cell = CellIndex::new(floor_i32(u), floor_i32(v));
+            }
+        }
+    }
+}
+
 /// Mean field value of the end points at `pose`, looking up the cell of each end point.
 pub fn mean_field_value(grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> f64 {
     if scan.points.is_empty() {
