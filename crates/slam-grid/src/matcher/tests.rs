@@ -234,3 +234,41 @@ fn far_off_initial_poses_are_errors_not_panics() {
         "{e}"
     );
 }
+
+/// `PointCells::cells_at` gives every end point the cell `GridFrame::world_to_cell` gives
+/// it after `transform_points` (the scalar path it replaces), on random points, poses and
+/// frames: near the origin (the bounded floor), 10⁸ cells away (still bounded), 10⁹ cells
+/// away and beyond the `i32` range (the saturating floor), with points on cell edges.
+#[test]
+fn point_cells_are_the_cells_of_the_transformed_points() {
+    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(5);
+    for trial in 0..400 {
+        let res = [0.05, 0.1, 0.025, 1.0][trial % 4];
+        let far = [0.0, 1e8 * res, 1e9 * res, 1e12 * res][trial / 4 % 4];
+        let frame = crate::cell::GridFrame::new(
+            Point2::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0)),
+            res,
+        );
+        let mut points: Vec<Point2> = (0..37)
+            .map(|_| Point2::new(rng.random_range(-30.0..30.0), rng.random_range(-30.0..30.0)))
+            .collect();
+        // End points exactly on cell edges at the identity rotation.
+        points.push(Point2::new(3.0 * res, -2.0 * res));
+        points.push(Point2::new(0.0, 0.0));
+        let pose = Pose2::new(
+            far + rng.random_range(-10.0..10.0),
+            -far + rng.random_range(-10.0..10.0),
+            if trial % 3 == 0 {
+                0.0
+            } else {
+                rng.random_range(-3.2..3.2)
+            },
+        );
+        let mut got = vec![crate::cell::CellIndex::default(); points.len()];
+        PointCells::new(&points).cells_at(&frame, &pose, &mut got);
+        let expected: Vec<_> = transform_points(&points, &pose)
+            .map(|w| frame.world_to_cell(&w))
+            .collect();
+        assert_eq!(got, expected, "trial {trial}, pose {pose:?}");
+    }
+}
