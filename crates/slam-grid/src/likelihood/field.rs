@@ -416,6 +416,66 @@ mod tests {
         (dist_err, peak_err)
     }
 
+    /// The far cells' shortcut in `compute_region` rests on every surface lying within
+    /// `Surface::REACH_POINT` (points) or `REACH_SEGMENT` (segments) cells of its obstacle
+    /// cell's centre. Measured on the office mapped from noisy scans at 60 random poses,
+    /// every obstacle cell's fitted surface, its farthest point from that centre (the point
+    /// itself; a segment's two ends, the farthest points of a segment from any point).
+    #[test]
+    fn surfaces_lie_within_their_reach_of_the_obstacle_cell() {
+        use super::Surface;
+        use crate::cell::CellIndex;
+        use rand::{Rng, SeedableRng};
+        let world = SegmentWorld::office();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(3);
+        for lines in [false, true] {
+            let params = LikelihoodParams {
+                surface_lines: lines,
+                ..Default::default()
+            };
+            let mut g = OccupancyGrid::new(0.05, InverseSensorModel::default())
+                .with_likelihood(params)
+                .unwrap();
+            for _ in 0..60 {
+                let pose = Pose2::new(
+                    rng.random_range(1.0..11.0),
+                    rng.random_range(1.0..7.0),
+                    rng.random_range(-3.1..3.1),
+                );
+                let mut scan = world.scan(&pose, 361, 2.0 * std::f64::consts::PI, 20.0);
+                for r in &mut scan.ranges {
+                    *r += rng.random_range(-0.03..0.03);
+                }
+                g.integrate_scan(&pose, &scan);
+            }
+            let (w, h) = (320, 200);
+            let (obstacles, offsets) = g.obstacle_mask(CellIndex::new(-20, -20), w, h);
+            let (mut worst, mut fitted) = (0.0f64, 0);
+            for s in (0..w * h).filter(|&s| obstacles[s]) {
+                let centre = [(s % w) as f64, (s / w) as f64];
+                let far = |p: [f64; 2]| (p[0] - centre[0]).hypot(p[1] - centre[1]);
+                let reach = match Surface::fit(s, &obstacles, &offsets, w, h, lines) {
+                    Surface::Point { c } => far(c),
+                    Surface::Segment { c, e, t0, t1 } => far([c[0] + t0 * e[0], c[1] + t0 * e[1]])
+                        .max(far([c[0] + t1 * e[0], c[1] + t1 * e[1]])),
+                };
+                worst = worst.max(reach);
+                fitted += 1;
+            }
+            let bound = if lines {
+                Surface::REACH_SEGMENT
+            } else {
+                Surface::REACH_POINT
+            };
+            assert!(fitted > 1000, "{fitted} obstacle cells");
+            assert!(
+                worst <= bound,
+                "lines {lines}: a surface {worst} cells away"
+            );
+            eprintln!("lines {lines}: farthest surface point {worst:.3} cells (bound {bound})");
+        }
+    }
+
     #[test]
     fn run_ends_follow_the_hits() {
         use super::run_end;
