@@ -30,6 +30,25 @@ pub(crate) struct ResponseSampling {
     pub temperature: f64,
 }
 
+impl ResponseSampling {
+    /// The sampling `match-covariance` configures: its own window for
+    /// [`MatchCovariance::Response`], none for [`MatchCovariance::Matcher`].
+    pub(crate) fn configured(c: MatchCovariance) -> Option<Self> {
+        match c {
+            MatchCovariance::Matcher => None,
+            MatchCovariance::Response {
+                linear_window,
+                angular_window,
+                temperature,
+            } => Some(Self {
+                linear_window,
+                angular_window,
+                temperature,
+            }),
+        }
+    }
+}
+
 /// Most rotations sampled on each side of the mode.
 const MAX_ROTATION_STEPS: i32 = 64;
 
@@ -253,28 +272,15 @@ impl LaserGraphSlam {
         pose: &Pose2,
         matcher: Matrix3,
     ) -> Matrix3 {
-        match self.config.match_covariance {
-            MatchCovariance::Matcher => matcher,
-            MatchCovariance::Response {
-                linear_window,
-                angular_window,
-                temperature,
-            } => {
-                let sampling = ResponseSampling {
-                    linear_window,
-                    angular_window,
-                    temperature,
-                };
-                response_covariance(grid, scan, pose, &sampling).unwrap_or(matcher)
-            }
-        }
+        ResponseSampling::configured(self.config.match_covariance)
+            .and_then(|sampling| response_covariance(grid, scan, pose, &sampling))
+            .unwrap_or(matcher)
     }
 
     /// Information of a match whose world-frame covariance is `cov`, expressed in the frame
     /// of a pose with heading `theta` (the edge's), with the `match-min-std` floor.
     pub(super) fn match_information(&self, cov: &Matrix3, theta: f64) -> Matrix3 {
-        let (s, c) = theta.sin_cos();
-        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let r = planar_rotation(theta);
         let mut local = r.transpose() * cov * r * self.config.match_covariance_scale;
         let [sxy, sth] = self.config.match_min_std;
         local[(0, 0)] += sxy * sxy;
@@ -282,6 +288,13 @@ impl LaserGraphSlam {
         local[(2, 2)] += sth * sth;
         invert(&local)
     }
+}
+
+/// The rotation of (x, y, θ) by `theta`: R(θ) on (x, y), the identity on θ. A covariance
+/// C of (x, y, θ) in a frame turned by θ reads Rᵀ C R there.
+pub(super) fn planar_rotation(theta: f64) -> Matrix3 {
+    let (s, c) = theta.sin_cos();
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
 }
 
 /// The inverse of a symmetric positive-definite 3×3 matrix, symmetrised (a covariance to an
@@ -403,7 +416,7 @@ mod tests {
         assert!((omega[(0, 0)] - 5.0).abs() < 1e-12 && (omega[(1, 1)] - 100.0).abs() < 1e-12);
         // Rotated corridor: the weak direction is (cos 30°, sin 30°).
         let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
-        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let r = planar_rotation(30f64.to_radians());
         let info_r = r * info * r.transpose();
         let z_r = Pose2::new(0.40 * c, 0.40 * s, 0.0);
         let odo_r = Pose2::new(0.50 * c, 0.50 * s, 0.0);

@@ -6,9 +6,7 @@
 //! ([`consistency::dominant_group`]); the end-of-run flush of that group.
 
 use super::consistency;
-use super::{
-    covariance, invert, Constraint, LaserGraphConfig, LaserGraphSlam, LoopMap, MatchCovariance,
-};
+use super::{covariance, invert, Constraint, LaserGraphConfig, LaserGraphSlam, LoopMap};
 use crate::error::GraphError;
 use slam_grid::{BranchBoundMatcher, MaxPyramid, OccupancyGrid, RangeData};
 use slam_models::{LaserScan, Pose2};
@@ -63,22 +61,13 @@ impl LaserGraphSlam {
     /// direction: the translational block of its sampled covariance
     /// ([`covariance::response_covariance`]) has σ_max / σ_min above `loop-max-anisotropy`.
     fn flat_match(&self, grid: &OccupancyGrid, scan: &RangeData, pose: &Pose2) -> bool {
-        let sampling = match self.config.match_covariance {
-            MatchCovariance::Response {
-                linear_window,
-                angular_window,
-                temperature,
-            } => covariance::ResponseSampling {
-                linear_window,
-                angular_window,
-                temperature,
-            },
-            MatchCovariance::Matcher => covariance::ResponseSampling {
+        // With the matcher's own covariance configured, a fixed window samples the surface.
+        let sampling = covariance::ResponseSampling::configured(self.config.match_covariance)
+            .unwrap_or(covariance::ResponseSampling {
                 linear_window: 0.3,
                 angular_window: 0.03,
                 temperature: 10.0,
-            },
-        };
+            });
         let Some(cov) = covariance::response_covariance(grid, scan, pose, &sampling) else {
             return true;
         };

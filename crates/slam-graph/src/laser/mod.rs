@@ -142,8 +142,7 @@ impl Constraint {
     /// way across a corridor has its weak direction turned by the keyframes' relative
     /// heading (90° at a junction: the corridor's axis taken for its firm direction).
     fn edge_information(&self) -> Matrix3 {
-        let (s, c) = self.z.theta.sin_cos();
-        let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+        let r = covariance::planar_rotation(self.z.theta);
         let m = r.transpose() * self.information * r;
         (m + m.transpose()) * 0.5
     }

@@ -5,6 +5,21 @@ use super::loops::loop_pyramid;
 use super::*;
 use slam_grid::BranchBoundMatcher;
 
+/// Appends record and keyframe `k` (time k s, `scan`) at `pose` as its odometry, local and
+/// global pose, 0.5 m of path per keyframe: the hand-built graphs of the tests below.
+fn push_keyframe(f: &mut LaserGraphSlam, k: usize, pose: Pose2, scan: &LaserScan) {
+    f.times.push(k as f64);
+    f.odometry.push(pose);
+    f.last_keyframe_at.push(Some(k));
+    f.keyframes.push(Keyframe {
+        record: k,
+        scan: scan.clone(),
+        local: pose,
+        global: pose,
+        path: 0.5 * k as f64,
+    });
+}
+
 fn record(t: f64, odometry: Pose2) -> ScanRecord {
     ScanRecord {
         t,
@@ -184,16 +199,7 @@ fn square_with_closures(config: LaserGraphConfig, false_closure: bool) -> (Vec<P
             );
             o = o.compose(&e);
         }
-        f.times.push(k as f64);
-        f.odometry.push(o);
-        f.last_keyframe_at.push(Some(k));
-        f.keyframes.push(Keyframe {
-            record: k,
-            scan: scan.clone(),
-            local: o,
-            global: o,
-            path: 0.5 * k as f64,
-        });
+        push_keyframe(&mut f, k, o, &scan);
         if k > 0 {
             let z = f.odometry[k - 1].between(&o);
             let information = invert(&f.odometry_chain_covariance(k - 1, k));
@@ -369,16 +375,7 @@ fn offset_from_shared_closures(n: usize, share: bool) -> f64 {
     let scan = room_scan(2.5, 1.5);
     for k in 0..40 {
         let p = Pose2::new(0.5 * k as f64, 0.0, 0.0);
-        f.times.push(k as f64);
-        f.odometry.push(p);
-        f.last_keyframe_at.push(Some(k));
-        f.keyframes.push(Keyframe {
-            record: k,
-            scan: scan.clone(),
-            local: p,
-            global: p,
-            path: 0.5 * k as f64,
-        });
+        push_keyframe(&mut f, k, p, &scan);
         if k > 0 {
             f.constraints.push(Constraint {
                 from: k - 1,

@@ -197,25 +197,33 @@ impl<'a> PointCells<'a> {
         pose: &Pose2,
         out: &mut [crate::cell::CellIndex],
     ) {
-        use crate::cell::{floor_i32, floor_i32_bounded, CellIndex, FLOOR_BOUNDED_LIMIT};
+        use crate::cell::{floor_i32, floor_i32_bounded, FLOOR_BOUNDED_LIMIT};
         let (s, c) = pose.theta.sin_cos();
         let (x, y) = (pose.x, pose.y);
         let inv = 1.0 / frame.resolution;
         let (ox, oy) = (frame.origin.x, frame.origin.y);
         let extent = (x - ox).abs().max((y - oy).abs()) + self.reach + 1.0;
-        let cells = out.iter_mut().zip(self.points);
+        let affine = [x, y, c, s, ox, oy, inv];
         if extent * inv * 2.0 < FLOOR_BOUNDED_LIMIT {
-            for (cell, p) in cells {
-                let u = (x + c * p.x - s * p.y - ox) * inv;
-                let v = (y + s * p.x + c * p.y - oy) * inv;
-                *cell = CellIndex::new(floor_i32_bounded(u), floor_i32_bounded(v));
-            }
+            self.fill(affine, out, floor_i32_bounded);
         } else {
-            for (cell, p) in cells {
-                let u = (x + c * p.x - s * p.y - ox) * inv;
-                let v = (y + s * p.x + c * p.y - oy) * inv;
-                *cell = CellIndex::new(floor_i32(u), floor_i32(v));
-            }
+            self.fill(affine, out, floor_i32);
+        }
+    }
+
+    /// The loop of [`PointCells::cells_at`], instantiated for each floor (so inlined and
+    /// vectorised): `[x, y, cos θ, sin θ, origin x, origin y, 1 / resolution]`.
+    #[inline(always)]
+    fn fill(
+        &self,
+        [x, y, c, s, ox, oy, inv]: [f64; 7],
+        out: &mut [crate::cell::CellIndex],
+        floor: impl Fn(f64) -> i32,
+    ) {
+        for (cell, p) in out.iter_mut().zip(self.points) {
+            let u = (x + c * p.x - s * p.y - ox) * inv;
+            let v = (y + s * p.x + c * p.y - oy) * inv;
+            *cell = crate::cell::CellIndex::new(floor(u), floor(v));
         }
     }
 }
