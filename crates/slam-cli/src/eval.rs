@@ -34,6 +34,15 @@ pub struct EvalReport {
     pub relations_used: Option<usize>,
     /// Relations dropped (an end not covered by the estimate).
     pub relations_dropped: Option<usize>,
+    /// Relations with an end read at a time the estimate holds several different poses at
+    /// (a repeating clock; [`slam_eval::metrics::RelationsResult::ambiguous`]).
+    pub relations_ambiguous: Option<usize>,
+    /// Relations metric over the relations that are not ambiguous: mean translational
+    /// error, metres.
+    pub relations_unambiguous_trans_mean_m: Option<f64>,
+    /// Relations metric over the relations that are not ambiguous: mean rotational error,
+    /// degrees.
+    pub relations_unambiguous_rot_mean_deg: Option<f64>,
 }
 
 /// Prints to stderr one warning line per trajectory whose stamps repeat or step back (one
@@ -100,6 +109,19 @@ pub fn eval(args: &EvalArgs, out: &mut dyn Write) -> Result<EvalReport, CliError
                 e.rot_mean_deg,
                 e.rot_std_deg
             );
+            r.relations_ambiguous = Some(e.ambiguous);
+            r.relations_unambiguous_trans_mean_m = finite(Some(e.unambiguous_trans_mean));
+            r.relations_unambiguous_rot_mean_deg = finite(Some(e.unambiguous_rot_mean_deg));
+            if e.ambiguous > 0 {
+                let _ = writeln!(
+                    out,
+                    "  {} relations end at a time the estimate holds several different poses at (a repeating clock: the tie rule picks one); the other {}: {:.4} m, {:.3} deg",
+                    e.ambiguous,
+                    e.used - e.ambiguous,
+                    e.unambiguous_trans_mean,
+                    e.unambiguous_rot_mean_deg
+                );
+            }
         } else {
             return Err(CliError::InvalidArgument(format!(
                 "relations {}: none of the {} relations has both ends in the estimate (within 6 ms); is the estimate on the relations' clock?",

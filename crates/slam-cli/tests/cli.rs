@@ -19,7 +19,7 @@ fn available(kind: filters::DataKind) -> Vec<&'static str> {
         .collect()
 }
 
-const METRIC_KEYS: [&str; 27] = [
+const METRIC_KEYS: [&str; 30] = [
     "filter",
     "dataset",
     "steps",
@@ -39,6 +39,9 @@ const METRIC_KEYS: [&str; 27] = [
     "landmark_rmse_aligned_m",
     "relations_trans_mean_m",
     "relations_rot_mean_deg",
+    "relations_ambiguous",
+    "relations_unambiguous_trans_mean_m",
+    "relations_unambiguous_rot_mean_deg",
     "nees_pose_in_band_fraction",
     "nees_pose_median",
     "nees_pose_mean",

@@ -62,6 +62,16 @@ pub struct Metrics {
     pub relations_trans_mean_m: Option<f64>,
     /// Kümmerle et al. relations metric: mean absolute rotational error, degrees.
     pub relations_rot_mean_deg: Option<f64>,
+    /// Relations metric: relations with an end read at a time at which the trajectory holds
+    /// several different poses (a repeating clock); the tie rule, not the data, picks which
+    /// ([`crate::metrics::RelationsResult::ambiguous`]).
+    pub relations_ambiguous: Option<usize>,
+    /// Relations metric over the relations that are not ambiguous: mean absolute
+    /// translational error, metres.
+    pub relations_unambiguous_trans_mean_m: Option<f64>,
+    /// Relations metric over the relations that are not ambiguous: mean absolute rotational
+    /// error, degrees.
+    pub relations_unambiguous_rot_mean_deg: Option<f64>,
     /// Fraction of steps whose pose NEES (3 dof, the filter's Gaussian summary of the
     /// pose against the true pose) lies inside the two-sided 95 % χ²(3) band
     /// [0.216, 9.348]: ≈ 0.95 for a consistent filter. The headline consistency figure;
@@ -118,6 +128,9 @@ impl Metrics {
             landmark_rmse_aligned_m: None,
             relations_trans_mean_m: None,
             relations_rot_mean_deg: None,
+            relations_ambiguous: None,
+            relations_unambiguous_trans_mean_m: None,
+            relations_unambiguous_rot_mean_deg: None,
             nees_pose_in_band_fraction: None,
             nees_pose_median: None,
             nees_pose_mean: None,
@@ -158,6 +171,8 @@ impl Metrics {
             &mut self.landmark_rmse_aligned_m,
             &mut self.relations_trans_mean_m,
             &mut self.relations_rot_mean_deg,
+            &mut self.relations_unambiguous_trans_mean_m,
+            &mut self.relations_unambiguous_rot_mean_deg,
             &mut self.nees_pose_in_band_fraction,
             &mut self.nees_pose_median,
             &mut self.nees_pose_mean,
@@ -318,6 +333,9 @@ mod tests {
             "landmark_rmse_aligned_m",
             "relations_trans_mean_m",
             "relations_rot_mean_deg",
+            "relations_ambiguous",
+            "relations_unambiguous_trans_mean_m",
+            "relations_unambiguous_rot_mean_deg",
             "nees_pose_in_band_fraction",
             "nees_pose_median",
             "nees_pose_mean",

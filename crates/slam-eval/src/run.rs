@@ -604,10 +604,23 @@ fn relations_metrics(
     if r.used > 0 {
         metrics.relations_trans_mean_m = Some(r.trans_mean);
         metrics.relations_rot_mean_deg = Some(r.rot_mean_deg);
-        format!(
+        metrics.relations_ambiguous = Some(r.ambiguous);
+        metrics.relations_unambiguous_trans_mean_m = Some(r.unambiguous_trans_mean);
+        metrics.relations_unambiguous_rot_mean_deg = Some(r.unambiguous_rot_mean_deg);
+        let mut line = format!(
             "relations error {:.3} ± {:.3} m / {:.2} ± {:.2} deg ({} relations used, {} without both ends in the trajectory)",
             r.trans_mean, r.trans_std, r.rot_mean_deg, r.rot_std_deg, r.used, r.dropped
-        )
+        );
+        if r.ambiguous > 0 {
+            line.push_str(&format!(
+                "; {} of them end at a time the trajectory holds several different poses at (a repeating clock: the tie rule picks one), the other {}: {:.3} m / {:.2} deg",
+                r.ambiguous,
+                r.used - r.ambiguous,
+                r.unambiguous_trans_mean,
+                r.unambiguous_rot_mean_deg
+            ));
+        }
+        line
     } else {
         let msg = format!(
             "no relations metric: none of the {} relations has both ends in the trajectory (within 6 ms); is it on the same clock?",

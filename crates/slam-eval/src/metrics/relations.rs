@@ -3,7 +3,7 @@
 //! reported, as in the paper, as mean ± std of the absolute and of the squared
 //! translational [m] and rotational [deg] errors, separately.
 
-use super::{mean_std, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
+use super::{lookup, mean_std, pose_at, sorted_by_time, PoseLookup, DEFAULT_MAX_DT};
 use serde::Serialize;
 use slam_io::relations::Relation;
 use slam_models::TimedPose;
@@ -32,6 +32,19 @@ pub struct RelationsResult {
     pub used: usize,
     /// Relations dropped because an end had no estimated pose within `max_dt`.
     pub dropped: usize,
+    /// Used relations with an end read at an **ambiguous time**: a time at which the
+    /// estimate holds several poses that are not all equal (a log whose clock repeats,
+    /// e.g. `bench/intel.log`, where up to 11 records spanning half a metre share one
+    /// printed time). Which of them the lookup reads is fixed by the tie rule (file order),
+    /// not by the data, so such a relation's error mixes the estimate's error with the
+    /// clock's.
+    pub ambiguous: usize,
+    /// Mean translational error over the used relations that are not ambiguous, m (NaN
+    /// when there is none).
+    pub unambiguous_trans_mean: f64,
+    /// Mean absolute rotational error over the used relations that are not ambiguous,
+    /// degrees (NaN when there is none).
+    pub unambiguous_rot_mean_deg: f64,
 }
 
 /// [`relations_error_with`] with `max_dt` = [`DEFAULT_MAX_DT`] (6 ms, the README's rule).
@@ -43,7 +56,9 @@ pub fn relations_error(est: &[TimedPose], rel: &[Relation]) -> RelationsResult {
 /// docs of [`crate::metrics`]), δ = x₁⁻¹ ⊕ x₂ (`x1.between(x2)`), and the error
 /// E = δ*⁻¹ ⊕ δ: trans = ‖(E.x, E.y)‖ (which equals ‖t(δ) − t(δ*)‖) and
 /// rot = |normalize(θ(δ) − θ(δ*))| in degrees. Relations with an end that finds no pose
-/// are dropped and counted; non-finite estimated poses are not used.
+/// are dropped and counted; non-finite estimated poses are not used. Relations read at an
+/// ambiguous time are counted and also left out of a second pair of means
+/// ([`RelationsResult::ambiguous`]).
 pub fn relations_error_with(est: &[TimedPose], rel: &[Relation], max_dt: f64) -> RelationsResult {
     relations_error_lookup(est, rel, PoseLookup::Nearest { max_dt })
 }
@@ -62,6 +77,7 @@ pub fn relations_error_lookup(
         .collect();
     let mut tr = Vec::with_capacity(rel.len());
     let mut rot = Vec::with_capacity(rel.len());
+    let (mut tr_clear, mut rot_clear) = (Vec::new(), Vec::new());
     for r in rel {
         let (Some(x1), Some(x2)) = (pose_at(&sorted, r.t1, how), pose_at(&sorted, r.t2, how))
         else {
@@ -71,6 +87,10 @@ pub fn relations_error_lookup(
         let e = r.delta.between(&delta);
         tr.push(e.x.hypot(e.y));
         rot.push(e.theta.abs().to_degrees());
+        if !ambiguous_at(&sorted, r.t1, how) && !ambiguous_at(&sorted, r.t2, how) {
+            tr_clear.push(e.x.hypot(e.y));
+            rot_clear.push(e.theta.abs().to_degrees());
+        }
     }
     let sq = |v: &[f64]| v.iter().map(|x| x * x).collect::<Vec<f64>>();
     let (trans_mean, trans_std) = mean_std(&tr);
@@ -88,6 +108,36 @@ pub fn relations_error_lookup(
         rot_sq_std,
         used: tr.len(),
         dropped: rel.len() - tr.len(),
+        ambiguous: tr.len() - tr_clear.len(),
+        unambiguous_trans_mean: mean_std(&tr_clear).0,
+        unambiguous_rot_mean_deg: mean_std(&rot_clear).0,
+    }
+}
+
+/// Whether the pose `how` reads at `t` from `sorted` (sorted by time) comes from an
+/// ambiguous time: one at which `sorted` holds poses that are not all equal. For
+/// [`PoseLookup::Nearest`] that is the time of the pose picked; for
+/// [`PoseLookup::Interpolate`], t itself when a pose lies exactly at t, else the times of
+/// both poses interpolated between.
+fn ambiguous_at(sorted: &[TimedPose], t: f64, how: PoseLookup) -> bool {
+    let differing_at = |tau: f64| {
+        let lo = sorted.partition_point(|p| p.t < tau);
+        let hi = sorted.partition_point(|p| p.t <= tau);
+        sorted[lo..hi].windows(2).any(|w| w[0].pose != w[1].pose)
+    };
+    match how {
+        PoseLookup::Nearest { max_dt } => {
+            lookup(sorted, t, max_dt).is_some_and(|i| differing_at(sorted[i].t))
+        }
+        PoseLookup::Interpolate { .. } => {
+            let i = sorted.partition_point(|p| p.t < t);
+            if i < sorted.len() && sorted[i].t == t {
+                return differing_at(t);
+            }
+            let before = i.checked_sub(1).map(|b| sorted[b].t);
+            let after = sorted.get(i).map(|a| a.t);
+            before.is_some_and(differing_at) || after.is_some_and(differing_at)
+        }
     }
 }
 
@@ -176,5 +226,73 @@ mod tests {
         assert_eq!(r.used, 2);
         assert!((r.trans_mean - 0.1).abs() < 1e-12, "{}", r.trans_mean);
         assert!(r.rot_mean_deg.abs() < 1e-12);
+    }
+
+    #[test]
+    fn relations_read_at_a_repeated_time_are_ambiguous() {
+        use slam_models::Pose2;
+        let at = |t: f64, x: f64| TimedPose {
+            t,
+            pose: Pose2::new(x, 0.0, 0.0),
+        };
+        // Records at 1 m/s along x, except that three records (x = 2, 3, 4) were stamped
+        // with one time, 2.0, as a clock that repeats prints them; two records at t = 6
+        // hold the same pose (a scan and its odometry record).
+        let est = [
+            at(0.0, 0.0),
+            at(1.0, 1.0),
+            at(2.0, 2.0),
+            at(2.0, 3.0),
+            at(2.0, 4.0),
+            at(5.0, 5.0),
+            at(6.0, 6.0),
+            at(6.0, 6.0),
+        ];
+        let straight = |t1: f64, t2: f64, d: f64| Relation {
+            t1,
+            t2,
+            delta: Pose2::new(d, 0.0, 0.0),
+        };
+        let rel = [
+            // 0 → 1: exact. Unambiguous.
+            straight(0.0, 1.0, 1.0),
+            // 1 → the record stamped 2.0 that truly was at x = 3: the tie rule reads the
+            // first of the three (x = 2), 1 m short. Ambiguous.
+            straight(1.0, 2.0, 2.0),
+            // 5 → 6: both poses at 6 are equal, so reading either is the same. Off by
+            // 0.5 m, unambiguous.
+            straight(5.0, 6.0, 1.5),
+            // Just after 2.0 (t = 2.004): the nearest is the last record stamped 2.0
+            // (x = 4). 4 → 5 truly 1 m: exact, but ambiguous.
+            straight(2.004, 5.0, 1.0),
+        ];
+        let r = relations_error(&est, &rel);
+        assert_eq!((r.used, r.dropped, r.ambiguous), (4, 0, 2));
+        assert!((r.trans_mean - 0.375).abs() < 1e-12, "{}", r.trans_mean);
+        assert!((r.unambiguous_trans_mean - 0.25).abs() < 1e-12);
+        assert_eq!(r.unambiguous_rot_mean_deg, 0.0);
+        // Interpolation reads t = 2.0 exactly at the repeated time, and t = 3.5 between
+        // its last record and t = 5: both ambiguous; t = 5.5 between 5 and the two equal
+        // poses at 6 is not.
+        let how = PoseLookup::Interpolate { max_gap: 3.5 };
+        let r = relations_error_lookup(
+            &est,
+            &[
+                straight(0.0, 2.0, 2.0),
+                straight(3.5, 5.0, 0.5),
+                straight(5.0, 5.5, 0.5),
+            ],
+            how,
+        );
+        assert_eq!((r.used, r.ambiguous), (3, 2));
+        assert!(r.unambiguous_trans_mean.abs() < 1e-12);
+        // Without a repeated time, nothing is ambiguous and both means agree.
+        let clean = [at(0.0, 0.0), at(1.0, 1.0), at(2.0, 2.0)];
+        let r = relations_error(&clean, &rel[..2]);
+        assert_eq!(r.ambiguous, 0);
+        assert_eq!(r.unambiguous_trans_mean, r.trans_mean);
+        // No relation left unambiguous: NaN, not zero.
+        let r = relations_error(&est, &rel[1..2]);
+        assert!(r.unambiguous_trans_mean.is_nan());
     }
 }
