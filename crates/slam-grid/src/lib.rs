@@ -66,7 +66,8 @@ pub mod scanmatch;
 pub use scanmatch::{EndpointMatchingConfig, ScanMatchConfig, ScanMatchOdometry};
 pub mod laser_odometry;
 pub use laser_odometry::{
-    laser_odometry, LaserOdometry, LaserOdometryConfig, LaserOdometryRun, MotionPrediction,
+    laser_odometry, LaserOdometry, LaserOdometryConfig, LaserOdometryRun, LaserOdometryStream,
+    MotionPrediction,
 };
 
 /// The `slam-models` vocabulary this crate's API speaks, re-exported so that a user of

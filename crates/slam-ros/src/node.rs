@@ -207,6 +207,11 @@ pub struct NodeReport {
     pub no_odometry: u64,
     /// Scans whose frame had no `/tf_static` transform to the base (taken as at the base).
     pub unmounted: u64,
+    /// Laser only: ambiguous laser-odometry steps followed as branches
+    /// ([`slam_grid::LaserOdometryStream`]); 0 with odometry from a topic.
+    pub laser_splits: usize,
+    /// Laser only: branch decisions that kept a branch other than the single-decision one.
+    pub laser_switches: usize,
     /// Messages not published, by topic: a reliable subscriber had not acknowledged the
     /// topic's history (its QoS depth) within 100 ms ([`dds::write`]).
     pub dropped: std::collections::BTreeMap<String, u64>,
@@ -214,7 +219,8 @@ pub struct NodeReport {
     pub decode_errors: u64,
     /// The first decoding error.
     pub first_decode_error: Option<String>,
-    /// Scan arrival → `map → odom` written.
+    /// Scan arrival → `map → odom` written (in the laser-only mode including the wait
+    /// for the laser odometry's decision, up to `branch-lag` scans).
     pub latency: Latency,
     /// Maps published.
     pub maps_published: u64,
@@ -232,13 +238,23 @@ pub struct NodeReport {
 
 /// The node's processing core, without DDS: makes each received scan the filter's next
 /// record and steps the filter with it. With odometry from a topic the record takes the
-/// odometry given; in the laser-only mode ([`OdomSource::None`]) it takes the pose of the
-/// node's own [`slam_grid::LaserOdometry`] (each scan matched against a local map of the
-/// scans before it, in the frame of the first scan), the odometry `slam run` makes for a
-/// laser-only recording ([`slam_grid::laser_odometry()`]), so that the node on a stream of
-/// scans and `slam run` on the same scans give the same estimates.
+/// odometry given, and the filter steps at once. In the laser-only mode
+/// ([`OdomSource::None`]) the record takes the pose of the node's own laser odometry
+/// ([`slam_grid::LaserOdometryStream`]: each scan matched against a local map of the scans
+/// before it, in the frame of the first scan, an ambiguous step followed as branches and
+/// decided `branch-lag` scans later), the odometry `slam run` makes for a laser-only
+/// recording ([`slam_grid::laser_odometry()`]); a scan waits for its pose, so the filter
+/// steps with it up to `branch-lag` scans late, and the node on a stream of scans and
+/// `slam run` on the same scans give the same estimates. `branch-lag = 0` decides each
+/// step at once (no wait).
 pub struct ScanStepper {
-    laser: Option<slam_grid::LaserOdometry>,
+    laser: Option<slam_grid::LaserOdometryStream>,
+    /// Laser only: the scans given to the laser odometry whose pose has not come out yet,
+    /// with their times (s), oldest first.
+    waiting: std::collections::VecDeque<(f64, slam_models::LaserScan)>,
+    /// Scans taken ([`Self::step`] calls that reached the filter or the laser odometry).
+    scans: usize,
+    /// Records given to the filter.
     steps: usize,
 }
 
@@ -251,12 +267,17 @@ impl ScanStepper {
     ) -> Result<Self, RosError> {
         let laser = match odometry {
             OdomSource::None => Some(
-                slam_grid::LaserOdometry::new(laser.clone())
+                slam_grid::LaserOdometryStream::new(laser.clone())
                     .map_err(|source| RosError::LaserOdometry { scan: None, source })?,
             ),
             _ => None,
         };
-        Ok(ScanStepper { laser, steps: 0 })
+        Ok(ScanStepper {
+            laser,
+            waiting: Default::default(),
+            scans: 0,
+            steps: 0,
+        })
     }
 
     /// Whether the odometry is made from the scans.
@@ -264,43 +285,99 @@ impl ScanStepper {
         self.laser.is_some()
     }
 
-    /// Steps `filter` with scan message `msg`, its sensor at `sensor_pose` in the base frame
-    /// (metres, radians), at odometry `odometry` (`odom → base`; ignored in the laser-only
-    /// mode, where the laser odometry's pose is taken). Returns the record the filter was
-    /// given.
+    /// Scans taken whose record has not been given to the filter yet: in the laser-only
+    /// mode, those waiting for the laser odometry's decision (at most `branch-lag`); else 0.
+    pub fn waiting(&self) -> usize {
+        self.waiting.len()
+    }
+
+    /// Ambiguous laser-odometry steps followed as branches, and decisions that kept a
+    /// branch other than the single-decision one (0, 0 with odometry from a topic).
+    pub fn splits_and_switches(&self) -> (usize, usize) {
+        self.laser
+            .as_ref()
+            .map_or((0, 0), |l| (l.splits(), l.switches()))
+    }
+
+    /// Takes scan message `msg`, its sensor at `sensor_pose` in the base frame (metres,
+    /// radians), at odometry `odometry` (`odom → base`; ignored in the laser-only mode,
+    /// where the laser odometry's pose is taken), and steps `filter` with every record
+    /// that is ready, in order. Returns those records: this scan's with odometry from a
+    /// topic; in the laser-only mode none while the laser odometry follows branches, then
+    /// every waiting scan's.
     pub fn step(
         &mut self,
         filter: &mut dyn ScanSlam,
         msg: &ros_msg::ScanMsg,
         odometry: Pose2,
         sensor_pose: Pose2,
-    ) -> Result<ScanRecord, RosError> {
+    ) -> Result<Vec<ScanRecord>, RosError> {
         let scan = scan_from_msg(msg, sensor_pose);
         let t = secs(msg.header.stamp_ns);
-        let odometry = match &mut self.laser {
-            Some(lo) => {
-                lo.process(&scan, None)
-                    .map_err(|source| RosError::LaserOdometry {
-                        scan: Some(self.steps),
-                        source,
-                    })?
-                    .0
-            }
-            None => odometry,
+        let index = self.scans;
+        self.scans += 1;
+        let Some(lo) = &mut self.laser else {
+            let record = ScanRecord {
+                t,
+                odometry,
+                scan: Some(scan),
+            };
+            self.give(filter, &record)?;
+            return Ok(vec![record]);
         };
-        let record = ScanRecord {
-            t,
-            odometry,
-            scan: Some(scan),
+        let poses = lo
+            .push(&scan, None)
+            .map_err(|source| RosError::LaserOdometry {
+                scan: Some(index),
+                source,
+            })?;
+        self.waiting.push_back((t, scan));
+        self.release(filter, poses)
+    }
+
+    /// Decides the laser odometry's open branches now (the best so far, as `slam run` does
+    /// at the end of a recording) and steps `filter` with every waiting scan; none is left
+    /// waiting. For shutdown; nothing to do with odometry from a topic.
+    pub fn finish(&mut self, filter: &mut dyn ScanSlam) -> Result<Vec<ScanRecord>, RosError> {
+        let Some(lo) = &mut self.laser else {
+            return Ok(Vec::new());
         };
-        filter.process(&record).map_err(|source| RosError::Filter {
+        let poses = lo.finish();
+        self.release(filter, poses)
+    }
+
+    /// Gives the oldest waiting scans, one per pose of `poses`, to `filter`.
+    fn release(
+        &mut self,
+        filter: &mut dyn ScanSlam,
+        poses: Vec<Pose2>,
+    ) -> Result<Vec<ScanRecord>, RosError> {
+        let mut records = Vec::with_capacity(poses.len());
+        for odometry in poses {
+            // The stream gives one pose per scan pushed, in order.
+            let Some((t, scan)) = self.waiting.pop_front() else {
+                break;
+            };
+            let record = ScanRecord {
+                t,
+                odometry,
+                scan: Some(scan),
+            };
+            self.give(filter, &record)?;
+            records.push(record);
+        }
+        Ok(records)
+    }
+
+    fn give(&mut self, filter: &mut dyn ScanSlam, record: &ScanRecord) -> Result<(), RosError> {
+        filter.process(record).map_err(|source| RosError::Filter {
             filter: filter.name().to_string(),
             scan: self.steps,
-            t,
+            t: record.t,
             source,
         })?;
         self.steps += 1;
-        Ok(record)
+        Ok(())
     }
 }
 
@@ -529,6 +606,7 @@ pub fn run_node(
         last_odom: Pose2::IDENTITY,
         last_stamp: None,
         stepper,
+        arrivals: Default::default(),
     };
     let result = node.spin(filter.as_mut(), &inbox, stop, log);
     quit.store(true, Ordering::Relaxed);
@@ -547,8 +625,13 @@ pub fn run_node(
         crate::graph::encode_participant_entities_info(&dp.gid(), &[]),
     );
     result?;
-    // Shutdown: the final map out, and everything on disk (no map exists before the first
-    // scan: then only node.json, and the log says so).
+    // Shutdown: the scans still waiting for the laser odometry's decision go to the filter
+    // (decided as `slam run` decides at the end of a recording), then the final map out,
+    // and everything on disk (no map exists before the first scan: then only node.json,
+    // and the log says so).
+    let released = node.stepper.finish(filter.as_mut())?;
+    node.publish_released(filter.as_mut(), &released)?;
+    (node.report.laser_splits, node.report.laser_switches) = node.stepper.splits_and_switches();
     if node.report.processed > 0 {
         let stamp = node.now_stamp(&inbox);
         node.publish_map(filter.as_ref(), stamp)?;
@@ -611,6 +694,8 @@ struct Running<'a> {
     last_odom: Pose2,
     last_stamp: Option<Stamp>,
     stepper: ScanStepper,
+    /// Arrival and frame of each scan taken whose record the stepper has not released.
+    arrivals: std::collections::VecDeque<(Instant, String)>,
 }
 
 impl Running<'_> {
@@ -779,10 +864,37 @@ impl Running<'_> {
             self.report.unmounted += 1;
             Pose2::IDENTITY
         });
-        let record = self.stepper.step(filter, &arrived.msg, odom, sensor_pose)?;
-        let (t, odom) = (record.t, record.odometry);
+        let records = self.stepper.step(filter, &arrived.msg, odom, sensor_pose)?;
         self.report.processed += 1;
         self.report.processed_stamps_ns.push(ns);
+        self.arrivals.push_back((arrived.at, frame.clone()));
+        self.publish_released(filter, &records)?;
+        if self.report.processed % 50 == 0 {
+            if let Some(rss) = current_rss_mb() {
+                self.report.rss_mb.push(rss);
+            }
+        }
+        Ok(())
+    }
+
+    /// Publishes the outputs of the last of `records`, the records the stepper just gave
+    /// the filter (none while the laser odometry waits on branches; several when it
+    /// decides): the filter's state is that of the last, so the earlier ones' `map → odom`
+    /// would be stale. Every released scan's latency (its arrival to this `map → odom`) is
+    /// counted, so a scan that waited for the laser odometry shows its wait.
+    fn publish_released(
+        &mut self,
+        filter: &mut dyn ScanSlam,
+        records: &[ScanRecord],
+    ) -> Result<(), RosError> {
+        let arrivals: Vec<(Instant, String)> = (0..records.len())
+            .filter_map(|_| self.arrivals.pop_front())
+            .collect();
+        let (Some(record), Some((_, frame))) = (records.last(), arrivals.last()) else {
+            return Ok(());
+        };
+        let frame = frame.clone();
+        let (t, odom) = (record.t, record.odometry);
         let stamp = ros_msg::stamp(t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
         self.last_stamp = Some(stamp);
         self.last_odom = odom;
@@ -797,8 +909,11 @@ impl Running<'_> {
         for (out, bytes) in step_messages(stamp, filter, &odom, &self.opts.frames, include) {
             self.send(out, stamp, bytes)?;
             if out == Out::Tf && !latency_done {
-                self.latencies
-                    .push(arrived.at.elapsed().as_secs_f64() * 1e3);
+                self.latencies.extend(
+                    arrivals
+                        .iter()
+                        .map(|(at, _)| at.elapsed().as_secs_f64() * 1e3),
+                );
                 latency_done = true;
             }
         }
@@ -828,11 +943,6 @@ impl Running<'_> {
                         pose: scan.sensor_pose,
                     }]),
                 );
-            }
-        }
-        if self.report.processed % 50 == 0 {
-            if let Some(rss) = current_rss_mb() {
-                self.report.rss_mb.push(rss);
             }
         }
         Ok(())

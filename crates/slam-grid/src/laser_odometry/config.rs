@@ -83,8 +83,9 @@ pub struct LaserOdometryConfig {
     /// or a row of like offices many places fit); only with the narrow search on. Default
     /// 0.03.
     pub wide_margin: f64,
-    /// Multi-hypothesis laser odometry (over a whole recording only,
-    /// [`super::laser_odometry`]; [`super::LaserOdometry::process`] decides every step at
+    /// Multi-hypothesis laser odometry (over a whole recording, [`super::laser_odometry`],
+    /// or a stream of scans, [`super::LaserOdometryStream`], whose poses then come out up
+    /// to this many scans late; [`super::LaserOdometry::process`] decides every step at
     /// once): after an ambiguous step, scans over which each of its poses is followed as a
     /// branch (its own local map and pose chain) before the branch whose matches fit the
     /// most end points in mapped cells over those scans is kept; 0: off, one branch. Default 5 (on the

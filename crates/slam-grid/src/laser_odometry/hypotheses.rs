@@ -136,12 +136,40 @@ impl Branches {
         b.fit = 0.0;
     }
 
-    /// Decides any open split now (the best branch so far) and returns every scan's pose
-    /// in order, the laser odometry of the branch kept, and the splits and switches.
-    pub(crate) fn finish(mut self) -> (Vec<Pose2>, LaserOdometry, usize, usize) {
+    /// Decides any open split now (the best branch so far), so that every scan pushed has
+    /// its pose among the decided ones.
+    pub(crate) fn close(&mut self) {
         if self.open.is_some() {
             self.decide();
         }
+    }
+
+    /// The poses decided since the last call, in scan order (moved out).
+    pub(crate) fn take_decided(&mut self) -> Vec<Pose2> {
+        std::mem::take(&mut self.decided)
+    }
+
+    /// Scans pushed whose pose is not decided yet (0 without an open split).
+    pub(crate) fn pending(&self) -> usize {
+        self.branches[0].poses.len()
+    }
+
+    /// The laser odometry of branch 0 (after [`Self::close`], the one kept).
+    pub(crate) fn odometry(&self) -> &LaserOdometry {
+        &self.branches[0].lo
+    }
+
+    /// Ambiguous steps that started a branch, and decisions that kept a branch other than
+    /// the default one.
+    pub(crate) fn splits_and_switches(&self) -> (usize, usize) {
+        (self.splits, self.switches)
+    }
+
+    /// Decides any open split and returns every scan's pose not taken yet, the laser
+    /// odometry of the branch kept, and the splits and switches.
+    #[cfg(test)]
+    pub(crate) fn finish(mut self) -> (Vec<Pose2>, LaserOdometry, usize, usize) {
+        self.close();
         let lo = self.branches.swap_remove(0).lo;
         (self.decided, lo, self.splits, self.switches)
     }

@@ -44,7 +44,8 @@
 //!    bad scan or accumulated drift spoils only the local map, for a while, not the
 //!    whole map (0: one map of every scan).
 //!
-//! 4. **Branches** (over a whole recording, [`laser_odometry`]; `branch-lag`, default 5
+//! 4. **Branches** (over a whole recording, [`laser_odometry`], or a stream of scans,
+//!    [`LaserOdometryStream`], as the live node runs it; `branch-lag`, default 5
 //!    scans): a step whose narrow match and wide search's best are distinct poses fitting
 //!    within `ambiguity-margin` (20 %) of the end points of each other, or whose match
 //!    fits under `turn-search-fit` (70 %) of them while a turn beyond the window (up to
@@ -52,7 +53,7 @@
 //!    copies of the laser odometry, each with its own local map; `branch-lag` scans later
 //!    the branch whose matches fit the most of their end points in mapped cells is kept
 //!    (`hypotheses`; Reid 1979's multiple-hypothesis tracking with N-scan-back pruning).
-//!    [`LaserOdometry::process`] (the live node) decides every step at once.
+//!    [`LaserOdometry::process`] decides every step at once.
 //!
 //! The first scan defines the frame: its pose is the identity. Errors accumulate without
 //! bound (no loop closure: that is the filters' work); [`laser_odometry`] makes the whole
@@ -68,7 +69,9 @@ pub use config::{
     LaserOdometryConfig, MotionPrediction, DISTINCT_THETA, DISTINCT_XY, MAX_BRANCHES,
     MAX_HYPOTHESES,
 };
-pub use run::{integrate_yaw_rate, laser_odometry, LaserOdometryRun, MAX_RATE_GAP};
+pub use run::{
+    integrate_yaw_rate, laser_odometry, LaserOdometryRun, LaserOdometryStream, MAX_RATE_GAP,
+};
 
 use crate::error::GridError;
 use crate::matcher::endpoint::{EndpointMatch, SearchWindow};

@@ -3,7 +3,7 @@
 use super::hypotheses::Branches;
 use super::{LaserOdometry, LaserOdometryConfig};
 use crate::error::GridError;
-use slam_models::{normalize_angle, Pose2, ScanRecord, YawRate};
+use slam_models::{normalize_angle, LaserScan, Pose2, ScanRecord, YawRate};
 
 /// Longest gap between yaw-rate samples (and between an interval's ends and the samples
 /// nearest them) that [`integrate_yaw_rate`] bridges, seconds.
@@ -55,6 +55,62 @@ pub fn integrate_yaw_rate(rates: &[YawRate], t0: f64, t1: f64) -> Option<f64> {
     )
 }
 
+/// Laser odometry over a stream of scans, as [`laser_odometry`] makes it for a whole
+/// recording: with [`LaserOdometryConfig::branch_lag`] above 0 an ambiguous step is
+/// followed as branches and decided that many scans later, so a scan's pose comes out
+/// when it is decided, up to `branch-lag` scans after the scan went in, always in scan
+/// order; with 0 every scan's pose comes out at once and is
+/// [`LaserOdometry::process`]'s. Fed the same scans (and rotation priors), it gives the
+/// poses [`laser_odometry`] gives at the scan records, to the bit: a live node that steps
+/// its filter with each pose as it comes out makes the estimates `slam run` makes.
+#[derive(Debug, Clone)]
+pub struct LaserOdometryStream {
+    branches: Branches,
+}
+
+impl LaserOdometryStream {
+    /// A stream with `config` (rejected when invalid, by key).
+    pub fn new(config: LaserOdometryConfig) -> Result<Self, GridError> {
+        let (lag, max) = (config.branch_lag, config.max_branches);
+        Ok(Self {
+            branches: Branches::new(LaserOdometry::new(config)?, lag, max),
+        })
+    }
+
+    /// Matches the next scan (`turn`: the rotation prior since the previous scan, radians,
+    /// as in [`LaserOdometry::process`]) and returns the poses decided by it, in scan
+    /// order: none while a split is open, then every scan's since the split. Poses are in
+    /// the frame of the first scan.
+    pub fn push(&mut self, scan: &LaserScan, turn: Option<f64>) -> Result<Vec<Pose2>, GridError> {
+        self.branches.push(scan, turn)?;
+        Ok(self.branches.take_decided())
+    }
+
+    /// Decides an open split now (the branch that fits best so far, as at the end of a
+    /// recording) and returns the poses it decided: after this every scan pushed has had
+    /// its pose. Pushing more scans afterwards continues the stream.
+    pub fn finish(&mut self) -> Vec<Pose2> {
+        self.branches.close();
+        self.branches.take_decided()
+    }
+
+    /// Scans pushed whose pose has not come out yet (at most `branch-lag`).
+    pub fn pending(&self) -> usize {
+        self.branches.pending()
+    }
+
+    /// Ambiguous steps that started a branch so far.
+    pub fn splits(&self) -> usize {
+        self.branches.splits_and_switches().0
+    }
+
+    /// Decisions that kept a branch other than the one [`LaserOdometry::process`] would
+    /// have followed.
+    pub fn switches(&self) -> usize {
+        self.branches.splits_and_switches().1
+    }
+}
+
 /// The laser odometry of a whole recording ([`laser_odometry`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaserOdometryRun {
@@ -93,20 +149,22 @@ pub fn laser_odometry(
 ) -> Result<LaserOdometryRun, GridError> {
     let mut rates: Vec<YawRate> = rates.map(<[YawRate]>::to_vec).unwrap_or_default();
     rates.sort_by(|a, b| a.t.total_cmp(&b.t));
-    let (lag, max) = (config.branch_lag, config.max_branches);
-    let mut branches = Branches::new(LaserOdometry::new(config)?, lag, max);
+    let mut stream = LaserOdometryStream::new(config)?;
     let mut at_scans: Vec<usize> = Vec::new();
+    let mut poses: Vec<Pose2> = Vec::new();
     let mut with_prior = 0;
     let mut last_t: Option<f64> = None;
     for (k, r) in records.iter().enumerate() {
         let Some(scan) = &r.scan else { continue };
         let turn = last_t.and_then(|t0| integrate_yaw_rate(&rates, t0, r.t));
         with_prior += usize::from(turn.is_some());
-        branches.push(scan, turn)?;
+        poses.extend(stream.push(scan, turn)?);
         at_scans.push(k);
         last_t = Some(r.t);
     }
-    let (poses, lo, splits, switches) = branches.finish();
+    poses.extend(stream.finish());
+    let (splits, switches) = stream.branches.splits_and_switches();
+    let lo = stream.branches.odometry();
     let at_scans: Vec<(usize, Pose2)> = at_scans.into_iter().zip(poses).collect();
     let mut odometry = Vec::with_capacity(records.len());
     let mut next = 0;
