@@ -321,6 +321,14 @@ fn slam_ros2_live_serves_every_output() {
             "{t} not advertised: {topics:?}"
         );
     }
+    // Laser only: no robot publishes `odom → base_link`, so the node publishes it (the
+    // laser odometry) beside `map → odom`, and the tree reaches the robot.
+    let tf = ros_msg::decode_tf_message(&got["/tf"]).unwrap();
+    let pairs: Vec<(&str, &str)> = tf
+        .iter()
+        .map(|t| (t.parent.as_str(), t.child.as_str()))
+        .collect();
+    assert_eq!(pairs, [("map", "odom"), ("odom", "base_link")], "{pairs:?}");
     interrupt(child);
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("node.json")).unwrap()).unwrap();

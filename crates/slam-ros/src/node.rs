@@ -902,7 +902,8 @@ impl Running<'_> {
         let include = Include {
             map: false,
             trajectory,
-            odom_tf: false,
+            // Laser only: no robot publishes `odom → base`; the laser odometry is it.
+            odom_tf: self.stepper.laser_only(),
             scan: None,
         };
         let mut latency_done = false;
