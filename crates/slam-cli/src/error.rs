@@ -126,6 +126,17 @@ pub enum CliError {
     /// The pose-graph optimiser rejected the graph or its configuration, or failed.
     #[error("optimize: {0}")]
     Graph(#[from] slam_graph::GraphError),
+    /// The pose-graph optimiser rejected the graph read from a file (nothing to optimise,
+    /// normal equations that are not positive definite, ...), or failed on it: the file is
+    /// named.
+    #[error("optimize {}: {source}", path.display())]
+    GraphFile {
+        /// The graph file.
+        path: PathBuf,
+        /// The optimiser's error.
+        #[source]
+        source: slam_graph::GraphError,
+    },
     /// The worker thread pool could not be created.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {

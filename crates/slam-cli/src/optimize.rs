@@ -122,20 +122,28 @@ pub fn optimize(args: &OptimizeArgs, out: &mut dyn Write) -> Result<OptimizeOutp
     let read = t.elapsed();
     stopped(1)?;
     let mut graph = before.clone();
+    // An error about the graph names its file; one about the configuration does not.
+    let of_graph = |e: slam_graph::GraphError| match e {
+        e @ slam_graph::GraphError::InvalidConfig(_) => CliError::Graph(e),
+        e => CliError::GraphFile {
+            path: args.graph.clone(),
+            source: e,
+        },
+    };
     let t = Instant::now();
-    let mut opt = Optimizer::new(&graph, cfg)?;
+    let mut opt = Optimizer::new(&graph, cfg).map_err(of_graph)?;
     let setup = t.elapsed();
     let t = Instant::now();
-    let init = opt.initialise(&mut graph)?;
+    let init = opt.initialise(&mut graph).map_err(of_graph)?;
     let initialise = t.elapsed();
     let t = Instant::now();
-    let mut report = opt.refine(&mut graph)?;
+    let mut report = opt.refine(&mut graph).map_err(of_graph)?;
     let optimise = t.elapsed();
     stopped(2)?;
     let t = Instant::now();
     // The start is the input, not the initialisation: χ² and cost there, under the final
     // kernels (so that the two costs compare).
-    let (initial_chi2, initial_cost) = opt.cost(&before)?;
+    let (initial_chi2, initial_cost) = opt.cost(&before).map_err(of_graph)?;
     report.initial_chi2 = initial_chi2;
     report.initial_cost = initial_cost;
     report.init = init;

@@ -103,3 +103,40 @@ fn scans_without_a_single_return_are_a_clear_error_for_every_laser_filter() {
         }
     }
 }
+
+/// Fuzzing `slam optimize` (a g2o file truncated to its first vertex) gave "slam: error:
+/// optimize: nothing to optimise: every node is fixed", naming no file; an edge whose
+/// information entries overflow (1e300) gave "normal equations are not positive definite"
+/// the same way. The optimiser's errors about the graph now name the graph file.
+#[test]
+fn optimizer_errors_about_a_graph_name_its_file() {
+    let dir = scratch("optimize-errors");
+    for (name, text, what) in [
+        (
+            "one-vertex.g2o",
+            "VERTEX_SE2 0 0 0 0\n",
+            "nothing to optimise: every node is fixed",
+        ),
+        (
+            "overflowing-information.g2o",
+            "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 1e300 0 0 1e300 0 1e300\n",
+            "normal equations are not positive definite",
+        ),
+    ] {
+        let g = dir.join(name);
+        std::fs::write(&g, text).unwrap();
+        let out = dir.join(format!("out-{name}"));
+        let (code, _, err) = slam_bin(&[
+            "optimize",
+            g.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 1, "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains(&format!("optimize {}: {what}", g.display())),
+            "{name}: {err}"
+        );
+    }
+}

@@ -11,8 +11,51 @@
 use slam_io::bounds::{MAX_BEAMS, MAX_RECORD_BYTES};
 use slam_io::rosbag::{describe_bag, read_rosbag, BagOptions};
 use slam_io::Pose2;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+
+/// The system allocator, noting the largest single allocation each thread asks for (the
+/// tests run on threads of their own), so that a test can bound what a hostile length field
+/// made the reader allocate.
+struct Largest;
+
+thread_local! {
+    static LARGEST: Cell<usize> = const { Cell::new(0) };
+}
+
+fn note(size: usize) {
+    let _ = LARGEST.try_with(|l| l.set(l.get().max(size)));
+}
+
+unsafe impl GlobalAlloc for Largest {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        note(layout.size());
+        System.alloc(layout)
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        note(layout.size());
+        System.alloc_zeroed(layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        note(new_size);
+        System.realloc(ptr, layout, new_size)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Largest = Largest;
+
+/// The largest single allocation `f` made on this thread, bytes, and its result.
+fn largest_allocation<T>(f: impl FnOnce() -> T) -> (usize, T) {
+    LARGEST.with(|l| l.set(0));
+    let out = f();
+    (LARGEST.with(Cell::get), out)
+}
 
 fn temp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("slam-io-hostile-{}", std::process::id()));
@@ -203,6 +246,139 @@ fn chunk_records_larger_than_the_cap_are_errors_not_allocations() {
         e.contains(&format!("expected at most {MAX_RECORD_BYTES} bytes")),
         "{e}"
     );
+}
+
+/// An MCAP string: `uint32` length, bytes.
+fn mcap_string(s: &str) -> Vec<u8> {
+    let mut b = (s.len() as u32).to_le_bytes().to_vec();
+    b.extend(s.as_bytes());
+    b
+}
+
+/// An MCAP file of `records` between a header and the data end, footer and end magic.
+fn mcap_of(name: &str, records: &[Vec<u8>]) -> PathBuf {
+    let mut b = b"\x89MCAP0\r\n".to_vec();
+    b.extend(record(
+        0x01,
+        &[mcap_string("ros2"), mcap_string("hostile")].concat(),
+    ));
+    for r in records {
+        b.extend(r);
+    }
+    b.extend(record(0x0F, &0u32.to_le_bytes()));
+    b.extend(record(0x02, &[0u8; 20]));
+    b.extend(b"\x89MCAP0\r\n");
+    let p = temp(name);
+    std::fs::write(&p, b).unwrap();
+    p
+}
+
+/// Fuzzing (a 2 kB MCAP file with one byte of a schema record's encoding length flipped)
+/// aborted `slam info` and `slam localize` under a 4 GB memory limit: "memory allocation of
+/// 4294901767 bytes failed", the `mcap` crate reserving a string's stated length before
+/// reading it. Every length inside a schema or channel record is now checked against the
+/// record's bytes first: an error naming the record, the field, its length and the bytes
+/// left, with no large allocation.
+#[test]
+fn mcap_string_lengths_beyond_the_record_are_errors_not_allocations() {
+    let mut schema = 1u16.to_le_bytes().to_vec();
+    schema.extend(mcap_string(SCAN));
+    schema.extend(0xFFFF_0007u32.to_le_bytes()); // the encoding's length: 4 GiB
+    schema.extend(b"ros2msg");
+    schema.extend(0u32.to_le_bytes());
+    let p = mcap_of("huge-schema-string.mcap", &[record(0x03, &schema)]);
+    let (largest, e) = largest_allocation(|| describe_bag(&p).unwrap_err().to_string());
+    assert!(e.contains("huge-schema-string.mcap"), "{e}");
+    assert!(
+        e.contains("a schema record whose encoding is 4294901767 byte(s) long"),
+        "{e}"
+    );
+    assert!(e.contains("expected at most the 11 byte(s) left"), "{e}");
+    assert!(largest < 1 << 20, "{largest} bytes allocated at once");
+    // A channel's topic, and a key of its metadata map, the same way.
+    let mut schema = 1u16.to_le_bytes().to_vec();
+    for s in [SCAN, "ros2msg", ""] {
+        schema.extend(mcap_string(s));
+    }
+    let channel = |topic_len: u32, map: &[u8]| {
+        let mut c = 1u16.to_le_bytes().to_vec();
+        c.extend(1u16.to_le_bytes());
+        c.extend(topic_len.to_le_bytes());
+        c.extend(b"/scan");
+        c.extend(mcap_string("cdr"));
+        c.extend((map.len() as u32).to_le_bytes());
+        c.extend(map);
+        record(0x04, &c)
+    };
+    let p = mcap_of(
+        "huge-topic.mcap",
+        &[record(0x03, &schema), channel(u32::MAX, &[])],
+    );
+    let (largest, e) = largest_allocation(|| read_rosbag(&p, &BagOptions::default()).unwrap_err());
+    let e = e.to_string();
+    assert!(
+        e.contains("a channel record whose topic is 4294967295 byte(s) long"),
+        "{e}"
+    );
+    assert!(largest < 1 << 20, "{largest} bytes allocated at once");
+    let mut map = 0x7FFF_FFFFu32.to_le_bytes().to_vec();
+    map.extend(b"key");
+    let p = mcap_of(
+        "huge-metadata-key.mcap",
+        &[record(0x03, &schema), channel(5, &map)],
+    );
+    let (largest, e) = largest_allocation(|| describe_bag(&p).unwrap_err().to_string());
+    assert!(
+        e.contains("a channel record whose metadata key is 2147483647 byte(s) long"),
+        "{e}"
+    );
+    assert!(largest < 1 << 20, "{largest} bytes allocated at once");
+    // The same records with true lengths read: one /scan channel, no message.
+    let p = mcap_of(
+        "true-lengths.mcap",
+        &[record(0x03, &schema), channel(5, &[])],
+    );
+    assert!(describe_bag(&p).is_ok());
+}
+
+/// A record length is trusted only up to the bytes the file still holds: a 6 kB file whose
+/// second record claims 2²⁸ − 1 bytes (within the record cap) made the reader allocate and
+/// zero 256 MiB before finding the file too short. Now an error after reading the file's
+/// bytes, allocating no more than they are.
+#[test]
+fn mcap_record_lengths_beyond_the_file_are_not_allocated() {
+    let mut b = b"\x89MCAP0\r\n".to_vec();
+    b.extend(record(
+        0x01,
+        &[mcap_string("ros2"), mcap_string("hostile")].concat(),
+    ));
+    b.push(0x03);
+    b.extend(((1u64 << 28) - 1).to_le_bytes());
+    b.extend(vec![0u8; 6000]);
+    let p = temp("record-beyond-file.mcap");
+    std::fs::write(&p, b).unwrap();
+    let (largest, e) = largest_allocation(|| describe_bag(&p).unwrap_err().to_string());
+    assert!(e.contains("record-beyond-file.mcap"), "{e}");
+    assert!(e.contains("truncated or corrupt MCAP"), "{e}");
+    assert!(largest < 1 << 20, "{largest} bytes allocated at once");
+}
+
+/// An attachment record that ends right after its data length (no CRC) made the `mcap`
+/// crate's record parser panic ("slice index starts at 32 but ends at 28"). Records the
+/// reader has no use for (attachments, metadata, indexes) are no longer parsed: the bag
+/// reads, with no topic.
+#[test]
+fn an_mcap_attachment_without_its_crc_does_not_panic() {
+    let mut a = 0u64.to_le_bytes().to_vec();
+    a.extend(0u64.to_le_bytes());
+    a.extend(mcap_string(""));
+    a.extend(mcap_string(""));
+    a.extend(0u64.to_le_bytes()); // data length 0, then no CRC
+    let p = mcap_of("attachment-without-crc.mcap", &[record(0x09, &a)]);
+    let topics = std::panic::catch_unwind(|| slam_io::rosbag::bag_topics(&p))
+        .expect("no panic")
+        .unwrap();
+    assert!(topics.is_empty());
 }
 
 /// A scan of MAX_BEAMS + 1 beams (the issue's was 10⁷ in a 55 kB file): refused by the cap

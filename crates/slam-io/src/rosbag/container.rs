@@ -370,39 +370,175 @@ pub(crate) fn for_each_message(
 pub(crate) type Each<'f> = dyn FnMut(RawMessage<'_>) -> Result<(), IoError> + 'f;
 
 /// The messages of one MCAP file, streamed (the file is never held whole): through the
-/// `mcap` crate's streaming reader with every record, compressed chunk and decompressed
+/// `mcap` crate's sans-io linear reader with every record, compressed chunk and decompressed
 /// chunk content bounded by [`MAX_RECORD_BYTES`], so a length field cannot make us
-/// allocate more than that cap.
+/// allocate more than that cap. The reader's requests for more bytes are trusted only up to
+/// the bytes the file still holds (a record that claims 256 MiB in a 6 kB file is an error
+/// after reading the 6 kB, not an allocation of 256 MiB), and the length fields inside schema
+/// and channel records are checked against the record's bytes ([`check_mcap_record`]) before
+/// the crate parses them (its parser reserves a string's stated length, up to 4 GiB, before
+/// reading it). Only schema, channel and message records are parsed; a message after the
+/// data end record is an error.
 fn mcap_messages(file: &Path, topics: &mut Topics, f: &mut Each<'_>) -> Result<(), IoError> {
-    let src = std::fs::File::open(file).map_err(|e| IoError::io(file, e))?;
+    use mcap::records::{op, Record};
+    use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    use std::io::Read as _;
+    let mut src = std::fs::File::open(file).map_err(|e| IoError::io(file, e))?;
+    let len = src.metadata().map_err(|e| IoError::io(file, e))?.len();
     let mut head = [0u8; 8];
-    let starts = std::io::Read::read_exact(&mut &src, &mut head).is_ok();
+    let starts = src.read_exact(&mut head).is_ok();
     if !starts || !head.starts_with(mcap::MAGIC) {
         return Err(IoError::invalid(
             file,
             "not an MCAP file (it does not start with the MCAP magic bytes)",
         ));
     }
-    std::io::Seek::rewind(&mut &src).map_err(|e| IoError::io(file, e))?;
-    let options =
-        mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES);
-    let stream = mcap::io::MessageReader::new_with_options(std::io::BufReader::new(src), options);
-    for m in stream {
-        let m = m.map_err(|e| topics.damaged(file, BagFormat::Mcap, mcap_error(e)))?;
-        let ch = &m.channel;
-        let msg_type = ch
-            .schema
-            .as_ref()
-            .map_or_else(|| "(no schema)".to_string(), |s| normalise_type(&s.name));
-        let index = topics.add(file, &ch.topic, &msg_type, &ch.message_encoding, m.log_time)?;
-        f(RawMessage {
-            topic: &ch.topic,
-            msg_type: &msg_type,
-            encoding: &ch.message_encoding,
-            index,
-            log_time_ns: m.log_time,
-            data: &m.data,
-        })?;
+    std::io::Seek::rewind(&mut src).map_err(|e| IoError::io(file, e))?;
+    let mut src = std::io::BufReader::new(src);
+    let damaged = |topics: &Topics, why: String| topics.damaged(file, BagFormat::Mcap, why);
+    let options = LinearReaderOptions::default()
+        .with_record_length_limit(MAX_RECORD_BYTES)
+        .with_emit_chunks(false);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut channels = mcap::read::ChannelAccumulator::default();
+    // Bytes handed to the reader so far, and whether the data end record was passed.
+    let (mut fed, mut past_data_end) = (0u64, false);
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| damaged(topics, mcap_error(e)))? {
+            LinearReadEvent::ReadRequest(need) => {
+                // Never more than the file still holds: the request is a record's stated
+                // length, which is trusted up to the cap only.
+                let n = (need as u64).min(len.saturating_sub(fed)) as usize;
+                let read = loop {
+                    match src.read(reader.insert(n)) {
+                        Ok(k) => break k,
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        Err(e) => return Err(IoError::io(file, e)),
+                    }
+                };
+                fed += read as u64;
+                reader.notify_read(read);
+            }
+            LinearReadEvent::Record {
+                opcode: op::DATA_END,
+                ..
+            } => past_data_end = true,
+            LinearReadEvent::Record { opcode, data } => {
+                if !matches!(opcode, op::SCHEMA | op::CHANNEL | op::MESSAGE) {
+                    continue;
+                }
+                check_mcap_record(opcode, data).map_err(|e| damaged(topics, e))?;
+                let record =
+                    mcap::parse_record(opcode, data).map_err(|e| damaged(topics, mcap_error(e)))?;
+                match record {
+                    // The summary section repeats schemas and channels: not checked again.
+                    Record::Schema { .. } | Record::Channel(_) if past_data_end => {}
+                    Record::Schema { header, data } => channels
+                        .add_schema_from_slice(header, &data)
+                        .map_err(|e| damaged(topics, mcap_error(e)))?,
+                    Record::Channel(c) => channels
+                        .add_channel(c)
+                        .map_err(|e| damaged(topics, mcap_error(e)))?,
+                    Record::Message { .. } if past_data_end => {
+                        return Err(damaged(
+                            topics,
+                            "a message record after the data end record".to_string(),
+                        ))
+                    }
+                    Record::Message { header, data } => {
+                        let Some(ch) = channels.get(header.channel_id) else {
+                            return Err(damaged(
+                                topics,
+                                mcap_error(mcap::McapError::UnknownChannel(
+                                    header.sequence,
+                                    header.channel_id,
+                                )),
+                            ));
+                        };
+                        let msg_type = ch
+                            .schema
+                            .as_ref()
+                            .map_or_else(|| "(no schema)".to_string(), |s| normalise_type(&s.name));
+                        let index = topics.add(
+                            file,
+                            &ch.topic,
+                            &msg_type,
+                            &ch.message_encoding,
+                            header.log_time,
+                        )?;
+                        f(RawMessage {
+                            topic: &ch.topic,
+                            msg_type: &msg_type,
+                            encoding: &ch.message_encoding,
+                            index,
+                            log_time_ns: header.log_time,
+                            data: data.as_ref(),
+                        })?;
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks the length-prefixed fields of an MCAP schema or channel record against the bytes
+/// the record holds (MCAP specification, "Schema" and "Channel"): each string, the schema's
+/// data and the channel's metadata map must end within the record. `Err` says which field
+/// broke the bound.
+fn check_mcap_record(opcode: u8, data: &[u8]) -> Result<(), String> {
+    use mcap::records::op;
+    let name = if opcode == op::SCHEMA {
+        "schema"
+    } else {
+        "channel"
+    };
+    let mut pos = 0usize;
+    // A `uint32` length at `pos`, then that many bytes, all within `end`.
+    let field = |pos: &mut usize, end: usize, what: &str| -> Result<(), String> {
+        let at = *pos;
+        let Some(b) = data.get(at..at + 4).filter(|_| at + 4 <= end) else {
+            return Err(format!(
+                "a {name} record of {} byte(s) ends before the length of its {what}",
+                data.len()
+            ));
+        };
+        let n = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize;
+        let left = end - (at + 4);
+        if n > left {
+            return Err(format!(
+                "a {name} record whose {what} is {n} byte(s) long at byte {at} of the record, \
+                 expected at most the {left} byte(s) left"
+            ));
+        }
+        *pos = at + 4 + n;
+        Ok(())
+    };
+    match opcode {
+        op::SCHEMA => {
+            pos += 2; // id
+            field(&mut pos, data.len(), "name")?;
+            field(&mut pos, data.len(), "encoding")?;
+            field(&mut pos, data.len(), "data")?;
+        }
+        op::CHANNEL => {
+            pos += 4; // id, schema id
+            if pos > data.len() {
+                return Err(format!("a channel record of {} byte(s)", data.len()));
+            }
+            field(&mut pos, data.len(), "topic")?;
+            field(&mut pos, data.len(), "message encoding")?;
+            let map_at = pos;
+            field(&mut pos, data.len(), "metadata map")?;
+            let end = pos;
+            let mut p = map_at + 4;
+            while p < end {
+                field(&mut p, end, "metadata key")?;
+                field(&mut p, end, "metadata value")?;
+            }
+        }
+        _ => {}
     }
     Ok(())
 }
