@@ -19,10 +19,14 @@
 //!
 //! Any other tag is an error naming the file, line and tag (silently skipping an edge type
 //! would change the problem). Ids are g2o's `int`, 0 ..= 2³¹ − 1. Numbers must be finite;
-//! coordinates are not otherwise bounded here. An information matrix must be positive
-//! definite (a Cholesky factor exists) — the only bound on its entries, so the very large
-//! but finite values of some published graphs (Carlone's INTEL: 2.69e12) read.
+//! positions and measured translations lie within ±[`MAX_COORD`] (1000 km, the bound of
+//! every reader here: beyond it a squared residual overflows to ∞ and the optimiser's cost
+//! means nothing), angles within ±[`MAX_HEADING`] rad (TORO files may carry them
+//! unwrapped). An information matrix must be positive definite (a Cholesky factor exists) —
+//! the only bound on its entries, so the very large but finite values of some published
+//! graphs (Carlone's INTEL: 2.69e12) read.
 
+use crate::bounds::{MAX_COORD, MAX_HEADING};
 use crate::error::IoError;
 use crate::text::{read_text, write_text, Line, TextFile};
 use slam_models::{Matrix2, Matrix3, Point2, Pose2};
@@ -158,6 +162,30 @@ fn num(l: &mut Line<'_>, tag: &str, what: &str) -> Result<f64, IoError> {
     }
 }
 
+/// Checks positions or translations (m, within ±[`MAX_COORD`]) and an angle (rad, within
+/// ±[`MAX_HEADING`]) read as `names` of `tag`: `values[k]` is a translation for k < `n_xy`,
+/// the angle at `n_xy` when `angle` is set.
+fn bounded(
+    l: &Line<'_>,
+    tag: &str,
+    names: &[&str],
+    values: &[f64],
+    angle: bool,
+) -> Result<(), IoError> {
+    let n_xy = values.len() - usize::from(angle);
+    for (k, (&v, name)) in values.iter().zip(names).enumerate() {
+        let (bound, unit) = if k < n_xy {
+            (MAX_COORD, "m")
+        } else {
+            (MAX_HEADING, "rad")
+        };
+        if v.abs() > bound {
+            return Err(l.out_of_bounds(&format!("{tag} {name}"), v, format!("±{bound} {unit}")));
+        }
+    }
+    Ok(())
+}
+
 fn nums<const N: usize>(
     l: &mut Line<'_>,
     tag: &str,
@@ -196,6 +224,7 @@ fn parse(f: &TextFile) -> Result<GraphFile, IoError> {
             "VERTEX_SE2" | "VERTEX2" => {
                 let i = id(&mut l, tag, "vertex id")?;
                 let [x, y, t] = nums(&mut l, tag, ["x", "y", "theta"])?;
+                bounded(&l, tag, &["x", "y", "theta"], &[x, y, t], true)?;
                 l.end(if tag == "VERTEX2" {
                     "VERTEX2 id x y theta"
                 } else {
@@ -209,6 +238,7 @@ fn parse(f: &TextFile) -> Result<GraphFile, IoError> {
             "VERTEX_XY" => {
                 let i = id(&mut l, tag, "vertex id")?;
                 let [x, y] = nums(&mut l, tag, ["x", "y"])?;
+                bounded(&l, tag, &["x", "y"], &[x, y], false)?;
                 l.end("VERTEX_XY id x y")?;
                 GraphRecord::Point {
                     id: i,
@@ -219,6 +249,7 @@ fn parse(f: &TextFile) -> Result<GraphFile, IoError> {
                 let from = id(&mut l, tag, "first vertex id")?;
                 let to = id(&mut l, tag, "second vertex id")?;
                 let [dx, dy, dt] = nums(&mut l, tag, ["dx", "dy", "dtheta"])?;
+                bounded(&l, tag, &["dx", "dy", "dtheta"], &[dx, dy, dt], true)?;
                 let (i11, i12, i13, i22, i23, i33) = if tag == "EDGE_SE2" {
                     let u = nums(&mut l, tag, ["I11", "I12", "I13", "I22", "I23", "I33"])?;
                     l.end("EDGE_SE2 i j dx dy dtheta I11 I12 I13 I22 I23 I33")?;
@@ -240,6 +271,7 @@ fn parse(f: &TextFile) -> Result<GraphFile, IoError> {
                 let pose = id(&mut l, tag, "pose vertex id")?;
                 let point = id(&mut l, tag, "point vertex id")?;
                 let [x, y, i11, i12, i22] = nums(&mut l, tag, ["x", "y", "I11", "I12", "I22"])?;
+                bounded(&l, tag, &["x", "y"], &[x, y], false)?;
                 l.end("EDGE_SE2_XY i j x y I11 I12 I22")?;
                 let info = Matrix2::new(i11, i12, i12, i22);
                 GraphRecord::PointEdge {
@@ -486,6 +518,14 @@ mod tests {
                 "VERTEX_SE2 y (a finite number)",
             ),
             ("VERTEX_SE2 0 0 1e999 0\n", 1, "finite"),
+            // Beyond 1000 km a squared residual overflows: bounded, naming the field.
+            ("VERTEX_SE2 1 1e300 0 0\n", 1, "VERTEX_SE2 x"),
+            ("VERTEX2 1 0 -2e6 0\n", 1, "VERTEX2 y"),
+            ("VERTEX_SE2 1 0 0 1e5\n", 1, "VERTEX_SE2 theta"),
+            ("VERTEX_XY 1 0 3e6\n", 1, "VERTEX_XY y"),
+            ("EDGE_SE2 0 1 1e7 0 0 1 0 0 1 0 1\n", 1, "EDGE_SE2 dx"),
+            ("EDGE2 0 1 0 0 -1e5 1 0 1 1 0 0\n", 1, "EDGE2 dtheta"),
+            ("EDGE_SE2_XY 0 1 0 1e9 1 0 1\n", 1, "EDGE_SE2_XY y"),
             (
                 "EDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n",
                 1,
@@ -526,7 +566,7 @@ mod tests {
         r.push(GraphRecord::PoseEdge {
             from: 1,
             to: 12,
-            measurement: Pose2::new(1.0 / 3.0, 2e10, -2.0),
+            measurement: Pose2::new(1.0 / 3.0, 987_654.321_098_765_4, -2.0),
             information: Matrix3::new(1e13, 0.1, 0.0, 0.1, 1e-3, 0.0, 0.0, 0.0, 7.0),
         });
         r.push(GraphRecord::Equiv { a: 12, b: 7 });
