@@ -143,7 +143,7 @@ pub(crate) fn robust(extra: &[String]) -> Result<(), String> {
         "| filter | runs | ATE aligned median / worst (m) | worst input | lost (ATE > 1 m / map contradicts itself / failed) |\n|---|---|---|---|---|\n",
     );
     let mut table = String::from(
-        "| filter | input | truth | ATE aligned median / worst (m) | relations median (m / deg) | lost of runs (ATE / contradiction / failed) | contradicting scans median / worst | matches failed / recovered (median per run) |\n|---|---|---|---|---|---|---|---|\n",
+        "| filter | input | truth | ATE aligned median / worst (m) | relations median (m / deg; on the relations the log's clock leaves unambiguous) | lost of runs (ATE / contradiction / failed) | contradicting scans median / worst | matches failed / recovered (median per run) |\n|---|---|---|---|---|---|---|---|\n",
     );
     // One row per input, one column per filter: the map of the worst run.
     let mut sheet = vec![vec![None; o.filters.len()]; cases.len()];
@@ -366,6 +366,8 @@ struct Summary {
     ates: Vec<f64>,
     worst_ate: Option<f64>,
     rel: Vec<(f64, f64)>,
+    /// The relations metric over the relations the log's clock leaves unambiguous.
+    rel_clear: Vec<(f64, f64)>,
     matches: Vec<(f64, f64)>,
     contradicting: Vec<f64>,
     lost: Lost,
@@ -378,6 +380,7 @@ impl Summary {
             ates: Vec::new(),
             worst_ate: None,
             rel: Vec::new(),
+            rel_clear: Vec::new(),
             matches: Vec::new(),
             contradicting: Vec::new(),
             lost: Lost {
@@ -423,6 +426,12 @@ impl Summary {
             ) {
                 s.rel.push((t, d));
             }
+            if let (Some(t), Some(d)) = (
+                json_number(m, "relations_unambiguous_trans_mean_m"),
+                json_number(m, "relations_unambiguous_rot_mean_deg"),
+            ) {
+                s.rel_clear.push((t, d));
+            }
             if let (Some(f), Some(rec)) = (
                 json_number(m, "match_failed"),
                 json_number(m, "match_recovered"),
@@ -436,11 +445,16 @@ impl Summary {
     }
 
     fn relations(&self) -> String {
-        match (
-            median(self.rel.iter().map(|r| r.0).collect()),
-            median(self.rel.iter().map(|r| r.1).collect()),
+        let of = |v: &[(f64, f64)]| match (
+            median(v.iter().map(|r| r.0).collect()),
+            median(v.iter().map(|r| r.1).collect()),
         ) {
-            (Some(t), Some(r)) => format!("{t:.4} / {r:.3}"),
+            (Some(t), Some(r)) => Some(format!("{t:.4} / {r:.3}")),
+            _ => None,
+        };
+        match (of(&self.rel), of(&self.rel_clear)) {
+            (Some(all), Some(clear)) => format!("{all} ({clear})"),
+            (Some(all), None) => all,
             _ => "–".into(),
         }
     }
