@@ -116,14 +116,15 @@ pub(crate) fn edt_2d(
 /// cell on one keeps the lower root, so the obstacle above (the smaller row) wins.
 fn column_pass(obstacle: &[bool], w: usize, h: usize) -> (Vec<f64>, Vec<u32>) {
     const NONE: u32 = u32::MAX;
-    // Forward: the nearest obstacle row at or above, kept per cell.
+    // Forward: the nearest obstacle row at or above, kept per cell in `arg` (which the
+    // backward scan then overwrites with the nearer of the two).
+    let mut arg = vec![NONE; w * h];
     let mut above_row = vec![NONE; w];
-    let mut above = vec![NONE; w * h];
     for y in 0..h {
         let row = &obstacle[y * w..(y + 1) * w];
         for ((last, cell), &o) in above_row
             .iter_mut()
-            .zip(&mut above[y * w..(y + 1) * w])
+            .zip(&mut arg[y * w..(y + 1) * w])
             .zip(row)
         {
             if o {
@@ -134,22 +135,23 @@ fn column_pass(obstacle: &[bool], w: usize, h: usize) -> (Vec<f64>, Vec<u32>) {
     }
     // Backward: the nearest at or below, and the nearer of the two (above on a tie).
     let mut out = vec![f64::INFINITY; w * h];
-    let mut arg = vec![0u32; w * h];
     let mut below_row = vec![NONE; w];
     for y in (0..h).rev() {
         let r = y * w..(y + 1) * w;
-        for (((next, &o), &up), (d, a)) in below_row
+        for ((next, &o), (d, a)) in below_row
             .iter_mut()
             .zip(&obstacle[r.clone()])
-            .zip(&above[r.clone()])
             .zip(out[r.clone()].iter_mut().zip(&mut arg[r]))
         {
             if o {
                 *next = y as u32;
             }
             let yu = y as u32;
-            let p = match (up, *next) {
-                (NONE, NONE) => continue,
+            let p = match (*a, *next) {
+                (NONE, NONE) => {
+                    *a = 0;
+                    continue;
+                }
                 (NONE, down) => down,
                 (up, NONE) => up,
                 (up, down) => {
