@@ -236,3 +236,20 @@ fn laser_odometry_widens_the_preset_window_only() {
             .is_err()
     );
 }
+
+/// `motion.odometry.min-translation` is checked (it was not: `inf` took every step as a
+/// turn in place and the run stood still with exit code 0; NaN and negative values were
+/// taken as they were).
+#[test]
+fn min_translation_outside_its_range_is_rejected() {
+    for v in [f64::NAN, f64::INFINITY, -1.0, 1.5] {
+        let mut c = GridFastConfig::default();
+        c.motion.odometry.min_translation = v;
+        match c.resolve(None) {
+            Err(GridFastError::InvalidConfig(e)) => {
+                assert_eq!(e.field, "motion.odometry.min-translation", "{v}")
+            }
+            other => panic!("min-translation = {v}: {other:?}"),
+        }
+    }
+}

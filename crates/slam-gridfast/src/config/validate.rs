@@ -285,6 +285,13 @@ impl GridFastConfig {
         ]) {
             check(*a >= 0.0, name, *a, ">= 0")?;
         }
+        let t = self.motion.odometry.min_translation;
+        check(
+            (0.0..=slam_models::motion::MAX_MIN_TRANSLATION).contains(&t),
+            "motion.odometry.min-translation",
+            t,
+            "in [0, 1] m (a step shorter than this is taken as a turn in place)",
+        )?;
         check(
             self.motion.min_std[0] > 0.0,
             "motion.min-std[0]",
