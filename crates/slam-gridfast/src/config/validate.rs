@@ -320,6 +320,16 @@ impl GridFastConfig {
             field_radius,
             "between 1 and 15 cells of map.resolution",
         )?;
+        // A range limit below one cell maps and matches nothing: every scan was dropped
+        // and the run ended on an error about its output's empty map.pgm.
+        if let Some(max_range) = self.sensor.max_range {
+            check(
+                max_range >= v(self.map.resolution),
+                "sensor.max-range",
+                max_range,
+                "at least map.resolution (one cell; a shorter limit maps nothing)",
+            )?;
+        }
         check(
             likelihood_radius <= field_radius,
             "matching.likelihood-radius",
