@@ -112,7 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(dir) = map_dir {
         // The best particle's map rendered at 5 cm, as a ROS map_server PGM + YAML.
         std::fs::create_dir_all(&dir)?;
-        slam_io::ros_map::write_ros_map(&dir, "map", &slam.render_map(0.05))?;
+        slam_io::ros_map::write_ros_map(&dir, "map", &slam.render_map(0.05)?)?;
     }
     Ok(())
 }

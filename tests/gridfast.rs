@@ -395,3 +395,38 @@ fn a_far_odometry_jump_in_the_office_is_recovered() {
         "RMSE {without} m without the recovery"
     );
 }
+
+/// Settings a configuration file may give that reach the matcher's corner cases run to the
+/// end of the office's first 180 records (60 scans) instead of killing the process:
+/// `sensor.max-range = 1` m leaves some scans without a usable end point, whose poor match
+/// sent an empty scan to the wide search's lattice (an index out of bounds panic), and
+/// `matching.search-range-xy = 0` with the preset's heading window made the coarse search a
+/// single translation per heading, which the branch and bound halved without end (a stack
+/// overflow that aborted the process).
+#[test]
+fn corner_settings_of_the_matcher_run_to_the_end() {
+    let (records, _) = common::office(0);
+    let records = &records[..180];
+    let mut short_range = GridFastConfig {
+        particles: 4,
+        ..Default::default()
+    };
+    short_range.sensor.max_range = Some(1.0);
+    let mut headings_only = GridFastConfig {
+        particles: 4,
+        ..Default::default()
+    };
+    headings_only.matching.search_range_xy = Some(0.0);
+    for (name, config) in [
+        ("max-range 1 m", short_range),
+        ("search-range-xy 0", headings_only),
+    ] {
+        let (trajectory, processed) = run(records, config, 1);
+        assert_eq!(trajectory.len(), records.len(), "{name}");
+        assert!(processed > 0, "{name}: {processed} updates");
+        assert!(
+            trajectory.iter().all(|p| p.pose.is_finite()),
+            "{name}: a pose is not finite"
+        );
+    }
+}

@@ -19,7 +19,7 @@ pub(crate) struct Loaded<C> {
 }
 
 /// Reads `path` into `C`, or returns `C::default()` when no file is given.
-pub(crate) fn load<C: DeserializeOwned + Default>(
+pub(crate) fn load<C: DeserializeOwned + Serialize + Default>(
     path: Option<&Path>,
 ) -> Result<Loaded<C>, CliError> {
     let Some(path) = path else {
@@ -35,8 +35,20 @@ pub(crate) fn load<C: DeserializeOwned + Default>(
 }
 
 /// Parses TOML `text` (read from `path`, for messages) into `C`.
-pub(crate) fn parse<C: DeserializeOwned>(text: &str, path: &Path) -> Result<Loaded<C>, CliError> {
+/// An array longer than its fixed-size setting is an error naming the key (toml would drop
+/// the extra values silently; [`slam_eval::config_text::overlong_array`]).
+pub(crate) fn parse<C: DeserializeOwned + Serialize>(
+    text: &str,
+    path: &Path,
+) -> Result<Loaded<C>, CliError> {
     let config = toml::from_str::<C>(text).map_err(|e| config_error(text, path, &e))?;
+    if let Some(long) = slam_eval::config_text::overlong_array(text, &config) {
+        return Err(CliError::Config {
+            path: path.to_path_buf(),
+            line: Some(long.line),
+            message: long.to_string(),
+        });
+    }
     Ok(Loaded { config })
 }
 
@@ -86,7 +98,7 @@ mod tests {
     use super::*;
     use serde::Deserialize;
 
-    #[derive(Debug, Default, Deserialize, PartialEq)]
+    #[derive(Debug, Default, Deserialize, Serialize, PartialEq)]
     #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
     struct Demo {
         particles: usize,
@@ -114,7 +126,7 @@ mod tests {
     /// table had it) is refused with the table to move it to.
     #[test]
     fn an_old_flat_association_key_names_the_table() {
-        #[derive(Debug, Default, Deserialize)]
+        #[derive(Debug, Default, Deserialize, Serialize)]
         #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
         struct Holder {
             association: slam_models::association::AssociationOptions,
@@ -150,6 +162,41 @@ mod tests {
         assert!(msg.contains("sigmaa"), "{msg}");
         assert!(msg.contains("line 3"), "{msg}");
         assert!(!msg.contains('\n'), "{msg}");
+    }
+
+    /// An array with more values than its fixed-size setting takes is refused naming the
+    /// file, the line, the key and both counts (toml alone kept the first values and
+    /// dropped the rest: `slam optimize --config` ran with part of a setting ignored).
+    #[test]
+    fn an_overlong_fixed_array_is_refused_naming_the_key() {
+        #[derive(Debug, Default, Deserialize, Serialize)]
+        #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
+        struct Fixed {
+            particles: usize,
+            drift: [f64; 2],
+        }
+        let err = parse::<Fixed>(
+            "particles = 3
+drift = [0.1, 0.2, 0.3]
+",
+            Path::new("x.toml"),
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(
+            err.contains("x.toml")
+                && err.contains("line 2")
+                && err.contains("`drift` takes 2 values, the file gives 3"),
+            "{err}"
+        );
+        let ok: Loaded<Fixed> = parse(
+            "drift = [0.1, 0.2]
+",
+            Path::new("x.toml"),
+        )
+        .unwrap();
+        assert_eq!(ok.config.drift, [0.1, 0.2]);
     }
 
     #[test]

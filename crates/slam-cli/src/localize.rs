@@ -41,7 +41,7 @@ pub struct LocalizeArgs {
     pub ground_truth: Option<PathBuf>,
     /// Distances travelled (m) at which the picture shows the particle cloud, comma separated
     /// (default: the first update, the moment of convergence, the end).
-    #[arg(long, value_name = "M,M,…", value_delimiter = ',')]
+    #[arg(long, value_name = "M,M,…", value_delimiter = ',', value_parser = cloud_distance)]
     pub clouds: Option<Vec<f64>>,
     /// ROS bags: the LaserScan topic.
     #[arg(long, value_name = "TOPIC")]
@@ -70,7 +70,13 @@ pub struct LocalizeArgs {
     pub live_hold: bool,
 }
 
-/// `x,y,theta[,sx,sy,stheta]`: finite numbers, σ ≥ 0.
+/// Bound of `--initial-pose`'s x, y and σx, σy, metres: slam-io's bound of every position
+/// it reads (`slam_io::bounds::MAX_COORD`). `1e300,0,0` was taken and the run ended on an
+/// error about a non-finite pose in its output's staging file, naming no option.
+const MAX_START_METRES: f64 = slam_io::bounds::MAX_COORD;
+
+/// `x,y,theta[,sx,sy,stheta]`: finite numbers, |x|, |y|, σx, σy ≤ 1e6 m, |θ| and σθ ≤ 2π
+/// (beyond a full turn a heading spread says nothing: use `--global`), σ ≥ 0.
 fn initial_pose(s: &str) -> Result<[f64; 6], String> {
     let v: Vec<f64> = s
         .split(',')
@@ -87,7 +93,24 @@ fn initial_pose(s: &str) -> Result<[f64; 6], String> {
         return Err(format!("standard deviations must be >= 0, found {s:?}"));
     }
     out[..v.len()].copy_from_slice(&v);
+    let tau = std::f64::consts::TAU;
+    let [x, y, th, sx, sy, sth] = out;
+    if [x, y, sx, sy].iter().any(|m| m.abs() > MAX_START_METRES) || th.abs() > tau || sth > tau {
+        return Err(format!(
+            "expected |x|, |y|, sx, sy <= 1e6 m and |theta|, stheta <= 2π rad, found {s:?}"
+        ));
+    }
     Ok(out)
+}
+
+/// One `--clouds` distance: finite metres ≥ 0 (`nan` was taken and drew no cloud).
+fn cloud_distance(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!(
+            "expected a finite distance travelled >= 0 m, found {s:?}"
+        )),
+    }
 }
 
 /// One measurement update in metrics.json.
@@ -458,4 +481,41 @@ fn in_file_order(est: &[TimedPose], gt: &[TimedPose]) -> Vec<(usize, usize)> {
         }
     }
     pairs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A start beyond slam-io's position bound, or a heading or heading spread beyond a
+    /// turn, is refused by the option's parser (1e300,0,0 and a σx of 1e300 were taken and
+    /// the run ended on an error about its staging trajectory.tum); bounds are inclusive.
+    #[test]
+    fn initial_pose_is_bounded() {
+        for bad in [
+            "1e300,0,0",
+            "0,-1000001,0",
+            "0,0,7",
+            "0,0,0,1e300,1,1",
+            "0,0,0,1,1,7",
+        ] {
+            let e = initial_pose(bad).unwrap_err();
+            assert!(e.contains("1e6 m") && e.contains(bad), "{bad}: {e}");
+        }
+        assert_eq!(
+            initial_pose("1e6,-1e6,-6.2,1e6,0,6.2").unwrap(),
+            [1e6, -1e6, -6.2, 1e6, 0.0, 6.2]
+        );
+    }
+
+    /// `--clouds` takes finite distances >= 0 (`nan` and `inf` were taken and drew no
+    /// cloud); a distance never reached, as the tests' 1e9, is still taken.
+    #[test]
+    fn cloud_distances_are_finite() {
+        for bad in ["nan", "inf", "-1", "x"] {
+            assert!(cloud_distance(bad).unwrap_err().contains(bad), "{bad}");
+        }
+        assert_eq!(cloud_distance("1e9").unwrap(), 1e9);
+        assert_eq!(cloud_distance(" 0 ").unwrap(), 0.0);
+    }
 }

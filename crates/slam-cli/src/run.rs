@@ -402,6 +402,13 @@ fn run_error(e: RunError) -> CliError {
         RunError::CannotRender { filter, .. } => CliError::InvalidArgument(format!(
             "--map-resolution: filter `{filter}` keeps no scans to re-render its map from (gridfast does)"
         )),
+        RunError::Render {
+            filter,
+            resolution,
+            source,
+        } => CliError::InvalidArgument(format!(
+            "--map-resolution {resolution}: the map of filter `{filter}` cannot be re-rendered on cells this small ({source}); choose a coarser --map-resolution"
+        )),
     }
 }
 

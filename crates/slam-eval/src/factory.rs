@@ -681,8 +681,17 @@ fn parse_table(text: &str) -> Result<toml::Table, FactoryError> {
     toml::from_str::<toml::Table>(text).map_err(|e| toml_error(text, &e))
 }
 
-fn de<C: serde::de::DeserializeOwned>(text: &str) -> Result<C, FactoryError> {
-    toml::from_str::<C>(text).map_err(|e| toml_error(text, &e))
+/// `text` read into `C`, and refused when an array of it is longer than its fixed-size
+/// setting ([`crate::config_text::overlong_array`]: toml drops the extra values silently).
+fn de<C: serde::de::DeserializeOwned + serde::Serialize>(text: &str) -> Result<C, FactoryError> {
+    let config = toml::from_str::<C>(text).map_err(|e| toml_error(text, &e))?;
+    match crate::config_text::overlong_array(text, &config) {
+        Some(long) => Err(FactoryError::Parse {
+            line: Some(long.line),
+            message: long.to_string(),
+        }),
+        None => Ok(config),
+    }
 }
 
 /// The text with a top-level `filter = …` line turned into a comment (same line count, so

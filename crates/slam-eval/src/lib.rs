@@ -21,6 +21,7 @@
 
 #![warn(missing_docs)]
 
+pub mod config_text;
 pub mod error;
 pub mod factory;
 pub mod input;

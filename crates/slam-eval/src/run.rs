@@ -81,6 +81,17 @@ pub enum RunError {
         /// The resolution asked for, metres.
         resolution: f64,
     },
+    /// The filter's map could not be re-rendered at the resolution asked for (a scan would
+    /// make the map larger than the grid's cell bound).
+    #[error("map resolution {resolution} m: filter `{filter}`'s map cannot be re-rendered at this cell size ({source}); choose a coarser --map-resolution")]
+    Render {
+        /// The filter's name.
+        filter: String,
+        /// The resolution asked for, metres.
+        resolution: f64,
+        /// Why: the grid's error.
+        source: FilterError,
+    },
 }
 
 /// What a run is scored against, and how its figures are labelled. `Default`: the dataset's
@@ -458,7 +469,12 @@ pub fn run_scans_observed(
         (Some(map), _) => map,
         (None, Some(res)) => filter
             .render_map(res)
-            .ok_or_else(|| cannot_render(&*filter, res))?,
+            .ok_or_else(|| cannot_render(&*filter, res))?
+            .map_err(|source| RunError::Render {
+                filter: filter.name().to_string(),
+                resolution: res,
+                source,
+            })?,
         (None, None) => unreachable!("own_map is set when map_resolution is not"),
     };
     if trajectory.len() != records.len() {

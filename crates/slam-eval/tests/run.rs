@@ -311,6 +311,56 @@ fn bad_configs_are_clear_errors() {
     assert!(e.contains("fastslam2") && e.contains("particles"), "{e}");
 }
 
+/// An array with more values than its fixed-size setting takes is refused with the key,
+/// the line and both counts, in every filter's table and in `[laser-odometry]` (toml kept
+/// the first values and dropped the rest: `slam run --config` ran with
+/// `extra-motion-noise = [0.0, 0.0, 0.0, 99.0]` and nothing said the 99 was ignored).
+#[test]
+fn an_array_longer_than_its_setting_is_refused() {
+    for (filter, kind, text, line, key) in [
+        (
+            "ekf",
+            DataKind::Landmark,
+            "filter = \"ekf\"\nextra-motion-noise = [0.0, 0.0, 0.0, 99.0]\n",
+            2,
+            "`extra-motion-noise` takes 3 values, the file gives 4",
+        ),
+        (
+            "fastslam2",
+            DataKind::Landmark,
+            "\n[motion.odometry]\nalpha = [0.1, 0.1, 0.1, 0.1, 99.0]\n",
+            3,
+            "`motion.odometry.alpha` takes 4 values, the file gives 5",
+        ),
+        (
+            "graph",
+            DataKind::Laser,
+            "\nloop-group-drift = [0.02, 0.005, 99.0]\n",
+            2,
+            "`loop-group-drift` takes 2 values, the file gives 3",
+        ),
+        (
+            "gridfast",
+            DataKind::Laser,
+            "\n[laser-odometry]\nsearch-prior-std = [0.5, 0.3, 99.0]\n",
+            3,
+            "`laser-odometry.search-prior-std` takes 2 values, the file gives 3",
+        ),
+    ] {
+        let e = FilterConfig::from_toml_for_kind(filter, kind, text)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("line {line}:")) && e.contains(key),
+            "{filter}: {e}"
+        );
+        // The same arrays without the extra value are read.
+        let whole = text.replace(", 99.0]", "]");
+        FilterConfig::from_toml_for_kind(filter, kind, &whole)
+            .unwrap_or_else(|e| panic!("{filter}: {whole}: {e}"));
+    }
+}
+
 #[test]
 fn a_config_file_keeps_its_own_noise_models() {
     let sim = loop_run(5);

@@ -214,28 +214,18 @@ impl FastSlamConfig {
                 "finite and > 0 m",
             ));
         }
-        let s = &self.sensor;
-        for (f, v) in [
-            ("sensor.sigma_range", s.sigma_range),
-            ("sensor.sigma_bearing", s.sigma_bearing),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(bad(f, v, "finite and > 0"));
-            }
-        }
-        let alphas = self
-            .motion
-            .odometry
-            .alpha
-            .iter()
-            .chain(self.motion.velocity.alpha.iter());
-        if alphas.clone().any(|a| !(a.is_finite() && *a >= 0.0)) {
-            return Err(bad(
-                "motion.alpha",
-                format!("{:?}", alphas.collect::<Vec<_>>()),
-                "finite and ≥ 0",
-            ));
-        }
+        // The sensor's and the motion models' own checks (σ, `min-range`, every α,
+        // `min-translation`), as the EKF and the graph make them.
+        let named = |e: slam_models::ModelError| match e {
+            slam_models::ModelError::OutOfRange {
+                name,
+                value,
+                expected,
+            } => bad(name, value, expected),
+            other => FastSlamError::Model(other),
+        };
+        self.sensor.validate().map_err(named)?;
+        self.motion.validate().map_err(named)?;
         Ok(())
     }
 }
@@ -307,6 +297,31 @@ mod tests {
             },
         ] {
             assert!(matches!(c.validate(), Err(FastSlamError::InvalidConfig(_))));
+        }
+    }
+
+    /// The sensor's `min-range` and the odometry model's `min-translation` are checked as
+    /// the EKF checks them (FastSLAM checked σ and α by hand and took a NaN, infinite or
+    /// negative `min-range` and `min-translation` with exit code 0); the error names the key.
+    #[test]
+    fn sensor_and_motion_keys_are_checked_by_name() {
+        for (key, value) in [
+            ("sensor.min-range", f64::NAN),
+            ("sensor.min-range", f64::INFINITY),
+            ("sensor.min-range", -1.0),
+            ("motion.odometry.min-translation", f64::NAN),
+            ("motion.odometry.min-translation", f64::INFINITY),
+            ("motion.odometry.min-translation", -1.0),
+            ("motion.odometry.alpha", -1.0),
+        ] {
+            let mut c = FastSlamConfig::default();
+            match key {
+                "sensor.min-range" => c.sensor.min_range = value,
+                "motion.odometry.min-translation" => c.motion.odometry.min_translation = value,
+                _ => c.motion.odometry.alpha[2] = value,
+            }
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains(key), "{key} = {value}: {e}");
         }
     }
 }

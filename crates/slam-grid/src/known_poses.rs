@@ -9,11 +9,20 @@ use crate::InverseSensorModel;
 use serde::{Deserialize, Serialize};
 use slam_models::{FilterError, GridMap, Pose2, ScanRecord, ScanSlam, ScanUpdateInfo, TimedPose};
 
+/// Finest cell of a known-poses map, metres: the finest resolution a map_server YAML is
+/// read back at (`slam localize`; slam-io's `bounds::RESOLUTION_RANGE`). A finer cell
+/// (`resolution = 1e-300`) ended the run on a cell-index error naming no key.
+pub const MIN_RESOLUTION: f64 = 1e-4;
+/// Coarsest cell of a known-poses map, metres, as the laser graph's `resolution`: one cell
+/// per ten metres is no longer a map of a building (`resolution = 1e300` ended the run on
+/// an error about its picture, naming no key).
+pub const MAX_RESOLUTION: f64 = 10.0;
+
 /// The configuration of [`KnownPoseMapping`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", deny_unknown_fields, default)]
 pub struct KnownPoseConfig {
-    /// Map cell size, metres. Default 0.05 m.
+    /// Map cell size, metres, in [[`MIN_RESOLUTION`], [`MAX_RESOLUTION`]]. Default 0.05 m.
     pub resolution: f64,
     /// Inverse sensor model of the map updates. Default: [`InverseSensorModel::default`]
     /// with `protect_scan_hits` on (as grid FastSLAM maps: grazing beams do not erase the
@@ -66,10 +75,10 @@ impl KnownPoseMapping {
         _seed: u64,
     ) -> Result<Self, GridError> {
         ensure_config(
-            config.resolution > 0.0,
+            (MIN_RESOLUTION..=MAX_RESOLUTION).contains(&config.resolution),
             "resolution",
             config.resolution,
-            "> 0 m",
+            "in [1e-4, 10] m (the finest map a map.yaml is read back at; the laser graph's coarsest)",
         )?;
         if !initial_pose.is_finite() {
             return Err(GridError::NonFinite {
@@ -147,6 +156,29 @@ mod tests {
                 (ap - t * ab).norm()
             })
             .fold(f64::INFINITY, f64::min)
+    }
+
+    /// A cell size outside [1e-4, 10] m is refused naming `resolution` (1e-300 and 1e300
+    /// were taken and the run ended on errors about cell indices or its picture).
+    #[test]
+    fn resolution_outside_its_range_is_refused() {
+        for resolution in [1e-300, 5e-5, 10.5, 1e300, f64::NAN, 0.0] {
+            let config = KnownPoseConfig {
+                resolution,
+                ..KnownPoseConfig::default()
+            };
+            match KnownPoseMapping::new(config, Pose2::IDENTITY, 0) {
+                Err(GridError::InvalidConfig(e)) => assert_eq!(e.field, "resolution"),
+                other => panic!("{resolution}: {:?}", other.err()),
+            }
+        }
+        for resolution in [MIN_RESOLUTION, 0.05, MAX_RESOLUTION] {
+            let config = KnownPoseConfig {
+                resolution,
+                ..KnownPoseConfig::default()
+            };
+            KnownPoseMapping::new(config, Pose2::IDENTITY, 0).unwrap();
+        }
     }
 
     /// Scans simulated from true poses in the synthetic office, given as the odometry:

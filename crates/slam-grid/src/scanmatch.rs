@@ -323,11 +323,14 @@ impl ScanMatchOdometry {
             config.resolution,
             "> 0 m",
         )?;
+        // At least one cell: end points nearer than that all fall in the robot's own cell,
+        // so a shorter limit matches nothing and the run silently kept its odometry
+        // (`match-max-range = 1e-300` with exit code 0).
         ensure_config(
-            config.match_max_range > 0.0,
+            config.match_max_range >= config.resolution,
             "match_max_range",
             config.match_max_range,
-            "> 0 m",
+            "at least resolution (one cell; a shorter limit matches no end point)",
         )?;
         ensure_config(
             config.linear_update >= 0.0,
@@ -767,6 +770,20 @@ mod tests {
                 matches!(&e, GridError::InvalidConfig(c) if c.field == key),
                 "{key}: {e}"
             );
+        }
+        // A match range below one cell matches no end point (`match-max-range = 1e-300`
+        // ran with exit code 0, the output its odometry): refused by key; one cell is taken.
+        for (m, ok) in [(1e-300, false), (0.049, false), (0.05, true)] {
+            let config = ScanMatchConfig {
+                match_max_range: m,
+                ..ScanMatchConfig::default()
+            };
+            match ScanMatchOdometry::new(config, Pose2::IDENTITY, 0) {
+                Err(GridError::InvalidConfig(c)) if !ok => assert_eq!(c.field, "match_max_range"),
+                Ok(_) if ok => {}
+                Err(e) => panic!("match_max_range {m}: {e}"),
+                Ok(_) => panic!("match_max_range {m} taken"),
+            }
         }
         // A window too large for the search's pyramid is refused at the first match, by key.
         let mut config = ScanMatchConfig::default();

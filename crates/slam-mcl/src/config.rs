@@ -265,6 +265,14 @@ impl MclConfig {
         for a in self.motion.alpha {
             ensure_config(a >= 0.0, C, "motion.alpha", a, "finite and >= 0")?;
         }
+        let t = self.motion.min_translation;
+        ensure_config(
+            (0.0..=slam_models::motion::MAX_MIN_TRANSLATION).contains(&t),
+            C,
+            "motion.min_translation",
+            t,
+            "in [0, 1] m (a step shorter than this is taken as a turn in place)",
+        )?;
         let s = &self.sensor;
         ensure_config(
             s.max_beams >= 1,
@@ -511,6 +519,17 @@ mod tests {
         let mut c = MclConfig::default();
         c.recovery.alpha_fast = 0.0005;
         assert_eq!(c.validate().unwrap_err().key(), "recovery.alpha-fast");
+        // `motion.min-translation` was not checked: `inf` took every step as a turn in
+        // place, NaN and negative values were taken as they were.
+        for bad in [f64::INFINITY, f64::NAN, -1.0, 2.0] {
+            let mut c = MclConfig::default();
+            c.motion.min_translation = bad;
+            assert_eq!(
+                c.validate().unwrap_err().key(),
+                "motion.min-translation",
+                "{bad}"
+            );
+        }
         assert!(MclConfig::default().validate().is_ok());
     }
 }

@@ -344,8 +344,10 @@ pub trait ScanSlam: Send {
     /// The current best map re-rendered at `resolution` metres per cell (e.g. 0.01 m for a
     /// filter that matches on 0.05 m cells) from the best trajectory and every scan the
     /// filter kept, or `None` when the filter keeps no scans to re-render from, or when
-    /// `resolution` is not positive and finite. Default: `None`.
-    fn render_map(&self, resolution: f64) -> Option<GridMap> {
+    /// `resolution` is not positive and finite; an error when a kept scan cannot be written
+    /// at this cell size (the map would be too large), rather than a map without it.
+    /// Default: `None`.
+    fn render_map(&self, resolution: f64) -> Option<Result<GridMap, FilterError>> {
         let _ = resolution;
         None
     }

@@ -597,11 +597,11 @@ impl ScanSlam for LaserGraphSlam {
             .unwrap_or_else(|_| GridMap::unknown(self.config.resolution, Point2::origin(), 0, 0))
     }
 
-    fn render_map(&self, resolution: f64) -> Option<GridMap> {
+    fn render_map(&self, resolution: f64) -> Option<Result<GridMap, FilterError>> {
         if !(resolution > 0.0 && resolution.is_finite()) {
             return None;
         }
-        self.render(resolution).ok()
+        self.render(resolution).ok().map(Ok)
     }
 }
 

@@ -87,6 +87,15 @@ impl InverseSensorModel {
             ">= 0 m",
         )?;
         ensure_config(self.min_range >= 0.0, "min_range", self.min_range, ">= 0 m")?;
+        // Jointly: a reading is used only between the two, so min_range ≥ max_range leaves
+        // no reading to map (the run ended on an error about its empty map.pgm, a file of
+        // the output's staging folder, naming no key).
+        ensure_config(
+            self.min_range < self.max_range,
+            "min_range",
+            self.min_range,
+            "below max_range (no reading lies between them otherwise)",
+        )?;
         ensure_config(
             self.hit_margin >= 0.0,
             "hit_margin",

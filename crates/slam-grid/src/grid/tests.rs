@@ -546,3 +546,28 @@ fn obstacle_bounds_is_the_box_of_the_obstacles() {
         }
     }
 }
+
+/// A minimum range at or beyond the maximum leaves no reading to map: refused by key
+/// (`[sensor-model] min-range = 1e300` ended a known-poses run on an error about the
+/// staging folder's empty map.pgm).
+#[test]
+fn min_range_at_or_beyond_max_range_is_refused() {
+    for min_range in [20.0, 21.0, 1e300] {
+        let model = InverseSensorModel {
+            max_range: 20.0,
+            min_range,
+            ..InverseSensorModel::default()
+        };
+        match model.validate() {
+            Err(crate::GridError::InvalidConfig(e)) => assert_eq!(e.field, "min_range"),
+            other => panic!("min_range {min_range}: {other:?}"),
+        }
+    }
+    InverseSensorModel {
+        max_range: 20.0,
+        min_range: 19.9,
+        ..InverseSensorModel::default()
+    }
+    .validate()
+    .unwrap();
+}

@@ -28,7 +28,8 @@ pub struct LaserOdometryConfig {
     /// defaults; its `linear-update` / `angular-update` are the map update thresholds).
     /// Its window search and match range are replaced by this table's `search-range-xy`,
     /// `search-range-theta`, `search-prior-std` and `match-max-range`, and its
-    /// `odometry-jump` is not used.
+    /// `odometry-jump` is not used: giving one of those here is an error naming the key to
+    /// set instead.
     pub matcher: ScanMatchConfig,
     /// The search window around each hypothesis: ± this in x and y, metres. Default 1.5 m
     /// (more than the largest step between the bench logs' keyframes: 1.19 m on Intel).
@@ -169,9 +170,62 @@ impl LaserOdometryConfig {
         }
     }
 
+    /// The `[laser-odometry.matcher]` keys this table replaces ([`Self::matcher_config`])
+    /// or does not use (`odometry-jump`) must keep their defaults: a value given there was
+    /// ignored without a word (NaN and infinities included, since they were never checked).
+    /// The error names the key and the one to set instead.
+    fn check_replaced_matcher_keys(&self) -> Result<(), GridError> {
+        let (m, d) = (&self.matcher, ScanMatchConfig::default());
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+        let replaced: [(&'static str, f64, bool, &'static str); 5] = [
+            (
+                "matcher.matching.search-range-xy",
+                m.matching.search_range_xy,
+                same(m.matching.search_range_xy, d.matching.search_range_xy),
+                "its default (not used: set laser-odometry.search-range-xy)",
+            ),
+            (
+                "matcher.matching.search-range-theta",
+                m.matching.search_range_theta,
+                same(m.matching.search_range_theta, d.matching.search_range_theta),
+                "its default (not used: set laser-odometry.search-range-theta)",
+            ),
+            (
+                "matcher.matching.search-prior-std",
+                m.matching.search_prior_std[0],
+                same(
+                    m.matching.search_prior_std[0],
+                    d.matching.search_prior_std[0],
+                ) && same(
+                    m.matching.search_prior_std[1],
+                    d.matching.search_prior_std[1],
+                ),
+                "its default (not used: set laser-odometry.search-prior-std)",
+            ),
+            (
+                "matcher.match-max-range",
+                m.match_max_range,
+                same(m.match_max_range, d.match_max_range),
+                "its default (not used: set laser-odometry.match-max-range)",
+            ),
+            (
+                "matcher.odometry-jump",
+                m.odometry_jump.max_jump,
+                same(m.odometry_jump.max_jump, d.odometry_jump.max_jump)
+                    && m.odometry_jump.on_jump == d.odometry_jump.on_jump,
+                "its default (laser odometry makes the odometry: no jump limit is used)",
+            ),
+        ];
+        for (key, value, ok, expected) in replaced {
+            ensure_config(ok, key, value, expected)?;
+        }
+        Ok(())
+    }
+
     /// Checks every value (the matcher's by [`ScanMatchOdometry::new`]'s rules), naming the
     /// key that is wrong.
     pub fn validate(&self) -> Result<(), GridError> {
+        self.check_replaced_matcher_keys()?;
         ScanMatchOdometry::new(self.matcher_config(), Pose2::IDENTITY, 0)?;
         let h = &self.hypotheses;
         let repeated = h.iter().enumerate().any(|(i, a)| h[..i].contains(a));

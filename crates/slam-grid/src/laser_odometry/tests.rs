@@ -349,6 +349,31 @@ fn bad_config_is_refused_by_key() {
         ..Default::default()
     };
     assert_eq!(field(config), "matching.search_range_xy");
+    // The matcher's keys this table replaces or does not use were ignored without a word
+    // (`[laser-odometry.matcher] match-max-range = nan` ran with exit code 0): refused.
+    let mut nan_window = LaserOdometryConfig::default();
+    nan_window.matcher.matching.search_range_xy = f64::NAN;
+    let mut theta = LaserOdometryConfig::default();
+    theta.matcher.matching.search_range_theta = 0.2;
+    let mut prior = LaserOdometryConfig::default();
+    prior.matcher.matching.search_prior_std[1] = f64::INFINITY;
+    let mut range = LaserOdometryConfig::default();
+    range.matcher.match_max_range = 50.0;
+    let mut jump = LaserOdometryConfig::default();
+    jump.matcher.odometry_jump.max_jump = 1.0;
+    for (config, key) in [
+        (nan_window, "matcher.matching.search-range-xy"),
+        (theta, "matcher.matching.search-range-theta"),
+        (prior, "matcher.matching.search-prior-std"),
+        (range, "matcher.match-max-range"),
+        (jump, "matcher.odometry-jump"),
+    ] {
+        assert_eq!(field(config), key);
+    }
+    // The matcher's own keys (map, endpoint model) are still read.
+    let mut own = LaserOdometryConfig::default();
+    own.matcher.resolution = 0.1;
+    LaserOdometry::new(own).unwrap();
 }
 
 /// The decision keeps the highest fit and, of equal ones, the first (the default branch).

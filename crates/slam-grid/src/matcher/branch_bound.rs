@@ -119,6 +119,14 @@ impl Lattice {
                 "at most 100000: a larger angular_step or a smaller angular_window",
             )));
         }
+        // Without end points there is nothing to place on the lattice (and no box of cells
+        // to bound a rotation's score by).
+        if points.is_empty() {
+            return Err(GridError::TooFewPoints {
+                found: 0,
+                needed: 1,
+            });
+        }
         let k_max = k_max as i32;
         let n = points.len();
         let rotations = (2 * k_max + 1) as usize;

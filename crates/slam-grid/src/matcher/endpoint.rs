@@ -773,6 +773,15 @@ impl<'a, 'f> CoarseSearch<'a, 'f> {
     /// Depth first through rotation `it`'s block at (i0, j0) of `size` × `size`
     /// translations: the four sub-blocks in order of decreasing bound, single poses scored.
     fn descend(&self, it: i32, i0: i32, j0: i32, size: i32, best: &mut Best) {
+        // A window of one translation (`range_xy` below `step_xy`: a search over headings
+        // only) has a top block of a single pose, which is a leaf: halving it would give
+        // blocks of size 0 and recurse without end.
+        if size <= 1 {
+            if i0 <= self.nxy && j0 <= self.nxy {
+                self.leaf(it, i0, j0, best);
+            }
+            return;
+        }
         let half = size / 2;
         let mut children = [(f64::NEG_INFINITY, 0, 0); 4];
         let mut n = 0;
@@ -1264,5 +1273,46 @@ mod tests {
         }
         // The cases are not all decided by the initial pose.
         assert!(moved >= 20, "{moved} of {cases} searches moved");
+    }
+
+    /// A window of headings only (`range_xy` below `step_xy`: one translation, the
+    /// initial one; gridfast's `matching.search-range-xy = 0` with a heading window) is
+    /// searched as the exhaustive search does. Its top block is a single pose, which the
+    /// branch and bound halved into blocks of size 0 without end (a stack overflow that
+    /// aborted `slam run --filter gridfast` with `[matching] search-range-xy = 0`).
+    #[test]
+    fn a_window_of_headings_only_equals_the_exhaustive_search() {
+        let g = office_map();
+        let field = g.distance_field().unwrap();
+        let world = SegmentWorld::office();
+        let model = EndpointModel::new(0.05, 0.2, 3.0);
+        let truth = Pose2::new(6.0, 4.0, 0.3);
+        let scan = RangeData::new(
+            &world.scan(&truth, 180, std::f64::consts::PI, 30.0),
+            &Default::default(),
+        )
+        .unwrap();
+        let mut moved = 0;
+        for (range_xy, dtheta) in [(0.0, 0.2), (0.04, -0.3), (1e-300, 0.1)] {
+            let initial = Pose2::new(truth.x, truth.y, truth.theta + dtheta);
+            let window = SearchWindow {
+                range_xy,
+                step_xy: 0.05,
+                range_theta: 0.9,
+                step_theta: 0.025,
+                information: Matrix3::zeros(),
+            };
+            let fast = grid_search(&field, &scan, &initial, &model, &window);
+            let slow = grid_search_exhaustive(&field, &scan, &initial, &model, &window);
+            assert_eq!(
+                [fast.x.to_bits(), fast.y.to_bits(), fast.theta.to_bits()],
+                [slow.x.to_bits(), slow.y.to_bits(), slow.theta.to_bits()],
+                "range_xy {range_xy}: {fast:?} against the exhaustive {slow:?}"
+            );
+            assert_eq!((fast.x, fast.y), (initial.x, initial.y));
+            moved += usize::from(fast.theta != initial.theta);
+        }
+        // The heading is searched, not just the initial pose returned.
+        assert_eq!(moved, 3);
     }
 }

@@ -236,3 +236,38 @@ fn laser_odometry_widens_the_preset_window_only() {
             .is_err()
     );
 }
+
+/// `motion.odometry.min-translation` is checked (it was not: `inf` took every step as a
+/// turn in place and the run stood still with exit code 0; NaN and negative values were
+/// taken as they were).
+#[test]
+fn min_translation_outside_its_range_is_rejected() {
+    for v in [f64::NAN, f64::INFINITY, -1.0, 1.5] {
+        let mut c = GridFastConfig::default();
+        c.motion.odometry.min_translation = v;
+        match c.resolve(None) {
+            Err(GridFastError::InvalidConfig(e)) => {
+                assert_eq!(e.field, "motion.odometry.min-translation", "{v}")
+            }
+            other => panic!("min-translation = {v}: {other:?}"),
+        }
+    }
+}
+
+/// A range limit below one map cell is refused by key (`[sensor] max-range = 1e-300` dropped
+/// every scan and the run ended on an error about its output's empty map.pgm); one cell
+/// is taken.
+#[test]
+fn max_range_below_one_cell_is_rejected() {
+    let mut c = GridFastConfig::default();
+    c.map.resolution = Some(0.05);
+    for v in [1e-300, 0.049] {
+        c.sensor.max_range = Some(v);
+        match c.resolve(None) {
+            Err(GridFastError::InvalidConfig(e)) => assert_eq!(e.field, "sensor.max-range", "{v}"),
+            other => panic!("max-range = {v}: {other:?}"),
+        }
+    }
+    c.sensor.max_range = Some(0.05);
+    c.resolve(None).unwrap();
+}

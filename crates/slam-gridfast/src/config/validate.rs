@@ -285,6 +285,13 @@ impl GridFastConfig {
         ]) {
             check(*a >= 0.0, name, *a, ">= 0")?;
         }
+        let t = self.motion.odometry.min_translation;
+        check(
+            (0.0..=slam_models::motion::MAX_MIN_TRANSLATION).contains(&t),
+            "motion.odometry.min-translation",
+            t,
+            "in [0, 1] m (a step shorter than this is taken as a turn in place)",
+        )?;
         check(
             self.motion.min_std[0] > 0.0,
             "motion.min-std[0]",
@@ -313,6 +320,16 @@ impl GridFastConfig {
             field_radius,
             "between 1 and 15 cells of map.resolution",
         )?;
+        // A range limit below one cell maps and matches nothing: every scan was dropped
+        // and the run ended on an error about its output's empty map.pgm.
+        if let Some(max_range) = self.sensor.max_range {
+            check(
+                max_range >= v(self.map.resolution),
+                "sensor.max-range",
+                max_range,
+                "at least map.resolution (one cell; a shorter limit maps nothing)",
+            )?;
+        }
         check(
             likelihood_radius <= field_radius,
             "matching.likelihood-radius",

@@ -252,18 +252,22 @@ impl GridFastSlam {
     /// Re-renders the best particle's map at `resolution` metres per cell (e.g. 0.01 for
     /// a 5 cm matching grid) by integrating every processed scan, as the door classified
     /// it, at the best particle's corrected trajectory, with the same inverse sensor model.
-    /// Returns an empty map for a non-positive or non-finite resolution.
-    pub fn render_map(&self, resolution: f64) -> GridMap {
+    /// Returns an empty map for a non-positive or non-finite resolution, and the grid's
+    /// error when a scan cannot be written at this cell size (the map would pass
+    /// [`slam_grid::grid::MAX_MAP_CELLS`]: [`GridError::MapTooLarge`](slam_grid::GridError)):
+    /// such scans were left out without a word, and a map of none of them was the empty
+    /// map, which `slam run --map-resolution 0.003` reported as an error about its output's
+    /// staging file.
+    pub fn render_map(&self, resolution: f64) -> Result<GridMap, slam_grid::GridError> {
         if !(resolution > 0.0 && resolution.is_finite()) {
-            return GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0);
+            return Ok(GridMap::unknown(0.0, slam_models::Point2::origin(), 0, 0));
         }
         let mut map = OccupancyGrid::new(resolution, self.setup.sensor_model);
         for (pose, scan) in self.best_path().iter().zip(&self.scans) {
-            // Every kept scan passed the door and every path pose is finite; a scan the
-            // map cannot take (beyond its extent) is left out, as before.
-            let _ = map.try_integrate_prepared(pose, scan);
+            // Every kept scan passed the door and every path pose is finite.
+            map.try_integrate_prepared(pose, scan)?;
         }
-        map.to_grid_map()
+        Ok(map.to_grid_map())
     }
 
     fn best_path(&self) -> Vec<Pose2> {

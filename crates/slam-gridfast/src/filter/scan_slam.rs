@@ -62,9 +62,9 @@ impl ScanSlam for GridFastSlam {
 
     /// [`GridFastSlam::render_map`]: every processed scan integrated at the best
     /// particle's corrected trajectory on a grid of `resolution` metres.
-    fn render_map(&self, resolution: f64) -> Option<GridMap> {
+    fn render_map(&self, resolution: f64) -> Option<Result<GridMap, FilterError>> {
         (resolution > 0.0 && resolution.is_finite())
-            .then(|| GridFastSlam::render_map(self, resolution))
+            .then(|| GridFastSlam::render_map(self, resolution).map_err(FilterError::from))
     }
 
     /// [`GridFastSlam::config`]: the effective [`GridFastConfig`].

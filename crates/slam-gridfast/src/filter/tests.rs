@@ -534,7 +534,7 @@ fn render_map_is_finer_and_agrees_with_the_matching_map() {
     f.process(&rec(0.0, Pose2::new(0.2, 0.1, 0.3), true))
         .unwrap();
     let coarse = f.map();
-    let fine = f.render_map(0.01);
+    let fine = f.render_map(0.01).unwrap();
     assert_eq!(fine.resolution, 0.01);
     // The wall at x = 3 m ahead is occupied in both (the hit lands in the cell on
     // either side of x = 3 depending on rounding).
@@ -549,4 +549,11 @@ fn render_map_is_finer_and_agrees_with_the_matching_map() {
     let q = slam_models::Point2::new(1.5, 0.1);
     let (fx, fy) = fine.cell_of(&q).unwrap();
     assert!((0..50).contains(&fine.get(fx, fy).unwrap()));
+    // A cell size at which the scan's 3 m make a map beyond the grid's cell bound is the
+    // grid's error, not a map without the scan (an empty map, before: `slam run
+    // --map-resolution 0.003` on the campus ended on an error about its staging map.pgm).
+    match f.render_map(1e-5) {
+        Err(slam_grid::GridError::MapTooLarge { resolution, .. }) => assert_eq!(resolution, 1e-5),
+        other => panic!("{other:?}"),
+    }
 }

@@ -297,6 +297,11 @@ fn recover(
     m: &EndpointMatch,
 ) -> Option<(EndpointMatch, Matrix3)> {
     let (setup, n) = (step.setup, step.scan.points().len());
+    // A scan without a usable end point (every beam beyond `sensor.max-range`) has nothing
+    // a wider search could fit: the match stands.
+    if n == 0 {
+        return None;
+    }
     let (min_inliers, trigger_inliers) = (setup.min_inliers(n), beams(rc.trigger_fraction, n));
     // Poor: too few beams find the map, counted among all the used beams or among those
     // whose end point lies where the map can say anything ([`observed_beams`]); a match

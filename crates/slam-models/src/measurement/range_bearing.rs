@@ -73,22 +73,33 @@ pub struct InverseRangeBearing {
     pub g_z: Matrix2,
 }
 
+/// Smallest σr (metres) and σφ (radians): a micrometre, a microradian, finer than any
+/// range-bearing sensor, so that the information 1/σ² stays below 1e12. `sigma-bearing =
+/// 1e-300` gave an infinite information and a FastSLAM 2.0 trajectory a thousand
+/// kilometres long, reported as an error about its picture.
+pub const MIN_SIGMA: f64 = 1e-6;
+/// Largest σr, metres: a kilometre, beyond every landmark sensor's reach, so a range
+/// carries some information. `sigma-range = 1e300` squared to an infinite noise and the
+/// run ended on an error about a non-finite landmark in its output's staging file.
+/// (σφ is bounded by π: a bearing spread beyond half a turn says nothing.)
+pub const MAX_SIGMA_RANGE: f64 = 1e3;
+
 impl RangeBearingModel {
-    /// σr, σφ finite and > 0, `min_range` finite and ≥ 0; the error names the field
-    /// (`sensor.sigma_range`, …).
+    /// σr in [[`MIN_SIGMA`], [`MAX_SIGMA_RANGE`]] m, σφ in [[`MIN_SIGMA`], π] rad,
+    /// `min_range` finite and ≥ 0; the error names the field (`sensor.sigma_range`, …).
     pub fn validate(&self) -> Result<(), crate::ModelError> {
         for (name, v, ok, expected) in [
             (
                 "sensor.sigma_range",
                 self.sigma_range,
-                self.sigma_range > 0.0,
-                "finite and > 0",
+                (MIN_SIGMA..=MAX_SIGMA_RANGE).contains(&self.sigma_range),
+                "in [1e-6, 1000] m",
             ),
             (
                 "sensor.sigma_bearing",
                 self.sigma_bearing,
-                self.sigma_bearing > 0.0,
-                "finite and > 0",
+                (MIN_SIGMA..=std::f64::consts::PI).contains(&self.sigma_bearing),
+                "in [1e-6, π] rad",
             ),
             (
                 "sensor.min_range",
@@ -242,6 +253,26 @@ mod tests {
             let z = model.predict(&p, &m).unwrap().z;
             prop_assert!((z[0] - r).abs() < 1e-9);
             prop_assert!(normalize_angle(z[1] - b).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn sigmas_outside_their_range_are_refused_by_name() {
+        for (sr, sb, key) in [
+            (1e300, 0.05, "sensor.sigma_range"),
+            (1e-300, 0.05, "sensor.sigma_range"),
+            (1001.0, 0.05, "sensor.sigma_range"),
+            (0.1, 1e300, "sensor.sigma_bearing"),
+            (0.1, 1e-300, "sensor.sigma_bearing"),
+            (0.1, 3.2, "sensor.sigma_bearing"),
+        ] {
+            match RangeBearingModel::new(sr, sb).validate() {
+                Err(crate::ModelError::OutOfRange { name, .. }) => assert_eq!(name, key),
+                other => panic!("{sr}, {sb}: {other:?}"),
+            }
+        }
+        for (sr, sb) in [(MIN_SIGMA, MIN_SIGMA), (0.1, 0.05), (MAX_SIGMA_RANGE, PI)] {
+            RangeBearingModel::new(sr, sb).validate().unwrap();
         }
     }
 

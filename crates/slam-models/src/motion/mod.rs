@@ -38,6 +38,12 @@ pub trait MotionModel {
     fn sample<R: Rng + ?Sized>(&self, pose: &Pose2, u: &Self::Control, rng: &mut R) -> Pose2;
 }
 
+/// Upper bound of [`OdometryModel::min_translation`], metres. A step shorter than the
+/// threshold is taken as a turn in place (its translation dropped); odometry records are
+/// centimetres to decimetres apart, so a threshold beyond a metre would drop the robot's
+/// motion altogether (`inf` left every run standing still, with exit code 0).
+pub const MAX_MIN_TRANSLATION: f64 = 1.0;
+
 /// One velocity model and one odometry model; the filters hold this and call it with
 /// whatever [`Control`] the data provides.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -50,8 +56,17 @@ pub struct MotionModels {
 }
 
 impl MotionModels {
-    /// Every α finite and ≥ 0; the error names the table (`motion.odometry.alpha`, …).
+    /// Every α finite and ≥ 0, and the odometry model's `min-translation` in
+    /// [0, [`MAX_MIN_TRANSLATION`]] m; the error names the key (`motion.odometry.alpha`, …).
     pub fn validate(&self) -> Result<(), crate::ModelError> {
+        let t = self.odometry.min_translation;
+        if !(0.0..=MAX_MIN_TRANSLATION).contains(&t) {
+            return Err(crate::ModelError::OutOfRange {
+                name: "motion.odometry.min_translation",
+                value: t,
+                expected: "in [0, 1] m (a step shorter than this is taken as a turn in place)",
+            });
+        }
         let alphas = self
             .odometry
             .alpha

@@ -166,6 +166,35 @@ mod tests {
         (-20.0..20.0f64, -20.0..20.0f64, theta).prop_map(|(x, y, t)| Pose2::new(x, y, t))
     }
 
+    /// `min-translation` is validated (it was not: `inf` took every step as a turn in place
+    /// and a run stood still with exit code 0; NaN and negative values were taken too).
+    #[test]
+    fn min_translation_outside_its_range_is_refused_by_name() {
+        for bad in [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            -1e-9,
+            1.5,
+            1e300,
+        ] {
+            let mut m = crate::motion::MotionModels::default();
+            m.odometry.min_translation = bad;
+            match m.validate() {
+                Err(crate::ModelError::OutOfRange { name, value, .. }) => {
+                    assert_eq!(name, "motion.odometry.min_translation");
+                    assert_eq!(value.to_bits(), bad.to_bits());
+                }
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
+        for good in [0.0, 1e-3, crate::motion::MAX_MIN_TRANSLATION] {
+            let mut m = crate::motion::MotionModels::default();
+            m.odometry.min_translation = good;
+            m.validate().unwrap();
+        }
+    }
+
     fn control_strategy() -> impl Strategy<Value = OdometryControl> {
         (-PI..PI, prop_oneof![-2.0..2.0f64, Just(0.0)], -PI..PI)
             .prop_map(|(rot1, trans, rot2)| OdometryControl { rot1, trans, rot2 })

@@ -12,7 +12,14 @@ impl LaserGraphConfig {
         self.sensor_model.validate()?;
         self.likelihood.validate()?;
         let m = self.match_max_range;
-        ensure(m > 0.0, "match-max-range", m, "> 0 m")?;
+        // At least one cell: a shorter limit matches no end point, and the run silently
+        // kept its odometry (`match-max-range = 1e-300` with exit code 0).
+        ensure(
+            m >= r,
+            "match-max-range",
+            m,
+            "at least resolution (one cell; a shorter limit matches no end point)",
+        )?;
         let d = self.keyframe_distance;
         ensure(d >= 0.0, "keyframe-distance", d, ">= 0 m")?;
         let a = self.keyframe_angle;
@@ -215,6 +222,14 @@ mod tests {
                     ..Default::default()
                 },
                 "submap-scans",
+            ),
+            // Below one cell no end point is matched (1e-300 ran with exit code 0).
+            (
+                LaserGraphConfig {
+                    match_max_range: 1e-300,
+                    ..Default::default()
+                },
+                "match-max-range",
             ),
             (
                 LaserGraphConfig {
