@@ -95,7 +95,7 @@ impl Default for MatchCovariance {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default, rename_all = "kebab-case")]
 pub struct LaserGraphConfig {
-    /// Cell edge of the submaps and of the rendered map, metres. Default 0.05.
+    /// Cell edge of the submaps and of the rendered map, metres, in [1e-4, 10]. Default 0.05.
     pub resolution: f64,
     /// Inverse sensor model of the submaps (slam-grid's defaults).
     pub sensor_model: InverseSensorModel,

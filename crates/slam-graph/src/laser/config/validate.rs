@@ -8,7 +8,14 @@ impl LaserGraphConfig {
     /// value and the bound.
     pub fn validate(&self) -> Result<(), GraphError> {
         let r = self.resolution;
-        ensure(r > 0.0 && r <= 10.0, "resolution", r, "in (0, 10] m")?;
+        // From 0.1 mm (the finest map.yaml resolution slam-io reads back, as known-poses'
+        // bound): finer cells put every end point at a cell index beyond the grid's.
+        ensure(
+            (1e-4..=10.0).contains(&r),
+            "resolution",
+            r,
+            "in [1e-4, 10] m",
+        )?;
         self.sensor_model.validate()?;
         self.likelihood.validate()?;
         let m = self.match_max_range;
@@ -212,6 +219,13 @@ mod tests {
             (
                 LaserGraphConfig {
                     resolution: 0.0,
+                    ..Default::default()
+                },
+                "resolution",
+            ),
+            (
+                LaserGraphConfig {
+                    resolution: 1e-300,
                     ..Default::default()
                 },
                 "resolution",
