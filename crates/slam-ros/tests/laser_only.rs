@@ -39,35 +39,16 @@ fn laser_only_node_matches_the_offline_laser_only_run() {
     assert!(raw.records.len() >= SCANS);
     assert!(raw.records.iter().all(|r| r.scan.is_some()));
     raw.records.truncate(SCANS);
-    // Offline: `slam run`'s input of a recording with no odometry.
-    let mut offline_input = input::Input {
-        name: "intel-laser-only".into(),
-        label: "intel-laser-only".into(),
-        description: String::new(),
-        times_are_indices: false,
-        simulated: false,
-        data: InputData::Laser(raw.clone()),
-        laser_odometry: None,
-    };
-    input::withhold_odometry(
-        &mut offline_input,
-        &[],
-        input::NoOdometry::InRecording,
-        &Default::default(),
-    )
-    .unwrap();
-    let InputData::Laser(offline) = &offline_input.data else {
-        panic!("laser data expected")
-    };
+    let offline = offline_odometry("intel-laser-only", &raw);
     for name in ["scanmatch", "gridfast"] {
-        let (node, records) = through_the_node(name, &raw.records[..SCANS]);
-        let off = offline_run(name, &offline.records[..SCANS]);
+        let (node, records) = through_the_node(name, &raw.records[..SCANS], &Default::default());
+        let off = offline_run(name, &offline[..SCANS]);
         assert_same_run(
             name,
             node.as_ref(),
             &records,
             off.as_ref(),
-            &offline.records[..SCANS],
+            &offline[..SCANS],
         );
         // The robot moved: the laser odometry is not the origin held.
         let a = node.pose();
@@ -81,24 +62,22 @@ fn laser_only_node_matches_the_offline_laser_only_run() {
 fn through_the_node(
     name: &str,
     raw: &[slam_models::ScanRecord],
+    laser: &slam_grid::LaserOdometryConfig,
 ) -> (Box<dyn ScanSlam>, Vec<slam_models::ScanRecord>) {
     let mut node = filter(name);
-    let mut stepper = ScanStepper::new(&OdomSource::None, &Default::default()).unwrap();
+    let mut stepper = ScanStepper::new(&OdomSource::None, laser).unwrap();
     assert!(stepper.laser_only());
     let mut given = Vec::new();
     for (k, r) in raw.iter().enumerate() {
         let scan = r.scan.as_ref().unwrap();
-        let stamp = ros_msg::stamp(r.t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
-        let msg =
-            ros_msg::decode_laser_scan(&ros_msg::encode_laser_scan(stamp, "laser", scan)).unwrap();
         let odd = Pose2::new(100.0 + k as f64, -5.0, 1.0);
         given.extend(
             stepper
-                .step(node.as_mut(), &msg, odd, scan.sensor_pose)
+                .step(node.as_mut(), &message(r), odd, scan.sensor_pose)
                 .unwrap(),
         );
-        // A scan waits at most `branch-lag` scans for its pose.
-        assert!(stepper.waiting() <= slam_grid::LaserOdometryConfig::default().branch_lag);
+        // A scan waits at most `branch-lag` scans for its pose (with 0, not at all).
+        assert!(stepper.waiting() <= laser.branch_lag);
         assert_eq!(given.len() + stepper.waiting(), k + 1);
     }
     given.extend(stepper.finish(node.as_mut()).unwrap());
@@ -113,6 +92,39 @@ fn offline_run(name: &str, records: &[slam_models::ScanRecord]) -> Box<dyn ScanS
         off.process(r).unwrap();
     }
     off
+}
+
+/// The odometry `slam run` makes for `raw` read as a recording without any (slam-eval's
+/// `withhold_odometry`: laser odometry over the records), one record per record of `raw`.
+fn offline_odometry(name: &str, raw: &slam_io::ScanDataset) -> Vec<slam_models::ScanRecord> {
+    let mut input = input::Input {
+        name: name.into(),
+        label: name.into(),
+        description: String::new(),
+        times_are_indices: false,
+        simulated: false,
+        data: InputData::Laser(raw.clone()),
+        laser_odometry: None,
+    };
+    input::withhold_odometry(
+        &mut input,
+        &[],
+        input::NoOdometry::InRecording,
+        &Default::default(),
+    )
+    .unwrap();
+    let InputData::Laser(offline) = input.data else {
+        panic!("laser data expected")
+    };
+    offline.records
+}
+
+/// Record `r`'s scan as the node receives it: a `sensor_msgs/LaserScan` message (f32 ranges
+/// and angles, the stamp in nanoseconds).
+fn message(r: &slam_models::ScanRecord) -> ros_msg::ScanMsg {
+    let stamp = ros_msg::stamp(r.t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
+    let scan = r.scan.as_ref().expect("a scan record");
+    ros_msg::decode_laser_scan(&ros_msg::encode_laser_scan(stamp, "laser", scan)).unwrap()
 }
 
 /// Every record's odometry, the final pose and the map agree to 1e-9.
@@ -156,71 +168,30 @@ fn laser_only_node_follows_branches_like_slam_run() {
         return;
     };
     let mut raw = slam_io::carmen::read_carmen(&log).unwrap().dataset;
-    // The scans as the node sees them: through a LaserScan message (f32 ranges and angles).
+    // The scans as the node sees them: through a LaserScan message.
     raw.records.retain(|r| r.scan.is_some());
     for r in &mut raw.records {
-        let scan = r.scan.as_ref().unwrap();
-        let stamp = ros_msg::stamp(r.t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
-        let msg =
-            ros_msg::decode_laser_scan(&ros_msg::encode_laser_scan(stamp, "laser", scan)).unwrap();
-        r.scan = Some(slam_ros::convert::scan_from_msg(&msg, scan.sensor_pose));
+        let sensor_pose = r.scan.as_ref().unwrap().sensor_pose;
+        r.scan = Some(slam_ros::convert::scan_from_msg(&message(r), sensor_pose));
     }
-    let mut offline_input = input::Input {
-        name: "csail".into(),
-        label: "csail".into(),
-        description: String::new(),
-        times_are_indices: false,
-        simulated: false,
-        data: InputData::Laser(raw.clone()),
-        laser_odometry: None,
-    };
-    input::withhold_odometry(
-        &mut offline_input,
-        &[],
-        input::NoOdometry::InRecording,
-        &Default::default(),
-    )
-    .unwrap();
-    let InputData::Laser(offline) = &offline_input.data else {
-        panic!("laser data expected")
-    };
-    let scans: Vec<slam_models::ScanRecord> = raw
-        .records
-        .into_iter()
-        .filter(|r| r.scan.is_some())
-        .collect();
-    let offline: Vec<slam_models::ScanRecord> = offline
-        .records
-        .iter()
-        .filter(|r| r.scan.is_some())
-        .cloned()
-        .collect();
-    let (node, given) = through_the_node("scanmatch", &scans);
+    let offline = offline_odometry("csail", &raw);
+    let (node, given) = through_the_node("scanmatch", &raw.records, &Default::default());
     let off = offline_run("scanmatch", &offline);
     assert_same_run("scanmatch", node.as_ref(), &given, off.as_ref(), &offline);
-    // The branches mattered here: decided at once, the node's odometry is another.
-    let mut at_once = ScanStepper::new(
-        &OdomSource::None,
-        &slam_grid::LaserOdometryConfig {
-            branch_lag: 0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let mut f = filter("scanmatch");
-    let mut apart = 0.0f64;
-    for (r, o) in scans.iter().zip(&offline) {
-        let scan = r.scan.as_ref().unwrap();
-        let stamp = ros_msg::stamp(r.t).unwrap_or(Stamp { sec: 0, nanosec: 0 });
-        let msg =
-            ros_msg::decode_laser_scan(&ros_msg::encode_laser_scan(stamp, "laser", scan)).unwrap();
-        let recs = at_once
-            .step(f.as_mut(), &msg, Pose2::IDENTITY, scan.sensor_pose)
-            .unwrap();
-        assert_eq!(recs.len(), 1, "no lag, no wait");
-        let d = recs[0].odometry.between(&o.odometry);
-        apart = apart.max(d.x.hypot(d.y));
-    }
+    // The branches mattered here: decided at once (no scan waits), the odometry is another.
+    let at_once = slam_grid::LaserOdometryConfig {
+        branch_lag: 0,
+        ..Default::default()
+    };
+    let (_, single) = through_the_node("scanmatch", &raw.records, &at_once);
+    let apart = single
+        .iter()
+        .zip(&offline)
+        .map(|(s, o)| {
+            let d = s.odometry.between(&o.odometry);
+            d.x.hypot(d.y)
+        })
+        .fold(0.0, f64::max);
     assert!(
         apart > 1.0,
         "single decisions within {apart} m of the branches'"
@@ -257,13 +228,7 @@ fn odometry_from_a_topic_is_taken_as_given() {
     let Dataset::Scan(raw) = raw else {
         panic!("laser data expected")
     };
-    let scan = raw.records[0].scan.as_ref().unwrap();
-    let msg = ros_msg::decode_laser_scan(&ros_msg::encode_laser_scan(
-        ros_msg::stamp(1.0).unwrap(),
-        "laser",
-        scan,
-    ))
-    .unwrap();
+    let msg = message(&raw.records[0]);
     let mut f = filter("scanmatch");
     let given = Pose2::new(1.0, 2.0, 0.3);
     let rec = stepper
